@@ -1,0 +1,29 @@
+"""The session: a folder with an embedded SQLite store holding logs, labels and model versions.
+
+Knows nothing of training, labelling strategies or the UI; ``workbench`` composes them.
+"""
+
+from .errors import IngestError, LabelError, SessionError, WorkbenchError
+from .ingest import IngestOptions, Mapping, load_mapping
+from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
+from .schema import DEFAULT_TERRAINS, SCHEMA_VERSION
+from .store import Session
+
+__all__ = [
+    "DEFAULT_TERRAINS",
+    "SCHEMA_VERSION",
+    "Channel",
+    "Gap",
+    "HistoryEntry",
+    "IngestError",
+    "IngestOptions",
+    "LabelError",
+    "LogInfo",
+    "Mapping",
+    "Segment",
+    "Session",
+    "SessionError",
+    "Terrain",
+    "WorkbenchError",
+    "load_mapping",
+]

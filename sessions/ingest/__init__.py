@@ -1,0 +1,22 @@
+"""Readers for robot logs (ROS 2 MCAP, QCAT / BorealTC / generic CSV) and alignment onto one time base."""
+
+from .align import AlignedLog, align
+from .base import ChannelSpec, IngestOptions, Mapping, ParsedLog, Stream, load_mapping
+from .mcap_reader import TopicReport, read_mcap
+from .sources import Source, plan_sources, read_source
+
+__all__ = [
+    "AlignedLog",
+    "ChannelSpec",
+    "IngestOptions",
+    "Mapping",
+    "ParsedLog",
+    "Source",
+    "Stream",
+    "TopicReport",
+    "align",
+    "load_mapping",
+    "plan_sources",
+    "read_mcap",
+    "read_source",
+]

@@ -1,0 +1,292 @@
+"""Read CSV logs: the QCAT layout, the BorealTC layout, and generic time + numeric channel files."""
+
+from __future__ import annotations
+
+import csv
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import IngestError
+from .base import TIME_UNITS, IngestOptions, ParsedLog, Stream
+
+# QCAT (CSIRO, DyRET robot): `{terrain}_{speed}_legSensors_{raw|imu}.csv`, the terrain given as an index.
+QCAT_TERRAINS = ("concrete", "grass", "gravel", "mulch", "dirt", "sand")
+QCAT_RE = re.compile(r"^(?P<terrain>[A-Za-z0-9]+)_(?P<speed>\d+)_legSensors_(?P<kind>raw|imu)\.csv$")
+QCAT_TRIAL_COLUMN = 3  # columns 0..3 are bookkeeping, the 4th holds the trial number
+QCAT_WIDTH = {"raw": 12, "imu": 10}
+QCAT_DEFAULT_RATE_HZ = 100.0  # used only when a QCAT file has no time column
+QCAT_FORCE_NAMES = tuple(f"{foot}/force.{a}" for foot in ("fr", "fl", "br", "bl") for a in "xyz")
+QCAT_IMU_NAMES = (
+    *(f"imu/linear_acceleration.{a}" for a in "xyz"),
+    *(f"imu/angular_velocity.{a}" for a in "xyz"),
+    *(f"imu/orientation.{a}" for a in "xyzw"),
+)
+QCAT_IMU_UNITS = ("m/s²",) * 3 + ("rad/s",) * 3 + ("1",) * 4
+
+# BorealTC (Husky A200): `CLASS/imu_NN.csv` (100 Hz) and `CLASS/pro_NN.csv` (~6.5 Hz) on one clock.
+BOREAL_RE = re.compile(r"^(?P<kind>imu|pro)_(?P<run>\d+)\.csv$")
+BOREAL_HEADERS = {
+    "imu": ["time", "wx", "wy", "wz", "ax", "ay", "az"],
+    "pro": ["time", "curL", "curR", "velL", "velR"],
+}
+BOREAL_UNITS = {
+    "wx": "rad/s",
+    "wy": "rad/s",
+    "wz": "rad/s",
+    "ax": "m/s²",
+    "ay": "m/s²",
+    "az": "m/s²",
+    "curL": "A",
+    "curR": "A",
+    "velL": "m/s",
+    "velR": "m/s",
+}
+
+TIME_NAMES = ("time", "timestamp", "t", "stamp", "time_s", "sec", "seconds")
+
+
+def _first_line(path: Path) -> str:
+    with open(path, encoding="utf-8-sig", errors="replace", newline="") as f:
+        return f.readline(1 << 16)
+
+
+def is_borealtc(path: Path) -> bool:
+    m = BOREAL_RE.match(path.name)
+    if not m:
+        return False
+    header = [h.strip() for h in _first_line(path).strip().split(",")]
+    return header == BOREAL_HEADERS[m["kind"]]
+
+
+def is_qcat(path: Path) -> bool:
+    return QCAT_RE.match(path.name) is not None
+
+
+def _read_frame(path: Path, *, header: bool | None, names: tuple[str, ...] = ()) -> pd.DataFrame:
+    """Read a CSV as strings, so that bad cells can be reported by row and column."""
+    if path.stat().st_size == 0:
+        raise IngestError(path, "empty file")
+    if header is None:
+        first = next(csv.reader([_first_line(path)]), [])
+        header = any(_not_number(c) for c in first if c.strip())
+    try:
+        frame = pd.read_csv(
+            path,
+            header=0 if header else None,
+            names=list(names) if names else None,
+            dtype=str,
+            keep_default_na=False,
+            encoding="utf-8-sig",
+            skipinitialspace=True,
+            on_bad_lines="error",
+        )
+    except pd.errors.EmptyDataError:
+        raise IngestError(path, "empty file") from None
+    except pd.errors.ParserError as exc:
+        raise IngestError(path, f"malformed CSV: {str(exc).strip()}") from None
+    except UnicodeDecodeError as exc:
+        raise IngestError(path, f"not UTF-8 text: {exc.reason}", where=f"byte {exc.start}") from None
+    if frame.empty:
+        raise IngestError(path, "no data rows")
+    frame.columns = [str(c).strip() for c in frame.columns]
+    frame.attrs["first_data_line"] = 2 if header else 1
+    return frame
+
+
+def _not_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return True
+    return False
+
+
+def _numeric(path: Path, frame: pd.DataFrame, columns: list[str], *, allow_gaps: bool) -> np.ndarray:
+    """``(N, K)`` float64 of ``columns``; text is refused, empty/NaN/inf refused unless ``allow_gaps`` (then NaN)."""
+    line0 = frame.attrs.get("first_data_line", 2)
+    out = np.empty((len(frame), len(columns)), dtype=np.float64)
+    for j, col in enumerate(columns):
+        raw = frame[col].str.strip()
+        values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
+        lower = raw.str.lower()
+        special = raw.eq("") | lower.isin(["nan", "inf", "+inf", "-inf", "infinity", "-infinity", "+infinity"])
+        text = np.isnan(values) & ~special.to_numpy()
+        if text.any():
+            i = int(np.argmax(text))
+            raise IngestError(path, f"text {raw.iloc[i][:40]!r} in numeric column {col!r}", where=f"line {line0 + i}")
+        bad = ~np.isfinite(values)
+        if bad.any() and not allow_gaps:
+            i = int(np.argmax(bad))
+            what = "empty cell" if raw.iloc[i] == "" else f"{raw.iloc[i]!r}"
+            raise IngestError(
+                path,
+                f"{what} in column {col!r} (use --allow-gaps to record it as a gap)",
+                where=f"line {line0 + i}",
+            )
+        out[:, j] = values
+    return out
+
+
+def _times(path: Path, frame: pd.DataFrame, column: str, scale: float) -> np.ndarray:
+    """Seconds from a time column; refuses gaps in time and time going backwards."""
+    line0 = frame.attrs.get("first_data_line", 2)
+    times = _numeric(path, frame, [column], allow_gaps=False)[:, 0] * scale
+    back = np.flatnonzero(np.diff(times) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise IngestError(
+            path,
+            f"time goes backwards in column {column!r} ({times[i]:.6g} after {times[i - 1]:.6g})",
+            where=f"line {line0 + i}",
+        )
+    return times
+
+
+def _stream(
+    path: Path,
+    name: str,
+    times: np.ndarray,
+    values: np.ndarray,
+    cols: list[str],
+    channels: tuple[str, ...],
+    units: tuple[str, ...],
+) -> Stream:
+    keep = np.isfinite(values).all(axis=1)  # rows with NaN become holes, recorded as gaps by alignment
+    return Stream(name, times[keep], values[keep], channels, units, tuple(f"{path.name}:{c}" for c in cols))
+
+
+def read_borealtc(paths: list[Path], options: IngestOptions) -> ParsedLog:
+    """One BorealTC run: ``imu_NN.csv`` and/or ``pro_NN.csv`` from one terrain folder."""
+    streams = []
+    run = ""
+    for path in sorted(paths, key=lambda p: p.name):
+        m = BOREAL_RE.match(path.name)
+        assert m is not None
+        kind, run = m["kind"], m["run"]
+        frame = _read_frame(path, header=True)
+        expected = BOREAL_HEADERS[kind]
+        if list(frame.columns) != expected:
+            raise IngestError(path, f"expected columns {','.join(expected)}, found {','.join(frame.columns)}")
+        cols = expected[1:]
+        times = _times(path, frame, "time", 1.0)
+        values = _numeric(path, frame, cols, allow_gaps=options.allow_gaps)
+        streams.append(
+            _stream(
+                path,
+                kind,
+                times,
+                values,
+                cols,
+                tuple(f"{kind}/{c}" for c in cols),
+                tuple(BOREAL_UNITS[c] for c in cols),
+            )
+        )
+    terrain = paths[0].parent.name
+    return ParsedLog(
+        name=f"{terrain}_{run}",
+        source_path=str(paths[0]),
+        files=tuple(str(p) for p in paths),
+        format="borealtc",
+        streams=tuple(streams),
+        reference_terrain=terrain.lower(),
+    )
+
+
+def _qcat_terrain(token: str) -> str:
+    if token.isdigit() and int(token) < len(QCAT_TERRAINS):
+        return QCAT_TERRAINS[int(token)]
+    return token.lower()
+
+
+def read_qcat(paths: list[Path], options: IngestOptions) -> list[ParsedLog]:
+    """QCAT files of one terrain and speed (``_raw`` forces and/or ``_imu``); one log per trial."""
+    per_kind: dict[str, tuple[Path, pd.DataFrame]] = {}
+    m = None
+    for path in paths:
+        m = QCAT_RE.match(path.name)
+        assert m is not None
+        frame = _read_frame(path, header=options.mapping.header)
+        width = QCAT_WIDTH[m["kind"]]
+        if frame.shape[1] != QCAT_TRIAL_COLUMN + 1 + width:
+            raise IngestError(
+                path,
+                f"expected {QCAT_TRIAL_COLUMN + 1 + width} columns (4 bookkeeping + {width} {m['kind']} values), "
+                f"found {frame.shape[1]}",
+            )
+        per_kind[m["kind"]] = (path, frame)
+    assert m is not None
+    terrain, speed = _qcat_terrain(m["terrain"]), m["speed"]
+    rate = options.mapping.sample_rate_hz or QCAT_DEFAULT_RATE_HZ
+    trials: dict[int, list[Stream]] = {}
+    for kind, (path, frame) in sorted(per_kind.items()):
+        cols = list(frame.columns)
+        meta, signal = cols[: QCAT_TRIAL_COLUMN + 1], cols[QCAT_TRIAL_COLUMN + 1 :]
+        trial = _numeric(path, frame, [meta[QCAT_TRIAL_COLUMN]], allow_gaps=False)[:, 0].astype(int)
+        values = _numeric(path, frame, signal, allow_gaps=options.allow_gaps)
+        time_col = next((c for c in meta if c.lower() in TIME_NAMES or "time" in c.lower()), None)
+        names, units = (QCAT_FORCE_NAMES, ("N",) * 12) if kind == "raw" else (QCAT_IMU_NAMES, QCAT_IMU_UNITS)
+        for k in np.unique(trial):
+            rows = np.flatnonzero(trial == k)
+            if time_col is not None:
+                times = _times(path, frame.iloc[rows], time_col, TIME_UNITS[options.mapping.time_unit])
+                times = times - times[0]
+            else:
+                times = np.arange(len(rows), dtype=np.float64) / rate
+            trials.setdefault(int(k), []).append(
+                _stream(path, "forces" if kind == "raw" else "imu", times, values[rows], signal, names, units)
+            )
+    stem = f"{terrain}_{speed}"
+    return [
+        ParsedLog(
+            name=f"{stem}_trial{k}",
+            source_path=str(paths[0]),
+            files=tuple(str(p) for p in paths),
+            format="qcat",
+            streams=tuple(streams),
+            reference_terrain=terrain,
+        )
+        for k, streams in sorted(trials.items())
+    ]
+
+
+def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
+    """A time column plus numeric channels; names, time column and unit from the mapping where given."""
+    mapping = options.mapping
+    frame = _read_frame(path, header=mapping.header, names=mapping.columns)
+    cols = list(frame.columns)
+    if mapping.time_column is not None:
+        tc = mapping.time_column
+        if isinstance(tc, int):
+            if not 0 <= tc < len(cols):
+                raise IngestError(path, f"time column index {tc} is out of range ({len(cols)} columns)")
+            time_col = cols[tc]
+        elif tc in cols:
+            time_col = tc
+        else:
+            raise IngestError(path, f"time column {tc!r} not found; columns: {', '.join(map(str, cols))}")
+    else:
+        time_col = next((c for c in cols if str(c).lower() in TIME_NAMES), cols[0])
+    if mapping.channels:
+        missing = [s.source for s in mapping.channels if s.source not in cols]
+        if missing:
+            raise IngestError(path, f"missing columns named in the mapping: {', '.join(missing)}")
+        chans = [s.source for s in mapping.channels]
+        names = tuple(s.name or s.source for s in mapping.channels)
+        units = tuple(s.unit for s in mapping.channels)
+    else:
+        chans = [c for c in cols if c != time_col and c not in mapping.ignore]
+        names, units = tuple(str(c) for c in chans), ("",) * len(chans)
+    if not chans:
+        raise IngestError(path, "no channel columns besides the time column")
+    times = _times(path, frame, time_col, TIME_UNITS[mapping.time_unit])
+    values = _numeric(path, frame, chans, allow_gaps=options.allow_gaps)
+    return ParsedLog(
+        name=path.stem,
+        source_path=str(path),
+        files=(str(path),),
+        format="csv",
+        streams=(_stream(path, path.stem, times, values, chans, names, units),),
+    )

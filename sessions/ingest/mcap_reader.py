@@ -1,0 +1,276 @@
+"""Read sensor streams from MCAP files recorded by ROS 2 (CDR) or holding JSON-encoded channels."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import IngestError
+from .base import ChannelSpec, IngestOptions, ParsedLog, Stream
+from .fields import FieldSpec, format_path, get, infer_fields, parse_path, stamp_seconds
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+@dataclass
+class _Topic:
+    """What we learned about one topic while reading, and its samples so far."""
+
+    topic: str
+    schema: str
+    fields: list[FieldSpec] = field(default_factory=list)
+    decode: Callable[[bytes], object] | None = None
+    unusable: str | None = None  # why the topic gives no channels
+    times: list[float] = field(default_factory=list)
+    rows: list[list[float]] = field(default_factory=list)
+    dropped: int = 0
+
+
+@dataclass(frozen=True)
+class TopicReport:
+    """For --dry-run: what a topic gives, or why it gives nothing."""
+
+    topic: str
+    schema: str
+    messages: int
+    channels: tuple[tuple[str, str, str], ...]  # (field, unit, ...) for usable topics
+    unusable: str | None
+
+
+def _decoder_for(encoding: str, schema) -> Callable[[bytes], object]:
+    if encoding == "json":
+        return lambda data: json.loads(data)
+    if encoding == "cdr":
+        if schema is None or schema.encoding != "ros2msg":
+            raise ValueError(
+                f"CDR channel without a ros2msg schema (schema encoding {getattr(schema, 'encoding', None)!r})"
+            )
+        from mcap_ros2.decoder import DecoderFactory
+
+        # A fresh factory per channel: it caches decoders by schema id, and ids differ between files.
+        # It prints parse errors to stderr; the reason reaches the user through our own message instead.
+        sink = io.StringIO()
+        try:
+            with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+                decoder = DecoderFactory().decoder_for(encoding, schema)
+        except Exception as exc:
+            if "---" in str(exc):
+                raise ValueError("a service or action schema ('---' sections), which cannot be decoded") from None
+            raise ValueError(f"bad ros2msg schema {schema.name!r} ({type(exc).__name__}: {exc})") from None
+        if decoder is None:
+            raise ValueError("no decoder for this schema")
+        return decoder
+    raise ValueError(f"message encoding {encoding!r} is not supported (cdr and json are)")
+
+
+def _read(
+    path: Path,
+    on_message: Callable[[object, object, object], None],
+    reset: Callable[[], None],
+    on_bytes: Callable[[int], None] | None,
+) -> None:
+    """Feed every message to ``on_message``: indexed reader first, streaming reader where that fails."""
+    from mcap.reader import NonSeekingReader, make_reader
+
+    with open(path, "rb") as raw:
+        if on_bytes is not None:
+            inner, count = on_message, [0]
+
+            def on_message(schema, channel, message) -> None:
+                inner(schema, channel, message)
+                count[0] += 1
+                if count[0] % 4096 == 0:
+                    on_bytes(raw.tell())
+
+        head = raw.read(len(MCAP_MAGIC))
+        if not head:
+            raise IngestError(path, "empty file")
+        if head != MCAP_MAGIC:
+            raise IngestError(path, "not an MCAP file (wrong magic bytes)", where="byte 0")
+        raw.seek(0)
+        try:
+            for schema, channel, message in make_reader(raw, validate_crcs=True).iter_messages(log_time_order=False):
+                on_message(schema, channel, message)
+            return
+        except IngestError:
+            raise
+        except Exception:
+            reset()
+        raw.seek(0)
+        try:
+            for schema, channel, message in NonSeekingReader(raw, validate_crcs=True).iter_messages():
+                on_message(schema, channel, message)
+        except IngestError:
+            raise
+        except Exception as exc:
+            detail = str(exc) or type(exc).__name__
+            raise IngestError(path, f"truncated or corrupt MCAP: {detail}", where=f"near byte {raw.tell()}") from None
+        if on_bytes is not None:
+            on_bytes(raw.tell())
+
+
+def _topic_prefixes(topics: list[str]) -> dict[str, str]:
+    """Shortest unique trailing part of each topic name ("/robot/feet/fl" -> "fl")."""
+    parts = {t: [p for p in t.strip("/").split("/") if p] or [t] for t in topics}
+    out = {}
+    for topic, p in parts.items():
+        for n in range(1, len(p) + 1):
+            cand = "/".join(p[-n:])
+            if sum(1 for q in parts.values() if "/".join(q[-n:]) == cand) == 1:
+                out[topic] = cand
+                break
+        else:
+            out[topic] = topic
+    return out
+
+
+def read_mcap(
+    path: str | Path, options: IngestOptions, *, on_bytes: Callable[[int], None] | None = None
+) -> tuple[ParsedLog, list[TopicReport]]:
+    """Read an MCAP file into streams, one per usable topic.
+
+    ``on_bytes`` is called now and then with how many bytes of the file have been read.
+
+    Raises:
+        IngestError: The file is empty, not MCAP, truncated or corrupt, or has no usable sensor channel.
+    """
+    path = Path(path)
+    mapping = options.mapping
+    explicit: dict[str, list[ChannelSpec]] = {}
+    for spec in mapping.channels:
+        explicit.setdefault(spec.source, []).append(spec)
+    topics: dict[int, _Topic] = {}
+    counts: dict[str, int] = {}
+
+    def reset() -> None:
+        topics.clear()
+        counts.clear()
+
+    def on_message(schema, channel, message) -> None:
+        counts[channel.topic] = counts.get(channel.topic, 0) + 1
+        t = topics.get(channel.id)
+        if t is None:
+            t = topics[channel.id] = _Topic(channel.topic, schema.name if schema else "")
+            if channel.topic in mapping.ignore or (explicit and channel.topic not in explicit):
+                t.unusable = "ignored by the mapping file"
+            else:
+                try:
+                    t.decode = _decoder_for(channel.message_encoding, schema)
+                except Exception as exc:
+                    t.unusable = f"cannot decode: {exc}"
+        if t.unusable:
+            return
+        try:
+            msg = t.decode(message.data)
+        except Exception as exc:
+            if not t.fields:
+                t.unusable = f"cannot decode: {exc}"
+                return
+            if options.allow_gaps:
+                t.dropped += 1
+                return
+            raise IngestError(
+                path,
+                f"message cannot be decoded: {exc}",
+                where=f"topic {t.topic}, log time {message.log_time}",
+            ) from None
+        if not t.fields:
+            if channel.topic in explicit:
+                t.fields = [
+                    FieldSpec(parse_path(s.field), s.name or s.field, s.unit, None) for s in explicit[channel.topic]
+                ]
+            else:
+                t.fields = infer_fields(msg)
+            if not t.fields:
+                t.unusable = f"no sensor fields recognised in {t.schema or 'its messages'}"
+                return
+        try:
+            row = [float(get(msg, f.path)) for f in t.fields]
+        except (AttributeError, KeyError, IndexError, TypeError, ValueError) as exc:
+            raise IngestError(
+                path,
+                f"field missing or not numeric: {exc}",
+                where=f"topic {t.topic}, log time {message.log_time}",
+            ) from None
+        if not all(np.isfinite(row)):
+            if options.allow_gaps:
+                t.dropped += 1
+                return
+            raise IngestError(
+                path,
+                "NaN or infinite value (use --allow-gaps to record it as a gap)",
+                where=f"topic {t.topic}, log time {message.log_time}",
+            )
+        header = t.fields[0].header
+        stamp = stamp_seconds(msg, header) if header is not None else None
+        t.times.append(stamp if stamp is not None else message.log_time * 1e-9)
+        t.rows.append(row)
+
+    _read(path, on_message, reset, on_bytes)
+
+    usable = [t for t in topics.values() if not t.unusable and t.rows]
+    reports = [
+        TopicReport(
+            t.topic,
+            t.schema,
+            counts.get(t.topic, 0),
+            tuple((format_path(f.path), f.unit, "") for f in t.fields) if not t.unusable else (),
+            t.unusable,
+        )
+        for t in topics.values()
+    ]
+    if not usable:
+        if not topics:
+            reason = "no messages"
+        else:
+            reason = "; ".join(f"{t.topic}: {t.unusable or 'no messages'}" for t in topics.values())
+        raise IngestError(path, f"no usable sensor channel ({reason})")
+    prefixes = _topic_prefixes([t.topic for t in usable])
+    streams = []
+    for t in usable:
+        times = np.asarray(t.times, dtype=np.float64)
+        values = np.asarray(t.rows, dtype=np.float64)
+        order = np.argsort(times, kind="stable")  # logs are not always in stamp order
+        times, values = times[order], values[order]
+        keep = [i for i, f in enumerate(t.fields) if not ("torque" in f.name and not values[:, i].any())]
+        prefix = prefixes[t.topic]
+        streams.append(
+            Stream(
+                name=prefix,
+                times=times,
+                values=values[:, keep],
+                channels=tuple(f"{prefix}/{t.fields[i].name}" for i in keep),
+                units=tuple(t.fields[i].unit for i in keep),
+                sources=tuple(f"{t.topic}:{format_path(t.fields[i].path)}" for i in keep),
+            )
+        )
+    reference = _sidecar_reference(path)
+    return (
+        ParsedLog(
+            name=path.stem,
+            source_path=str(path),
+            files=(str(path),),
+            format="mcap",
+            streams=tuple(streams),
+            reference=reference,
+        ),
+        reports,
+    )
+
+
+def _sidecar_reference(path: Path) -> tuple[tuple[float, float, str], ...]:
+    """Reference truth from ``<stem>.truth.json`` beside the log (the demo generator writes one)."""
+    side = path.with_name(path.stem + ".truth.json")
+    if not side.exists():
+        return ()
+    try:
+        doc = json.loads(side.read_text())
+        return tuple((float(s["start"]), float(s["stop"]), str(s["terrain"])) for s in doc["segments"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise IngestError(side, f"unreadable truth sidecar: {exc}") from None

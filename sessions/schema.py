@@ -1,0 +1,190 @@
+"""The SQLite schema of a session and its forward migrations.
+
+The schema version lives in ``PRAGMA user_version``. ``MIGRATIONS[i]`` moves a database from version ``i`` to
+``i + 1``; a session is migrated forward when opened, inside one transaction, and refused when it comes from a
+newer workbench than this one.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from collections.abc import Callable, Sequence
+
+from .errors import SessionError
+
+Migration = Callable[[sqlite3.Connection], None]
+
+DEFAULT_TERRAINS: tuple[tuple[str, str], ...] = (
+    ("concrete", "#9e9e9e"),
+    ("grass", "#4caf50"),
+    ("gravel", "#795548"),
+    ("mulch", "#ff9800"),
+    ("dirt", "#8d6e63"),
+    ("sand", "#fdd835"),
+)
+
+
+def _run_script(conn: sqlite3.Connection, script: str) -> None:
+    # Not executescript(): it commits the open transaction first, and a migration must be all-or-nothing.
+    for statement in script.split(";"):
+        if statement.strip():
+            conn.execute(statement)
+
+
+def _v1(conn: sqlite3.Connection) -> None:
+    _run_script(
+        conn,
+        """
+        CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+
+        CREATE TABLE logs (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            name TEXT NOT NULL,
+            source_path TEXT NOT NULL,
+            source_sha256 TEXT NOT NULL,
+            format TEXT NOT NULL,
+            file TEXT NOT NULL UNIQUE,
+            n_samples INTEGER NOT NULL,
+            rate_hz REAL NOT NULL,
+            t0 REAL NOT NULL,
+            reference_terrain TEXT,
+            info TEXT NOT NULL DEFAULT '{}',
+            ingested_at TEXT NOT NULL
+        );
+        CREATE UNIQUE INDEX logs_source ON logs (source_sha256, name);
+
+        CREATE TABLE channels (
+            log_id INTEGER NOT NULL REFERENCES logs (id) ON DELETE CASCADE,
+            idx INTEGER NOT NULL,
+            name TEXT NOT NULL,
+            unit TEXT NOT NULL,
+            source TEXT NOT NULL,
+            PRIMARY KEY (log_id, idx)
+        );
+
+        CREATE TABLE gaps (
+            log_id INTEGER NOT NULL REFERENCES logs (id) ON DELETE CASCADE,
+            start INTEGER NOT NULL,
+            stop INTEGER NOT NULL,
+            stream TEXT NOT NULL,
+            reason TEXT NOT NULL
+        );
+
+        -- Reference truth from the source (file names, demo sidecars): for evaluation only, never labels.
+        CREATE TABLE reference (
+            log_id INTEGER NOT NULL REFERENCES logs (id) ON DELETE CASCADE,
+            start INTEGER NOT NULL,
+            stop INTEGER NOT NULL,
+            terrain TEXT NOT NULL
+        );
+
+        CREATE TABLE terrains (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            name TEXT NOT NULL UNIQUE,
+            color TEXT NOT NULL,
+            position INTEGER NOT NULL
+        );
+
+        CREATE TABLE segments (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            log_id INTEGER NOT NULL REFERENCES logs (id),
+            start INTEGER NOT NULL,
+            stop INTEGER NOT NULL,
+            terrain_id INTEGER NOT NULL REFERENCES terrains (id),
+            author TEXT NOT NULL,
+            source TEXT NOT NULL,
+            created_at TEXT NOT NULL,
+            updated_at TEXT NOT NULL,
+            CHECK (stop > start AND start >= 0)
+        );
+        CREATE INDEX segments_log ON segments (log_id, start);
+
+        -- One row per user action, and label_history holds the segment rows it changed (before/after as JSON).
+        CREATE TABLE label_ops (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            at TEXT NOT NULL,
+            author TEXT NOT NULL,
+            kind TEXT NOT NULL,
+            undone_by INTEGER REFERENCES label_ops (id),
+            undoes INTEGER REFERENCES label_ops (id)
+        );
+        CREATE TABLE label_history (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            op_id INTEGER NOT NULL REFERENCES label_ops (id),
+            segment_id INTEGER NOT NULL,
+            before TEXT,
+            after TEXT
+        );
+        CREATE INDEX label_history_op ON label_history (op_id);
+
+        CREATE TABLE model_versions (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            stage TEXT NOT NULL,
+            path TEXT NOT NULL,
+            created_at TEXT NOT NULL,
+            config TEXT NOT NULL DEFAULT '{}',
+            metrics TEXT NOT NULL DEFAULT '{}',
+            active INTEGER NOT NULL DEFAULT 0
+        );
+
+        CREATE TABLE runs (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            kind TEXT NOT NULL,
+            status TEXT NOT NULL,
+            started_at TEXT NOT NULL,
+            ended_at TEXT,
+            params TEXT NOT NULL DEFAULT '{}',
+            result TEXT NOT NULL DEFAULT '{}'
+        );
+        """,
+    )
+    conn.executemany(
+        "INSERT INTO terrains (name, color, position) VALUES (?, ?, ?)",
+        [(name, color, i) for i, (name, color) in enumerate(DEFAULT_TERRAINS)],
+    )
+
+
+MIGRATIONS: tuple[Migration, ...] = (_v1,)
+SCHEMA_VERSION = len(MIGRATIONS)
+
+
+def schema_version(conn: sqlite3.Connection) -> int:
+    """The schema version stored in the database (0 for an empty one)."""
+    return int(conn.execute("PRAGMA user_version").fetchone()[0])
+
+
+def migrate(conn: sqlite3.Connection, *, migrations: Sequence[Migration] = MIGRATIONS, where: str = "") -> int:
+    """Bring ``conn`` forward to ``len(migrations)``, all steps in one transaction.
+
+    Args:
+        conn: A connection in autocommit mode (``isolation_level=None``).
+        migrations: The migration steps; tests pass their own to exercise the mechanism.
+        where: The session path, for error messages.
+
+    Returns:
+        The schema version after migrating.
+
+    Raises:
+        SessionError: The database was written by a newer workbench.
+    """
+    target = len(migrations)
+    current = schema_version(conn)
+    if current > target:
+        raise SessionError(
+            f"{where}: session schema version {current} is newer than this workbench supports ({target}); "
+            "upgrade the workbench to open it"
+        )
+    if current == target:
+        return current
+    conn.execute("BEGIN IMMEDIATE")
+    try:
+        # Re-read inside the write lock: another process may have migrated meanwhile.
+        current = schema_version(conn)
+        for step in migrations[current:]:
+            step(conn)
+        conn.execute(f"PRAGMA user_version = {target}")
+        conn.execute("COMMIT")
+    except BaseException:
+        conn.execute("ROLLBACK")
+        raise
+    return target

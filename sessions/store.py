@@ -1,0 +1,439 @@
+"""A session: one folder holding ``session.sqlite`` (catalog, labels, history, model versions) and log arrays."""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import sqlite3
+import threading
+import time
+import uuid
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from . import labels as _labels
+from .errors import IngestError, LabelError, SessionError
+from .ingest import AlignedLog, IngestOptions, align, plan_sources, read_source
+from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
+from .schema import SCHEMA_VERSION, migrate
+
+DB_NAME = "session.sqlite"
+LOGS_DIR = "logs"
+_STALE_TMP_S = 600.0  # leftovers older than this are from a crashed ingest, not one in progress
+
+
+def _sha256(files: Sequence[str | Path]) -> str:
+    h = hashlib.sha256()
+    for f in files:
+        with open(f, "rb") as fh:
+            for block in iter(lambda fh=fh: fh.read(1 << 20), b""):
+                h.update(block)
+    return h.hexdigest()
+
+
+def _fsync_dir(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+class Session:
+    """A session folder. Thread-safe: one SQLite connection guarded by a lock; every write is one transaction.
+
+    Use :meth:`create` or :meth:`open`, not the constructor.
+    """
+
+    def __init__(self, path: Path, conn: sqlite3.Connection) -> None:
+        self.path = path
+        self._conn = conn
+        self._lock = threading.RLock()
+        self._arrays: dict[int, np.ndarray] = {}
+
+    # ----------------------------------------------------------------------------------------------- lifecycle
+    @classmethod
+    def create(cls, path: str | Path) -> Session:
+        """Create a new, empty session folder (the folder may exist if empty).
+
+        Raises:
+            SessionError: ``path`` is a file, a non-empty folder, or already a session.
+        """
+        path = Path(path)
+        if (path / DB_NAME).exists():
+            raise SessionError(f"{path}: already a session; open it instead")
+        if path.exists() and (not path.is_dir() or any(path.iterdir())):
+            raise SessionError(f"{path}: exists and is not an empty folder")
+        try:
+            (path / LOGS_DIR).mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise SessionError(f"{path}: cannot create session folder: {exc.strerror or exc}") from None
+        return cls._connect(path)
+
+    @classmethod
+    def open(cls, path: str | Path) -> Session:
+        """Open an existing session, migrating its schema forward if it is older.
+
+        Raises:
+            SessionError: Not a session, damaged, or written by a newer workbench.
+        """
+        path = Path(path)
+        if not (path / DB_NAME).is_file():
+            raise SessionError(f"{path}: not a session folder (no {DB_NAME}); create one with `workbench new {path}`")
+        return cls._connect(path)
+
+    @classmethod
+    def _connect(cls, path: Path) -> Session:
+        try:
+            conn = sqlite3.connect(path / DB_NAME, isolation_level=None, check_same_thread=False, timeout=30.0)
+            conn.execute("PRAGMA journal_mode = WAL")
+            # FULL: an acknowledged label survives power loss, not only a killed process.
+            conn.execute("PRAGMA synchronous = FULL")
+            conn.execute("PRAGMA foreign_keys = ON")
+            migrate(conn, where=str(path))
+        except sqlite3.DatabaseError as exc:
+            raise SessionError(f"{path / DB_NAME}: not a usable session database ({exc})") from None
+        session = cls(path, conn)
+        (path / LOGS_DIR).mkdir(exist_ok=True)
+        session._sweep_leftovers()
+        return session
+
+    def close(self) -> None:
+        with self._lock:
+            self._arrays.clear()
+            self._conn.close()
+
+    def __enter__(self) -> Session:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def schema_version(self) -> int:
+        return SCHEMA_VERSION
+
+    @contextlib.contextmanager
+    def _write(self) -> Iterator[sqlite3.Connection]:
+        """One write transaction; committed when the block ends, rolled back on any error."""
+        with self._lock:
+            self._conn.execute("BEGIN IMMEDIATE")
+            try:
+                yield self._conn
+            except BaseException:
+                self._conn.execute("ROLLBACK")
+                raise
+            self._conn.execute("COMMIT")
+
+    def _read(self, query: str, args: Sequence[object] = ()) -> list[tuple]:
+        with self._lock:
+            return self._conn.execute(query, args).fetchall()
+
+    def _sweep_leftovers(self) -> None:
+        """Remove arrays of ingests that died before commit (temporary files and files no row points to)."""
+        known = {r[0] for r in self._read("SELECT file FROM logs")}
+        cutoff = time.time() - _STALE_TMP_S
+        for f in (self.path / LOGS_DIR).glob("*.npy"):
+            rel = f"{LOGS_DIR}/{f.name}"
+            if rel not in known and f.stat().st_mtime < cutoff:
+                with contextlib.suppress(OSError):
+                    f.unlink()
+
+    # ------------------------------------------------------------------------------------------------- catalog
+    def logs(self) -> list[LogInfo]:
+        """All logs, in ingest order."""
+        return [self._log_info(row) for row in self._read(f"SELECT {_LOG_COLS} FROM logs ORDER BY id")]
+
+    def log(self, log_id: int) -> LogInfo:
+        """One log by id.
+
+        Raises:
+            SessionError: No such log.
+        """
+        rows = self._read(f"SELECT {_LOG_COLS} FROM logs WHERE id = ?", (log_id,))
+        if not rows:
+            raise SessionError(f"{self.path}: no log with id {log_id}")
+        return self._log_info(rows[0])
+
+    def _log_info(self, row: tuple) -> LogInfo:
+        log_id = int(row[0])
+        channels = tuple(
+            Channel(*r)
+            for r in self._read("SELECT name, unit, source FROM channels WHERE log_id = ? ORDER BY idx", (log_id,))
+        )
+        gaps = tuple(
+            Gap(*r)
+            for r in self._read(
+                "SELECT start, stop, stream, reason FROM gaps WHERE log_id = ? ORDER BY start", (log_id,)
+            )
+        )
+        return LogInfo(
+            id=log_id,
+            name=row[1],
+            source_path=row[2],
+            format=row[3],
+            file=row[4],
+            n_samples=int(row[5]),
+            rate_hz=float(row[6]),
+            t0=float(row[7]),
+            channels=channels,
+            gaps=gaps,
+            reference_terrain=row[8],
+            ingested_at=row[9],
+            info=json.loads(row[10]),
+        )
+
+    def array(self, log_id: int) -> np.ndarray:
+        """The whole ``(T, C)`` float32 array of a log, memory-mapped read-only (nothing is read until sliced)."""
+        with self._lock:
+            arr = self._arrays.get(log_id)
+            if arr is None:
+                info = self.log(log_id)
+                arr = self._arrays[log_id] = np.load(self.path / info.file, mmap_mode="r")
+            return arr
+
+    def samples(self, log_id: int, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """Samples ``[start, stop)`` of a log as a ``(stop - start, C)`` float32 array; reads only that slice."""
+        return np.array(self.array(log_id)[start:stop])
+
+    def reference(self, log_id: int) -> list[tuple[int, int, str]]:
+        """Reference truth of a log as ``(start, stop, terrain)`` in samples: for evaluation, never labels."""
+        return [
+            (int(a), int(b), str(t))
+            for a, b, t in self._read(
+                "SELECT start, stop, terrain FROM reference WHERE log_id = ? ORDER BY start", (log_id,)
+            )
+        ]
+
+    # -------------------------------------------------------------------------------------------------- ingest
+    def ingest(
+        self,
+        paths: Sequence[str | Path],
+        *,
+        options: IngestOptions | None = None,
+        on_error: Callable[[IngestError], None] | None = None,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> list[LogInfo]:
+        """Ingest log files (or folders of them). Each source is all-or-nothing.
+
+        Args:
+            paths: MCAP / CSV files or folders holding them.
+            options: How to read and align.
+            on_error: Called with each refused file, and ingest goes on; without it the first error is raised.
+            progress: Called now and then with (bytes read, bytes in all sources), for a progress bar.
+
+        Returns:
+            The logs of the given paths: newly ingested ones, and ones already in the session (same content).
+        """
+        options = options or IngestOptions()
+        sources, errors = plan_sources(list(paths))
+
+        def fail(err: IngestError) -> None:
+            if on_error is None:
+                raise err
+            on_error(err)
+
+        for err in errors:
+            fail(err)
+        out: list[LogInfo] = []
+        total = sum(s.size for s in sources)
+        done = 0
+        for source in sources:
+            on_bytes = None if progress is None else (lambda n, base=done: progress(base + n, total))
+            try:
+                parsed, _ = read_source(source, options, on_bytes=on_bytes)
+                aligned = [align(p, options) for p in parsed]
+                out.extend(self._store(aligned, source.files))
+            except IngestError as err:
+                fail(err)
+            done += source.size
+            if progress is not None:
+                progress(done, total)
+        return out
+
+    def _store(self, aligned: list[AlignedLog], files: Sequence[Path]) -> list[LogInfo]:
+        sha = _sha256(files)
+        logs_dir = self.path / LOGS_DIR
+        staged: list[tuple[AlignedLog, Path]] = []
+        placed: list[Path] = []
+        try:
+            for log in aligned:
+                tmp = logs_dir / f".tmp-{uuid.uuid4().hex}.npy"
+                with open(tmp, "wb") as f:
+                    np.save(f, log.data)
+                    f.flush()
+                    os.fsync(f.fileno())
+                staged.append((log, tmp))
+            ids = []
+            with self._write() as conn:
+                for log, tmp in staged:
+                    row = conn.execute(
+                        "SELECT id FROM logs WHERE source_sha256 = ? AND name = ?", (sha, log.parsed.name)
+                    ).fetchone()
+                    if row is not None:  # the same recording again: keep the one we have
+                        ids.append(int(row[0]))
+                        continue
+                    log_id = self._insert_log(conn, log, sha, tmp.name)
+                    final = logs_dir / f"{log_id:06d}.npy"
+                    conn.execute("UPDATE logs SET file = ? WHERE id = ?", (f"{LOGS_DIR}/{final.name}", log_id))
+                    os.replace(tmp, final)
+                    placed.append(final)
+                    ids.append(log_id)
+                _fsync_dir(logs_dir)
+        except BaseException:
+            for p in placed:
+                with contextlib.suppress(OSError):
+                    p.unlink()
+            raise
+        finally:
+            for _, tmp in staged:
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+        return [self.log(i) for i in ids]
+
+    @staticmethod
+    def _insert_log(conn: sqlite3.Connection, log: AlignedLog, sha: str, tmp_name: str) -> int:
+        p = log.parsed
+        info = {"files": list(p.files), "stream_rates_hz": log.stream_rates, "notes": list(p.notes)}
+        cur = conn.execute(
+            "INSERT INTO logs (name, source_path, source_sha256, format, file, n_samples, rate_hz, t0, "
+            "reference_terrain, info, ingested_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (
+                p.name,
+                p.source_path,
+                sha,
+                p.format,
+                tmp_name,
+                log.data.shape[0],
+                log.rate_hz,
+                log.t0,
+                p.reference_terrain,
+                json.dumps(info),
+                _labels.now(),
+            ),
+        )
+        log_id = int(cur.lastrowid)
+        conn.executemany(
+            "INSERT INTO channels (log_id, idx, name, unit, source) VALUES (?, ?, ?, ?, ?)",
+            [(log_id, i, c.name, c.unit, c.source) for i, c in enumerate(log.channels)],
+        )
+        conn.executemany(
+            "INSERT INTO gaps (log_id, start, stop, stream, reason) VALUES (?, ?, ?, ?, ?)",
+            [(log_id, g.start, g.stop, g.stream, g.reason) for g in log.gaps],
+        )
+        reference = list(log.reference)
+        if not reference and p.reference_terrain:
+            reference = [(0, log.data.shape[0], p.reference_terrain)]
+        conn.executemany(
+            "INSERT INTO reference (log_id, start, stop, terrain) VALUES (?, ?, ?, ?)",
+            [(log_id, a, b, t) for a, b, t in reference],
+        )
+        return log_id
+
+    # ------------------------------------------------------------------------------------------------ terrains
+    def terrains(self) -> list[Terrain]:
+        """Terrain classes in display order."""
+        return [Terrain(*r) for r in self._read("SELECT id, name, color, position FROM terrains ORDER BY position")]
+
+    def add_terrain(self, name: str, *, color: str = "#607d8b") -> Terrain:
+        """Add a terrain class at the end of the list.
+
+        Raises:
+            LabelError: The name is empty or taken.
+        """
+        name = name.strip()
+        if not name:
+            raise LabelError("a terrain needs a name")
+        with self._write() as conn:
+            if conn.execute("SELECT 1 FROM terrains WHERE name = ?", (name,)).fetchone():
+                raise LabelError(f"terrain {name!r} exists already")
+            pos = conn.execute("SELECT COALESCE(MAX(position) + 1, 0) FROM terrains").fetchone()[0]
+            conn.execute("INSERT INTO terrains (name, color, position) VALUES (?, ?, ?)", (name, color, pos))
+        return next(t for t in self.terrains() if t.name == name)
+
+    def rename_terrain(self, old: str, new: str) -> None:
+        """Rename a terrain class; its segments follow."""
+        new = new.strip()
+        with self._write() as conn:
+            if not new or conn.execute("SELECT 1 FROM terrains WHERE name = ?", (new,)).fetchone():
+                raise LabelError(f"cannot rename {old!r} to {new!r}: empty or taken")
+            if conn.execute("UPDATE terrains SET name = ? WHERE name = ?", (new, old)).rowcount == 0:
+                raise LabelError(f"unknown terrain {old!r}")
+
+    def remove_terrain(self, name: str) -> None:
+        """Remove a terrain class no segment uses.
+
+        Raises:
+            LabelError: Unknown, or still used by segments.
+        """
+        with self._write() as conn:
+            row = conn.execute("SELECT id FROM terrains WHERE name = ?", (name,)).fetchone()
+            if row is None:
+                raise LabelError(f"unknown terrain {name!r}")
+            used = conn.execute("SELECT COUNT(*) FROM segments WHERE terrain_id = ?", (row[0],)).fetchone()[0]
+            if used:
+                raise LabelError(f"terrain {name!r} labels {used} segment(s); relabel or delete them first")
+            conn.execute("DELETE FROM terrains WHERE id = ?", (row[0],))
+
+    # -------------------------------------------------------------------------------------------------- labels
+    def add_segment(
+        self, log_id: int, start: int, stop: int, terrain: str, *, author: str, source: str = "manual"
+    ) -> Segment:
+        """Label samples ``[start, stop)`` of a log; merges with same-terrain segments it overlaps or touches.
+
+        Raises:
+            LabelError: Bad range, unknown log or terrain, or overlap with another terrain's segment.
+        """
+        with self._write() as conn:
+            return _labels.add_segment(
+                conn, log_id=log_id, start=start, stop=stop, terrain=terrain, author=author, source=source
+            )
+
+    def change_segment(
+        self,
+        segment_id: int,
+        *,
+        author: str,
+        start: int | None = None,
+        stop: int | None = None,
+        terrain: str | None = None,
+    ) -> Segment:
+        """Move, resize or relabel a segment (same rules as :meth:`add_segment`)."""
+        with self._write() as conn:
+            return _labels.change_segment(conn, segment_id, author=author, start=start, stop=stop, terrain=terrain)
+
+    def delete_segment(self, segment_id: int, *, author: str) -> Segment:
+        """Delete a segment; returns it as it was."""
+        with self._write() as conn:
+            return _labels.delete_segment(conn, segment_id, author=author)
+
+    def undo(self, *, author: str, only_author: bool = True) -> HistoryEntry:
+        """Undo the latest label action (of ``author`` unless ``only_author`` is False).
+
+        Raises:
+            LabelError: Nothing to undo, or a later action changed the same segments.
+        """
+        with self._write() as conn:
+            return _labels.undo(conn, author=author, only_author=only_author)
+
+    def segments(self, log_id: int | None = None) -> list[Segment]:
+        """Label segments, of one log or all."""
+        with self._lock:
+            return _labels.list_segments(self._conn, log_id=log_id)
+
+    def segment(self, segment_id: int) -> Segment:
+        """One segment by id."""
+        with self._lock:
+            return _labels.get_segment(self._conn, segment_id)
+
+    def history(self, *, limit: int | None = None) -> list[HistoryEntry]:
+        """Label actions, newest first."""
+        with self._lock:
+            return _labels.history(self._conn, limit=limit)
+
+
+_LOG_COLS = "id, name, source_path, format, file, n_samples, rate_hz, t0, reference_terrain, ingested_at, info"

@@ -1,0 +1,155 @@
+"""Session folders: create/open round trips, catalog, memory-mapped samples, schema versions and migrations."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sessions import SCHEMA_VERSION, Session, SessionError
+from sessions.schema import MIGRATIONS, migrate, schema_version
+
+
+def test_create_then_open_round_trip(tmp_path: Path, demo_mcap: Path) -> None:
+    path = tmp_path / "s"
+    with Session.create(path) as s:
+        (log,) = s.ingest([demo_mcap])
+        seg = s.add_segment(log.id, 100, 400, "grass", author="ana")
+        data = s.samples(log.id)
+    with Session.open(path) as s:
+        assert [x.name for x in s.logs()] == ["walk"]
+        again = s.log(log.id)
+        assert again == log
+        assert s.segments() == [seg]
+        np.testing.assert_array_equal(s.samples(log.id), data)
+    assert (path / "session.sqlite").is_file()
+    assert (path / log.file).is_file()
+    conn = sqlite3.connect(path / "session.sqlite")
+    assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+
+
+def test_samples_reads_only_the_slice_it_is_asked(session: Session, demo_mcap: Path) -> None:
+    (log,) = session.ingest([demo_mcap])
+    whole = session.array(log.id)
+    assert isinstance(whole, np.memmap)
+    assert whole.shape == (log.n_samples, log.n_channels) and whole.dtype == np.float32
+    part = session.samples(log.id, 1000, 1050)
+    assert part.shape == (50, log.n_channels)
+    np.testing.assert_array_equal(part, whole[1000:1050])
+    with pytest.raises(ValueError):
+        whole[0, 0] = 1.0  # read-only: nothing writes a log's array after ingest
+
+
+def test_log_catalog_has_channels_units_and_rate(session: Session, demo_mcap: Path) -> None:
+    (log,) = session.ingest([demo_mcap])
+    assert log.rate_hz == pytest.approx(100.0, rel=1e-4)
+    assert log.n_channels == 22
+    units = {c.name: c.unit for c in log.channels}
+    assert units["imu/angular_velocity.x"] == "rad/s"
+    assert units["imu/linear_acceleration.z"] == "m/s²"
+    assert units["fl/force.z"] == "N"
+    assert all(c.source.startswith(("/imu:", "/feet/")) for c in log.channels)
+    assert log.duration_s == pytest.approx(90.0, abs=0.1)
+
+
+def test_create_refuses_existing_session_and_nonempty_folder(tmp_path: Path) -> None:
+    Session.create(tmp_path / "s").close()
+    with pytest.raises(SessionError, match="already a session"):
+        Session.create(tmp_path / "s")
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "x.txt").write_text("x")
+    with pytest.raises(SessionError, match="not an empty folder"):
+        Session.create(tmp_path / "busy")
+
+
+def test_open_refuses_a_folder_that_is_not_a_session(tmp_path: Path) -> None:
+    with pytest.raises(SessionError, match="not a session folder"):
+        Session.open(tmp_path)
+
+
+def test_open_refuses_a_damaged_database(tmp_path: Path) -> None:
+    path = tmp_path / "s"
+    path.mkdir()
+    (path / "session.sqlite").write_bytes(b"this is not sqlite" * 100)
+    with pytest.raises(SessionError, match="not a usable session database"):
+        Session.open(path)
+
+
+def test_open_refuses_a_session_from_a_newer_workbench(tmp_path: Path) -> None:
+    Session.create(tmp_path / "s").close()
+    conn = sqlite3.connect(tmp_path / "s" / "session.sqlite")
+    conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION + 1}")
+    conn.close()
+    with pytest.raises(SessionError, match="newer than this workbench supports"):
+        Session.open(tmp_path / "s")
+
+
+def test_migrations_run_forward_and_keep_data() -> None:
+    conn = sqlite3.connect(":memory:", isolation_level=None)
+    assert migrate(conn) == SCHEMA_VERSION
+    conn.execute(
+        "INSERT INTO logs (name, source_path, source_sha256, format, file, n_samples, rate_hz, t0, ingested_at) "
+        "VALUES ('a', 'a.mcap', 'x', 'mcap', 'logs/1.npy', 10, 100, 0, 'now')"
+    )
+
+    def add_notes(c: sqlite3.Connection) -> None:
+        c.execute("ALTER TABLE logs ADD COLUMN notes TEXT NOT NULL DEFAULT 'none'")
+
+    assert migrate(conn, migrations=(*MIGRATIONS, add_notes)) == SCHEMA_VERSION + 1
+    assert schema_version(conn) == SCHEMA_VERSION + 1
+    assert conn.execute("SELECT name, notes FROM logs").fetchall() == [("a", "none")]
+
+
+def test_a_failing_migration_changes_nothing() -> None:
+    conn = sqlite3.connect(":memory:", isolation_level=None)
+    migrate(conn)
+
+    def broken(c: sqlite3.Connection) -> None:
+        c.execute("CREATE TABLE half_done (x INTEGER)")
+        raise RuntimeError("boom")
+
+    with pytest.raises(RuntimeError):
+        migrate(conn, migrations=(*MIGRATIONS, broken))
+    assert schema_version(conn) == SCHEMA_VERSION
+    assert conn.execute("SELECT name FROM sqlite_master WHERE name = 'half_done'").fetchone() is None
+
+
+def test_default_terrains_and_editing_them(session: Session, demo_mcap: Path) -> None:
+    assert [t.name for t in session.terrains()] == ["concrete", "grass", "gravel", "mulch", "dirt", "sand"]
+    session.add_terrain("snow", color="#ffffff")
+    session.rename_terrain("dirt", "soil")
+    assert [t.name for t in session.terrains()][-2:] == ["sand", "snow"]
+    assert "soil" in [t.name for t in session.terrains()]
+    (log,) = session.ingest([demo_mcap])
+    session.add_segment(log.id, 0, 10, "snow", author="a")
+    with pytest.raises(Exception, match="labels 1 segment"):
+        session.remove_terrain("snow")
+    session.remove_terrain("grass")
+    assert "grass" not in [t.name for t in session.terrains()]
+
+
+def test_reingesting_the_same_file_keeps_one_log(session: Session, demo_mcap: Path) -> None:
+    first = session.ingest([demo_mcap])
+    second = session.ingest([demo_mcap])
+    assert [x.id for x in first] == [x.id for x in second]
+    assert len(session.logs()) == 1
+    assert len(list((session.path / "logs").glob("*.npy"))) == 1
+
+
+def test_leftovers_of_a_crashed_ingest_are_swept(tmp_path: Path) -> None:
+    import os
+    import time
+
+    Session.create(tmp_path / "s").close()
+    stale = tmp_path / "s" / "logs" / ".tmp-dead.npy"
+    fresh = tmp_path / "s" / "logs" / ".tmp-live.npy"
+    for f in (stale, fresh):
+        np.save(f, np.zeros((2, 2), np.float32))
+    old = time.time() - 3600
+    os.utime(stale, (old, old))
+    Session.open(tmp_path / "s").close()
+    assert not stale.exists()
+    assert fresh.exists()  # might belong to an ingest running in another process right now

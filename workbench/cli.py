@@ -1,0 +1,207 @@
+"""The ``workbench`` command line: typed functions parsed by tyro, one per subcommand.
+
+User errors (bad files, bad sessions, refused labels) print one line and exit 2; nothing prints a traceback unless
+``WORKBENCH_DEBUG=1`` is set.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import tyro
+
+from sessions import IngestError, IngestOptions, Session, WorkbenchError, load_mapping
+
+from .ingest_report import dry_run_report
+
+Pos = tyro.conf.Positional
+
+
+def _err(message: str) -> None:
+    print(f"error: {message}", file=sys.stderr)
+
+
+def new(session: Pos[Path]) -> None:
+    """Create an empty session folder.
+
+    Args:
+        session: Folder to create (may exist if empty).
+    """
+    with Session.create(session) as s:
+        print(f"created session {s.path} (schema {s.schema_version})")
+
+
+def ingest(
+    session: Pos[Path],
+    files: Pos[list[Path]],
+    mapping: Path | None = None,
+    dry_run: bool = False,
+    allow_gaps: bool = False,
+    rate: float | None = None,
+) -> int:
+    """Ingest robot logs (ROS 2 MCAP, QCAT / BorealTC / generic CSV; folders are searched) into a session.
+
+    Each file is all-or-nothing: a bad one prints one line naming it and the reason, and the session stays as it
+    was for that file. Exit code 2 when any file was refused.
+
+    Args:
+        session: The session folder.
+        files: Log files or folders of them.
+        mapping: TOML or JSON file naming topics/columns to read (see README "Bring your own logs").
+        dry_run: Show what would be read (channels, rates, gaps) as an editable mapping file; write nothing.
+        allow_gaps: Accept NaN/inf samples and dropouts, recording them as gaps instead of refusing the file.
+        rate: Rate (Hz) of the aligned time base; default: the fastest stream's median rate.
+    """
+    options = IngestOptions(
+        mapping=load_mapping(mapping) if mapping else IngestOptions().mapping,
+        rate_hz=rate,
+        allow_gaps=allow_gaps,
+    )
+    if dry_run:
+        ok, text = dry_run_report(files, options)
+        print(text)
+        return 0 if ok else 2
+    from tqdm import tqdm
+
+    failures: list[IngestError] = []
+    with Session.open(session) as s:
+        before = {log.id for log in s.logs()}
+        with tqdm(total=0, unit="B", unit_scale=True, desc="ingest", disable=None) as bar:
+
+            def progress(done: int, total: int) -> None:
+                bar.total = total
+                bar.n = done
+                bar.refresh()
+
+            def on_error(err: IngestError) -> None:
+                failures.append(err)
+                bar.write(f"error: {err}", file=sys.stderr)
+
+            logs = s.ingest(files, options=options, on_error=on_error, progress=progress)
+        added = [log for log in logs if log.id not in before]
+        for log in added:
+            gaps = f", {len(log.gaps)} gaps" if log.gaps else ""
+            print(f"+ {log.name}: {log.duration_s:.1f} s at {log.rate_hz:g} Hz, {log.n_channels} channels{gaps}")
+        already = len(logs) - len(added)
+        print(
+            f"ingested {len(added)} log(s)"
+            + (f", {already} already in the session" if already else "")
+            + (f", refused {len(failures)} file(s)" if failures else "")
+        )
+    return 2 if failures else 0
+
+
+def info(session: Pos[Path]) -> None:
+    """Show a session's logs, terrains and labels.
+
+    Args:
+        session: The session folder.
+    """
+    with Session.open(session) as s:
+        logs = s.logs()
+        segments = s.segments()
+        print(f"session {s.path} (schema {s.schema_version})")
+        print(f"{len(logs)} log(s), {sum(log.duration_s for log in logs) / 60:.1f} min in all")
+        width = max((len(log.name) for log in logs), default=4)
+        for log in logs:
+            lab = sum(seg.length for seg in segments if seg.log_id == log.id)
+            ref = f"  reference={log.reference_terrain}" if log.reference_terrain else ""
+            print(
+                f"  {log.id:>4}  {log.name:<{width}}  {log.format:<8} {log.duration_s:>9.1f} s  "
+                f"{log.rate_hz:>7g} Hz  {log.n_channels:>3} ch  {len(log.gaps):>3} gaps  "
+                f"{lab / max(log.n_samples, 1):>6.1%} labelled{ref}"
+            )
+        print("terrains: " + ", ".join(t.name for t in s.terrains()))
+        print(f"{len(segments)} label segment(s)")
+
+
+def serve(session: Pos[Path], host: str = "127.0.0.1", port: int = 8080) -> None:
+    """Serve the workbench UI for a session in the browser.
+
+    Args:
+        session: The session folder.
+        host: Address to bind. The default serves this machine only; viser has no authentication.
+        port: Port to listen on.
+    """
+    from .app import WorkbenchApp
+
+    s = Session.open(session)
+    if host not in ("127.0.0.1", "localhost", "::1"):
+        print(
+            f"warning: serving on {host}: anyone who can reach this port can read and change the session "
+            "(viser has no authentication); prefer an SSH tunnel, see README",
+            file=sys.stderr,
+        )
+    app = WorkbenchApp(s, host=host, port=port)
+    print(f"workbench serving {s.path} at {app.url}", flush=True)
+    app.serve_forever()
+
+
+def demo(
+    session: Path = Path("demo-session"),
+    host: str = "127.0.0.1",
+    port: int = 8080,
+    logs: int = 6,
+    minutes: float = 5.0,
+    seed: int = 0,
+    serve_ui: Annotated[bool, tyro.conf.arg(name="serve")] = True,
+) -> None:
+    """Generate demo robot logs, ingest them into a session and serve the UI.
+
+    Reuses the session when it exists already, so running it again just serves.
+
+    Args:
+        session: Session folder to create (or reuse).
+        host: Address to bind.
+        port: Port to listen on.
+        logs: Number of demo walks to generate.
+        minutes: Typical length of each walk.
+        seed: Seed of the generator.
+        serve_ui: Serve the UI when ready (--no-serve: prepare the session and exit).
+    """
+    from .demo import generate_demo_logs
+
+    if (session / "session.sqlite").exists():
+        with Session.open(session) as s:
+            print(f"using existing demo session {s.path} ({len(s.logs())} logs)")
+    else:
+        log_dir = session.with_name(session.name + "-logs")
+        paths = generate_demo_logs(log_dir, n_logs=logs, minutes=minutes, seed=seed, progress=True)
+        print(f"wrote {len(paths)} demo logs to {log_dir}/ (ground truth beside each in .truth.json)")
+        Session.create(session).close()
+        if ingest(session, [log_dir]):
+            raise WorkbenchError("demo logs failed to ingest")
+    if serve_ui:
+        serve(session, host=host, port=port)
+
+
+COMMANDS = {"new": new, "ingest": ingest, "info": info, "serve": serve, "demo": demo}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``workbench`` console script. Returns the exit code."""
+    try:
+        result = tyro.extras.subcommand_cli_from_dict(
+            COMMANDS,
+            prog="workbench",
+            description="Terrain workbench: label robot logs, train, export.",
+            args=argv,
+        )
+    except WorkbenchError as exc:
+        _err(str(exc))
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    except Exception as exc:
+        if os.environ.get("WORKBENCH_DEBUG"):
+            raise
+        _err(f"internal error: {type(exc).__name__}: {exc} (set WORKBENCH_DEBUG=1 for the traceback)")
+        return 1
+    return int(result or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
