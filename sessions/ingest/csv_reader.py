@@ -221,7 +221,10 @@ def read_qcat(paths: list[Path], options: IngestOptions) -> list[ParsedLog]:
     terrain, speed = _qcat_terrain(m["terrain"]), m["speed"]
     rate = options.mapping.sample_rate_hz or QCAT_DEFAULT_RATE_HZ
     trials: dict[int, list[Stream]] = {}
-    for kind, (path, frame) in sorted(per_kind.items()):
+    for kind in ("raw", "imu"):  # forces first, then IMU, as QCAT's users stack them
+        if kind not in per_kind:
+            continue
+        path, frame = per_kind[kind]
         cols = list(frame.columns)
         meta, signal = cols[: QCAT_TRIAL_COLUMN + 1], cols[QCAT_TRIAL_COLUMN + 1 :]
         trial = _numeric(path, frame, [meta[QCAT_TRIAL_COLUMN]], allow_gaps=False)[:, 0].astype(int)
