@@ -10,9 +10,10 @@ from pathlib import Path
 from sessions import Session
 
 _STYLE = (
-    "<style>.wb-table{border-collapse:collapse;width:100%;font-size:0.85em}"
-    ".wb-table th,.wb-table td{padding:3px 6px;border-bottom:1px solid #ddd;text-align:left}"
-    ".wb-table td.n{text-align:right;font-variant-numeric:tabular-nums}"
+    "<style>.wb-table{border-collapse:collapse;width:100%;font-size:0.8em;white-space:nowrap}"
+    ".wb-table th,.wb-table td{padding:3px 5px;border-bottom:1px solid #e0e0e0;text-align:left}"
+    ".wb-table th{color:#666;font-weight:500}"
+    ".wb-table td.n,.wb-table th.n{text-align:right;font-variant-numeric:tabular-nums}"
     ".wb-chip{display:inline-block;padding:1px 6px;margin:1px;border-radius:8px;font-size:0.8em}</style>"
 )
 
@@ -34,17 +35,18 @@ def logs_table_html(session: Session) -> str:
     rows = []
     for log in logs:
         lab = labelled.get(log.id, 0) / max(log.n_samples, 1)
+        title = html.escape(f"{log.format}: {log.source_path}", quote=True)
         rows.append(
-            f"<tr><td>{log.id}</td><td>{html.escape(log.name)}</td><td>{html.escape(log.format)}</td>"
-            f"<td class='n'>{_duration(log.duration_s)}</td><td class='n'>{log.rate_hz:g} Hz</td>"
-            f"<td class='n'>{log.n_channels}</td><td class='n'>{len(log.gaps)}</td><td class='n'>{lab:.1%}</td></tr>"
+            f"<tr><td class='n'>{log.id}</td><td title='{title}'>{html.escape(log.name)}</td>"
+            f"<td class='n'>{_duration(log.duration_s)}</td><td class='n'>{log.rate_hz:g}</td>"
+            f"<td class='n'>{log.n_channels}</td><td class='n'>{len(log.gaps)}</td><td class='n'>{lab:.0%}</td></tr>"
         )
     total = sum(log.duration_s for log in logs)
     return (
         _STYLE
         + f"<p><b>{len(logs)}</b> logs, {_duration(total)} in all</p>"
-        + "<table class='wb-table'><tr><th>#</th><th>log</th><th>format</th><th>duration</th><th>rate</th>"
-        + "<th>channels</th><th>gaps</th><th>labelled</th></tr>"
+        + "<table class='wb-table'><tr><th class='n'>#</th><th>log</th><th class='n'>length</th>"
+        + "<th class='n'>Hz</th><th class='n'>channels</th><th class='n'>gaps</th><th class='n'>labelled</th></tr>"
         + "".join(rows)
         + "</table>"
     )

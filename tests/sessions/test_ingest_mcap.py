@@ -169,3 +169,11 @@ def test_one_bad_file_does_not_stop_the_others(session: Session, tmp_path: Path,
     logs = session.ingest([tmp_path / "bad.mcap", demo_mcap], on_error=errors.append)
     assert [x.name for x in logs] == ["walk"]
     assert len(errors) == 1 and "bad.mcap" in str(errors[0])
+
+
+def test_mapping_can_ignore_topics(session: Session, tmp_path: Path) -> None:
+    mapping = tmp_path / "m.json"
+    mapping.write_text('{"ignore": ["/robot/contact", "/robot/feet/fr"]}')
+    opts = IngestOptions(mapping=load_mapping(mapping))
+    (log,) = session.ingest([write_ros2_sensors(tmp_path / "r.mcap")], options=opts)
+    assert {n.split("/")[0] for n in log.channel_names} == {"imu", "fl"}

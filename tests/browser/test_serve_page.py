@@ -1,0 +1,60 @@
+"""The served page in a real browser: it lists the session's logs and follows changes made elsewhere."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from sessions import Session
+from workbench.cli import main
+
+from .conftest import save_screenshot
+
+pytestmark = pytest.mark.browser
+
+
+def test_page_lists_logs_and_refreshes_when_a_log_is_ingested(tmp_path: Path, serve, page) -> None:
+    from workbench.demo import generate_demo_logs
+
+    logs = generate_demo_logs(tmp_path / "logs", n_logs=3, minutes=0.3, seed=2)
+    session = tmp_path / "s"
+    Session.create(session).close()
+    assert main(["ingest", str(session), str(logs[0]), str(logs[1])]) == 0
+    server = serve(session)
+    page.goto(server.url)
+    page.get_by_text("walk_001").wait_for(timeout=30_000)
+    body = page.inner_text("body")
+    assert "Terrain workbench" in body and "walk_000" in body and "2 logs" in body
+    assert "grass" in body and "sand" in body
+    assert "walk_002" not in body
+    save_screenshot(page, "serve-logs")
+    # another process ingests a log while the page is open: the page shows it without a reload
+    assert main(["ingest", str(session), str(logs[2])]) == 0
+    page.get_by_text("walk_002").wait_for(timeout=15_000)
+    assert "3 logs" in page.inner_text("body")
+
+
+def _listeners(port: int) -> set[str]:
+    """Local addresses of sockets listening on ``port``, from the kernel's own tables (Linux)."""
+    found = set()
+    for table, width in (("/proc/net/tcp", 8), ("/proc/net/tcp6", 32)):
+        if not Path(table).exists():
+            continue
+        for line in Path(table).read_text().splitlines()[1:]:
+            local, state = line.split()[1], line.split()[3]
+            addr, _, hex_port = local.partition(":")
+            if state == "0A" and int(hex_port, 16) == port:  # 0A: LISTEN
+                found.add(addr.rjust(width, "0"))
+    return found
+
+
+def test_serve_binds_loopback_by_default(tmp_path: Path, serve) -> None:
+    if not Path("/proc/net/tcp").exists():
+        pytest.skip("needs Linux /proc/net/tcp to see which address a socket listens on")
+    Session.create(tmp_path / "s").close()
+    server = serve(tmp_path / "s")
+    listeners = _listeners(server.port)
+    assert listeners, "nothing listens on the server's port"
+    # 0100007F is 127.0.0.1 (little-endian hex); IPv6 loopback ::1 is the same, 32 hex digits wide
+    assert listeners <= {"0100007F", "00000000000000000000000001000000"}, listeners

@@ -1,0 +1,118 @@
+"""The ``workbench`` command line: subcommands, exit codes, one-line errors, dry-run mappings."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from sessions import Session, load_mapping
+from workbench.cli import main
+
+
+def run(*args: str) -> int:
+    return main([str(a) for a in args])
+
+
+def test_new_ingest_info(tmp_path: Path, demo_mcap: Path, capsys) -> None:
+    s = tmp_path / "s"
+    assert run("new", s) == 0
+    assert run("ingest", s, demo_mcap) == 0
+    out = capsys.readouterr().out
+    assert "+ walk: 90.0 s at 100 Hz, 22 channels" in out and "ingested 1 log(s)" in out
+    assert run("ingest", s, demo_mcap) == 0
+    assert "ingested 0 log(s), 1 already in the session" in capsys.readouterr().out
+    assert run("info", s) == 0
+    out = capsys.readouterr().out
+    assert "1 log(s)" in out and "walk" in out and "concrete, grass, gravel, mulch, dirt, sand" in out
+
+
+def test_bad_files_print_one_line_each_and_exit_2(tmp_path: Path, demo_mcap: Path, capsys) -> None:
+    s = tmp_path / "s"
+    run("new", s)
+    capsys.readouterr()
+    (tmp_path / "broken.mcap").write_bytes(b"\x89MCAP0\r\n" + b"\x01" * 50)
+    (tmp_path / "bad.csv").write_text("time,a\n0,1\n0.01,x\n")
+    code = run("ingest", s, tmp_path / "broken.mcap", demo_mcap, tmp_path / "bad.csv")
+    captured = capsys.readouterr()
+    assert code == 2
+    errors = [ln for ln in captured.err.splitlines() if ln.startswith("error:")]
+    assert len(errors) == 2
+    assert any("broken.mcap: truncated or corrupt MCAP" in e for e in errors)
+    assert any("bad.csv: text 'x' in numeric column 'a' (line 3)" in e for e in errors)
+    assert "Traceback" not in captured.err
+    assert "ingested 1 log(s), refused 2 file(s)" in captured.out
+    assert [x.name for x in Session.open(s).logs()] == ["walk"]
+
+
+def test_user_errors_exit_2_without_traceback(tmp_path: Path, capsys) -> None:
+    assert run("info", tmp_path / "nowhere") == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "not a session folder" in err and "Traceback" not in err
+    run("new", tmp_path / "s")
+    assert run("new", tmp_path / "s") == 2
+    assert "already a session" in capsys.readouterr().err
+    (tmp_path / "m.toml").write_text("nonsense = [")
+    assert run("ingest", tmp_path / "s", tmp_path / "x.csv", "--mapping", tmp_path / "m.toml") == 2
+    assert "m.toml: cannot read mapping file" in capsys.readouterr().err
+
+
+def test_dry_run_writes_nothing_and_prints_a_mapping_that_loads(tmp_path: Path, demo_mcap: Path, capsys) -> None:
+    s = tmp_path / "s"
+    run("new", s)
+    capsys.readouterr()
+    assert run("ingest", s, demo_mcap, "--dry-run") == 0
+    out = capsys.readouterr().out
+    assert "# " + str(demo_mcap) in out and "topic /imu (sensor_msgs/msg/Imu" in out
+    assert "-> log 'walk': 8998 samples at 100 Hz" in out
+    assert Session.open(s).logs() == []
+    mapping_file = tmp_path / "mapping.toml"
+    mapping_file.write_text(out)
+    mapping = load_mapping(mapping_file)
+    assert len(mapping.channels) == 22
+    assert mapping.channels[0].source == "/imu" and mapping.channels[0].field == "orientation.x"
+    # a user deletes the IMU channels from it and ingests with the result
+    kept = [c for c in mapping.channels if c.source != "/imu"]
+    mapping_file.write_text(
+        "\n".join(
+            f'[[channels]]\nsource = "{c.source}"\nfield = "{c.field}"\nname = "{c.name.split("/")[-1]}"\n'
+            for c in kept
+        )
+    )
+    assert run("ingest", s, demo_mcap, "--mapping", mapping_file) == 0
+    (log,) = Session.open(s).logs()
+    assert log.n_channels == 12 and all(n.split("/")[0] in {"fl", "fr", "rl", "rr"} for n in log.channel_names)
+
+
+def test_dry_run_reports_refusals_with_exit_2(tmp_path: Path, capsys) -> None:
+    (tmp_path / "e.csv").write_text("")
+    assert run("ingest", tmp_path / "s", tmp_path / "e.csv", "--dry-run") == 2
+    assert "REFUSED: empty file" in capsys.readouterr().out
+
+
+def test_demo_prepares_a_session_without_serving(tmp_path: Path, capsys) -> None:
+    s = tmp_path / "demo"
+    assert run("demo", "--session", s, "--logs", "2", "--minutes", "0.5", "--no-serve") == 0
+    logs = Session.open(s).logs()
+    assert len(logs) == 2 and all(x.n_channels == 22 for x in logs)
+    assert all(Session.open(s).reference(x.id) for x in logs)
+    assert (tmp_path / "demo-logs" / "walk_000.truth.json").exists()
+    assert run("demo", "--session", s, "--no-serve") == 0  # again: reuses the session
+    assert "using existing demo session" in capsys.readouterr().out
+
+
+def test_help_lists_every_command() -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "workbench.cli", "--help"], capture_output=True, text=True, check=False
+    ).stdout
+    for cmd in ("new", "ingest", "info", "serve", "demo"):
+        assert cmd in out
+
+
+@pytest.mark.parametrize("argv", [["ingest"], ["bogus"], ["serve", "--port", "notanumber"]])
+def test_bad_arguments_exit_2(argv: list[str]) -> None:
+    proc = subprocess.run([sys.executable, "-m", "workbench.cli", *argv], capture_output=True, text=True, check=False)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr

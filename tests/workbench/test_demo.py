@@ -1,0 +1,65 @@
+"""The demo generator: deterministic, all six terrains, real ROS 2 MCAP at two rates, truth sidecars."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from workbench.demo import FOOT_HZ, IMU_HZ, TERRAINS, generate_demo_logs, generate_walk
+
+
+def test_same_seed_same_walk_other_seed_other_walk() -> None:
+    a, b, c = generate_walk(5, 60.0), generate_walk(5, 60.0), generate_walk(6, 60.0)
+    np.testing.assert_array_equal(a.forces, b.forces)
+    assert a.truth == b.truth
+    assert not np.allclose(a.forces, c.forces)
+
+
+def test_every_walk_visits_all_six_terrains_in_patches_of_varied_length() -> None:
+    walk = generate_walk(0, 600.0)
+    assert {t for _, _, t in walk.truth} == set(TERRAINS)
+    lengths = [b - a for a, b, _ in walk.truth[:-1]]
+    assert min(lengths) >= 5.0 and max(lengths) > 2 * min(lengths)
+    assert all(x[2] != y[2] for x, y in zip(walk.truth, walk.truth[1:], strict=False))
+
+
+def test_physics_is_plausible() -> None:
+    walk = generate_walk(1, 120.0)
+    assert abs(walk.accel[:, 2].mean() - 9.81) < 0.2  # on average the feet carry the body
+    np.testing.assert_allclose(np.linalg.norm(walk.quat, axis=1), 1.0, atol=1e-9)
+    stance = walk.forces[:, :, 2] > 20.0
+    assert 0.3 < stance.mean() < 0.8  # a trot: each foot on the ground about half the time
+
+
+def test_terrains_differ_but_overlap() -> None:
+    """A windowed feature separates terrains only partly: a sequence model has work to do."""
+    walk = generate_walk(2, 900.0)
+    per_terrain: dict[str, list[float]] = {}
+    for a, b, t in walk.truth:
+        seg = walk.accel[int(a * IMU_HZ) + 50 : int(b * IMU_HZ) - 50, 2]
+        for i in range(0, len(seg) - 200, 200):
+            per_terrain.setdefault(t, []).append(float(np.abs(np.diff(seg[i : i + 200])).mean()))
+    means = {t: np.mean(v) for t, v in per_terrain.items()}
+    assert max(means.values()) > 1.5 * min(means.values())  # learnable differences
+    lo, hi = min(means, key=means.get), max(means, key=means.get)
+    spread = {t: (np.percentile(v, 5), np.percentile(v, 95)) for t, v in per_terrain.items()}
+    overlapping = sum(
+        spread[x][1] > spread[y][0] and spread[y][1] > spread[x][0] for x in means for y in means if x < y
+    )
+    assert overlapping >= 5, "terrains must overlap on any single feature"
+    assert spread[lo][1] < spread[hi][1]
+
+
+def test_written_logs_have_two_rates_and_a_truth_sidecar(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    (path,) = generate_demo_logs(tmp_path, n_logs=1, minutes=0.5, seed=4)
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    topics = {c.topic: summary.statistics.channel_message_counts[i] for i, c in summary.channels.items()}
+    assert set(topics) == {"/imu", "/feet/fl", "/feet/fr", "/feet/rl", "/feet/rr"}
+    assert abs(topics["/imu"] / topics["/feet/fl"] - IMU_HZ / FOOT_HZ) < 0.01
+    truth = json.loads(path.with_name("walk_000.truth.json").read_text())
+    assert truth["log"] == "walk_000.mcap" and truth["segments"][0]["terrain"] in TERRAINS
