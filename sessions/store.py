@@ -256,33 +256,46 @@ class Session:
         return out
 
     def _store(self, aligned: list[AlignedLog], files: Sequence[Path]) -> list[LogInfo]:
-        sha = _sha256(files)
+        try:
+            sha = _sha256(files)
+        except OSError as exc:
+            raise IngestError(files[0], f"cannot read: {exc.strerror or exc}") from None
+        try:
+            return self._write_logs(aligned, sha)
+        except OSError as exc:
+            # Not the file's fault (disk full, read-only folder): stop, the session is as it was.
+            raise SessionError(f"{self.path}: cannot write to the session: {exc.strerror or exc}") from None
+
+    def _write_logs(self, aligned: list[AlignedLog], sha: str) -> list[LogInfo]:
         logs_dir = self.path / LOGS_DIR
+        # The same recording again keeps the copy we have: no array is written for it.
+        ids = {name: int(i) for name, i in self._read("SELECT name, id FROM logs WHERE source_sha256 = ?", (sha,))}
         staged: list[tuple[AlignedLog, Path]] = []
         placed: list[Path] = []
         try:
             for log in aligned:
+                if log.parsed.name in ids:
+                    continue
                 tmp = logs_dir / f".tmp-{uuid.uuid4().hex}.npy"
+                staged.append((log, tmp))  # before writing: a failed write is cleaned up too
                 with open(tmp, "wb") as f:
                     np.save(f, log.data)
                     f.flush()
                     os.fsync(f.fileno())
-                staged.append((log, tmp))
-            ids = []
             with self._write() as conn:
                 for log, tmp in staged:
-                    row = conn.execute(
+                    row = conn.execute(  # another process may have ingested it meanwhile
                         "SELECT id FROM logs WHERE source_sha256 = ? AND name = ?", (sha, log.parsed.name)
                     ).fetchone()
-                    if row is not None:  # the same recording again: keep the one we have
-                        ids.append(int(row[0]))
+                    if row is not None:
+                        ids[log.parsed.name] = int(row[0])
                         continue
                     log_id = self._insert_log(conn, log, sha, tmp.name)
                     final = logs_dir / f"{log_id:06d}.npy"
                     conn.execute("UPDATE logs SET file = ? WHERE id = ?", (f"{LOGS_DIR}/{final.name}", log_id))
                     os.replace(tmp, final)
                     placed.append(final)
-                    ids.append(log_id)
+                    ids[log.parsed.name] = log_id
                 _fsync_dir(logs_dir)
         except BaseException:
             for p in placed:
@@ -293,7 +306,7 @@ class Session:
             for _, tmp in staged:
                 with contextlib.suppress(OSError):
                     tmp.unlink()
-        return [self.log(i) for i in ids]
+        return [self.log(ids[log.parsed.name]) for log in aligned]
 
     @staticmethod
     def _insert_log(conn: sqlite3.Connection, log: AlignedLog, sha: str, tmp_name: str) -> int:

@@ -153,3 +153,22 @@ def test_leftovers_of_a_crashed_ingest_are_swept(tmp_path: Path) -> None:
     Session.open(tmp_path / "s").close()
     assert not stale.exists()
     assert fresh.exists()  # might belong to an ingest running in another process right now
+
+
+def test_a_session_folder_that_cannot_be_written_gives_a_clear_error(
+    tmp_path: Path, demo_mcap: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Disk full while writing a log's array: a clear error, no log listed, no file left behind."""
+    s = Session.create(tmp_path / "s")
+
+    def no_space(*args: object, **kwargs: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(np, "save", no_space)
+    with pytest.raises(SessionError, match="cannot write to the session: No space left on device"):
+        s.ingest([demo_mcap])
+    monkeypatch.undo()
+    assert s.logs() == []
+    assert list((tmp_path / "s" / "logs").iterdir()) == []
+    (log,) = s.ingest([demo_mcap])  # and the session works afterwards
+    assert log.n_samples > 0
