@@ -1,0 +1,63 @@
+"""The paper's losses against values computed by hand."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+from torch import nn
+
+from training.config import ElasticNet
+from training.losses import (
+    classifier_loss,
+    elastic_net,
+    lstm_parameters,
+    masked_cross_entropy,
+    masked_mse,
+    predictor_loss,
+)
+
+
+def test_elastic_net_by_hand() -> None:
+    params = [torch.tensor([1.0, -2.0]), torch.tensor([[0.5], [-0.5]])]
+    # L1 = 1 + 2 + 0.5 + 0.5 = 4 ; L2² = 1 + 4 + 0.25 + 0.25 = 5.5
+    assert float(elastic_net(params, ElasticNet(lam=0.1, gamma=0.25))) == pytest.approx(0.1 * (0.25 * 4 + 0.75 * 5.5))
+    assert float(elastic_net(params, ElasticNet(lam=2.0, gamma=1.0))) == pytest.approx(8.0)  # pure lasso
+    assert float(elastic_net(params, ElasticNet(lam=2.0, gamma=0.0))) == pytest.approx(11.0)  # pure ridge
+
+
+def test_penalty_covers_the_lstm_w_u_b_only() -> None:
+    lstm = nn.LSTM(3, 4, batch_first=True)
+    names = sorted(n for n, _ in lstm.named_parameters())
+    assert names == ["bias_hh_l0", "bias_ih_l0", "weight_hh_l0", "weight_ih_l0"]
+    assert len(lstm_parameters(lstm)) == 4
+
+
+def test_masked_mse_by_hand() -> None:
+    est = torch.tensor([[[1.0, 1.0], [2.0, 0.0], [9.0, 9.0]]])  # (1, 3, 2)
+    tgt = torch.tensor([[[0.0, 1.0], [0.0, 0.0], [0.0, 0.0]]])
+    mask = torch.tensor([[True, True, False]])
+    # step 0: ((1)^2 + 0)/2 = 0.5 ; step 1: (4 + 0)/2 = 2 ; step 2 masked -> mean 1.25
+    assert float(masked_mse(est, tgt, mask)) == pytest.approx(1.25)
+
+
+def test_cross_entropy_is_minus_sum_y_log_yhat() -> None:
+    logits = torch.tensor([[[math.log(0.7), math.log(0.2), math.log(0.1)], [0.0, 0.0, 0.0]]])  # (1, 2, 3)
+    labels = torch.tensor([[0, 2]])
+    mask = torch.tensor([[True, False]])
+    assert float(masked_cross_entropy(logits, labels, mask)) == pytest.approx(-math.log(0.7))
+    mask = torch.tensor([[True, True]])
+    assert float(masked_cross_entropy(logits, labels, mask)) == pytest.approx((-math.log(0.7) + math.log(3)) / 2)
+
+
+def test_full_losses_add_the_penalty() -> None:
+    torch.manual_seed(0)
+    lstm = nn.LSTM(2, 3)
+    pen = ElasticNet(lam=0.01, gamma=0.5)
+    est, tgt, mask = torch.ones(1, 2, 2), torch.zeros(1, 2, 2), torch.ones(1, 2, dtype=torch.bool)
+    expected = 1.0 + elastic_net(lstm_parameters(lstm), pen).item()
+    assert predictor_loss(est, tgt, mask, lstm, pen).item() == pytest.approx(expected)
+    logits, labels = torch.zeros(1, 2, 4), torch.zeros(1, 2, dtype=torch.long)
+    expected = math.log(4) + elastic_net(lstm_parameters(lstm), pen).item()
+    assert classifier_loss(logits, labels, mask, lstm, pen).item() == pytest.approx(expected)

@@ -1,0 +1,123 @@
+"""Modules and fits at tiny sizes: shapes, causality, state carrying, and that training actually learns."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from training.config import ClassifierConfig, PredictorConfig, TrainConfig
+from training.data import Normalizer, cut_pieces, stage1_batch
+from training.fit_classifier import fit_classifier, fold_indices
+from training.fit_predictor import fit_predictor
+from training.inference import run_classifiers, run_predictor
+from training.models import Classifier, Predictor
+from training.progress import Cancelled
+
+TINY = TrainConfig(max_epochs=3, patience=2, chunk=16, piece=64, batch_size=8, label_piece=32, context=8, k_folds=3)
+
+
+def sine_logs(n_logs: int = 3, t: int = 300, c: int = 3, seed: int = 0) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n_logs):
+        tt = np.arange(t)[:, None]
+        out.append(
+            (np.sin(tt * (0.1 + 0.05 * np.arange(c)) + i) * 3 + 10 + 0.1 * rng.normal(size=(t, c))).astype(np.float32)
+        )
+    return out
+
+
+def test_predictor_is_causal_and_chunking_carries_state() -> None:
+    torch.manual_seed(0)
+    model = Predictor(PredictorConfig(3, 8)).eval()
+    x = torch.randn(2, 40, 3)
+    est, hid, _ = model(x)
+    assert est.shape == (2, 40, 3) and hid.shape == (2, 40, 8)
+    x2 = x.clone()
+    x2[:, 25:] += 5.0  # change the future
+    est2, _, _ = model(x2)
+    torch.testing.assert_close(est[:, :25], est2[:, :25])  # the past does not see it
+    a, _, state = model(x[:, :17])
+    b, _, _ = model(x[:, 17:], state)
+    torch.testing.assert_close(torch.cat([a, b], 1), est)
+
+
+def test_classifier_shapes_and_dropout_only_in_training() -> None:
+    model = Classifier(ClassifierConfig(8, 4, 8, 0.2))
+    f = torch.randn(3, 20, 8)
+    logits, _ = model(f)
+    assert logits.shape == (3, 20, 4)
+    model.eval()
+    torch.testing.assert_close(model(f)[0], model(f)[0])
+
+
+def test_normalizer_and_stage1_targets_are_the_next_sample() -> None:
+    logs = sine_logs()
+    norm = Normalizer.fit(logs)
+    z = np.concatenate([norm(a) for a in logs])
+    np.testing.assert_allclose(z.mean(0), 0, atol=1e-4)
+    np.testing.assert_allclose(z.std(0), 1, atol=1e-3)
+    pieces = cut_pieces([len(a) for a in logs], 128)
+    _, y, mask = stage1_batch(logs, pieces, 128)
+    p = pieces[0]
+    np.testing.assert_array_equal(y[0, :10], logs[p.seq][p.start + 1 : p.start + 11])
+    last = pieces[-1]  # ends at its log's end: the final step has no target
+    assert mask[len(pieces) - 1, last.length - 2] and not mask[len(pieces) - 1, last.length - 1]
+
+
+def test_predictor_learns_and_reports_progress() -> None:
+    logs = sine_logs()
+    seen = []
+    fit = fit_predictor(logs, config=TrainConfig(**{**TINY.__dict__, "max_epochs": 12}), hidden=8, progress=seen.append)
+    losses = [h["val_loss"] for h in fit.history]
+    assert losses[-1] < 0.6 * losses[0]  # normalised units: 1.0 is predicting the mean
+    assert seen and seen[-1].stage == "predictor" and 0 < seen[-1].fraction <= 1
+    outs = run_predictor(fit.model, fit.normalizer, logs)
+    assert outs[0].hidden.shape == (300, 8) and outs[0].error.shape == (300, 3)
+    assert np.all(outs[0].error[0] == 0)
+
+
+def test_cancel_stops_training() -> None:
+    with pytest.raises(Cancelled):
+        fit_predictor(sine_logs(), config=TINY, hidden=8, cancel=lambda: True)
+
+
+def test_folds_never_split_a_segment_and_are_stratified() -> None:
+    labels = [0, 0, 0, 1, 1, 1, 2, 2, 2]
+    folds = fold_indices(labels, 3, seed=0)
+    assert len(folds) == 3
+    seen = sorted(i for _, val in folds for i in val)
+    assert seen == list(range(9))  # each segment validated exactly once
+    for train, val in folds:
+        assert not set(train) & set(val)
+        assert sorted(labels[i] for i in val) == [0, 1, 2]
+    assert len(fold_indices([0, 1], 5, seed=0)) == 2  # fewer segments than k: one per fold
+    ((train, val),) = fold_indices([0], 5, seed=0)
+    assert list(train) == list(val) == [0]
+
+
+def test_classifier_separates_two_easy_classes_from_sparse_labels() -> None:
+    rng = np.random.default_rng(1)
+    # class 0: low-variance noise, class 1: high-variance noise; alternating 100-step stretches
+    feats, truth = [], []
+    for _ in range(2):
+        y = np.repeat(np.arange(8) % 2, 100)
+        f = rng.normal(size=(800, 4)) * np.where(y[:, None] == 1, 2.0, 0.3)
+        feats.append(f.astype(np.float32))
+        truth.append(y)
+    segments = [(0, 10, 90, 0), (0, 110, 190, 1), (0, 410, 490, 0), (0, 510, 590, 1), (0, 610, 690, 0),
+                (0, 710, 790, 1)]  # fmt: skip
+    fit = fit_classifier(
+        feats,
+        segments,
+        ["calm", "rough"],
+        config=TrainConfig(**{**TINY.__dict__, "max_epochs": 40, "patience": 10, "context": 100}),
+        hidden=8,
+    )
+    assert len(fit.models) == 3
+    assert fit.metrics["out_of_fold"] and fit.metrics["n_segments"] == 6
+    probs = run_classifiers(fit.models, [feats[1]])[0]  # (M, T, K) on a log it never saw
+    assert probs.shape == (3, 800, 2)
+    acc = (probs.mean(0).argmax(-1) == truth[1]).mean()
+    assert acc > 0.8

@@ -1,0 +1,122 @@
+"""Arrays to training batches: channel normalisation, pieces of long logs, padded batches with masks."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Normalizer:
+    """Per-channel zero mean, unit variance (the paper normalises every input dimension)."""
+
+    mean: np.ndarray  # (C,) float32
+    std: np.ndarray  # (C,) float32
+
+    @classmethod
+    def fit(cls, arrays: Sequence[np.ndarray]) -> Normalizer:
+        """Mean and std over every sample of ``arrays`` (each ``(T, C)``), in one streaming pass."""
+        n = 0
+        total = None
+        total_sq = None
+        for a in arrays:
+            a64 = np.asarray(a, dtype=np.float64)
+            s, sq = a64.sum(axis=0), np.square(a64).sum(axis=0)
+            total = s if total is None else total + s
+            total_sq = sq if total_sq is None else total_sq + sq
+            n += a64.shape[0]
+        if total is None or n == 0:
+            raise ValueError("no samples to normalise")
+        mean = total / n
+        var = np.maximum(total_sq / n - mean**2, 0.0)
+        std = np.sqrt(var)
+        std[std < 1e-8] = 1.0  # a constant channel stays constant (zero) instead of blowing up
+        return cls(mean.astype(np.float32), std.astype(np.float32))
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return ((np.asarray(x, dtype=np.float32) - self.mean) / self.std).astype(np.float32)
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {"mean": self.mean.tolist(), "std": self.std.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, list[float]]) -> Normalizer:
+        return cls(np.asarray(d["mean"], np.float32), np.asarray(d["std"], np.float32))
+
+
+@dataclass(frozen=True)
+class Piece:
+    """Samples ``[start, stop)`` of sequence ``seq``; ``loss_from`` marks where the loss starts (after context)."""
+
+    seq: int
+    start: int
+    stop: int
+    loss_from: int
+    label: int = -1
+
+    @property
+    def length(self) -> int:
+        return self.stop - self.start
+
+
+def cut_pieces(lengths: Sequence[int], piece: int) -> list[Piece]:
+    """Cut sequences of the given lengths into consecutive pieces of at most ``piece`` samples."""
+    out = []
+    for seq, n in enumerate(lengths):
+        for start in range(0, n, piece):
+            stop = min(n, start + piece)
+            if stop - start >= 2:
+                out.append(Piece(seq, start, stop, start))
+    return out
+
+
+def stage1_batch(arrays: Sequence[np.ndarray], pieces: Sequence[Piece], length: int) -> tuple[np.ndarray, ...]:
+    """Inputs, next-sample targets and target mask for stage 1.
+
+    Returns:
+        ``x (B, L, C)``, ``y (B, L, C)`` with ``y[:, t] = x[:, t + 1]`` (continuing past the piece into its log),
+        ``mask (B, L)`` true where a target exists.
+    """
+    c = arrays[0].shape[1]
+    x = np.zeros((len(pieces), length, c), np.float32)
+    y = np.zeros((len(pieces), length, c), np.float32)
+    mask = np.zeros((len(pieces), length), bool)
+    for i, p in enumerate(pieces):
+        a = arrays[p.seq]
+        n = p.length
+        x[i, :n] = a[p.start : p.stop]
+        m = min(n, a.shape[0] - p.start - 1)  # the log's last sample has no next one
+        y[i, :m] = a[p.start + 1 : p.start + 1 + m]
+        mask[i, :m] = True
+    return x, y, mask
+
+
+def labelled_pieces(segments: Sequence[tuple[int, int, int, int]], *, piece: int, context: int) -> list[Piece]:
+    """Pieces for stage 2 from labelled segments ``(seq, start, stop, label)``.
+
+    Each piece covers at most ``piece`` labelled samples and starts up to ``context`` samples earlier, so the
+    classifier's state is warmed on whatever came before (no loss there), as it is on a whole log.
+    """
+    out = []
+    for seq, start, stop, label in segments:
+        for a in range(start, stop, piece):
+            b = min(stop, a + piece)
+            out.append(Piece(seq, max(0, a - context), b, a, label))
+    return out
+
+
+def stage2_batch(features: Sequence[np.ndarray], pieces: Sequence[Piece]) -> tuple[np.ndarray, ...]:
+    """Features, per-step labels and loss mask for stage 2: ``f (B, L, F)``, ``labels (B, L)``, ``mask (B, L)``."""
+    length = max(p.length for p in pieces)
+    f_dim = features[0].shape[1]
+    f = np.zeros((len(pieces), length, f_dim), np.float32)
+    labels = np.full((len(pieces), length), -1, np.int64)
+    mask = np.zeros((len(pieces), length), bool)
+    for i, p in enumerate(pieces):
+        f[i, : p.length] = features[p.seq][p.start : p.stop]
+        a = p.loss_from - p.start
+        labels[i, a : p.length] = p.label
+        mask[i, a : p.length] = True
+    return f, labels, mask

@@ -1,0 +1,207 @@
+"""Stage 2 training: the classifier on frozen stage-1 features, from labelled segments only, as a k-fold ensemble."""
+
+from __future__ import annotations
+
+import copy
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from sklearn.model_selection import KFold, StratifiedKFold
+
+from .config import ClassifierConfig, TrainConfig
+from .data import Piece, labelled_pieces, stage2_batch
+from .losses import classifier_loss, masked_cross_entropy
+from .metrics import classification_metrics
+from .models import Classifier
+from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
+
+Segment = tuple[int, int, int, int]  # (log index, start, stop, class index)
+
+
+@dataclass
+class ClassifierFit:
+    """The fold models (the ensemble), out-of-fold metrics and per-fold training curves."""
+
+    models: list[Classifier]
+    metrics: dict
+    history: list[list[dict[str, float]]] = field(default_factory=list)
+    folds: list[list[int]] = field(default_factory=list)  # validation segment indices of each fold
+
+
+def fold_indices(labels: Sequence[int], k: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """k folds over segments, stratified by terrain where every class has enough segments.
+
+    Each segment is wholly in one fold. With fewer than two segments there is one "fold" training on everything.
+    """
+    n = len(labels)
+    idx = np.arange(n)
+    if n < 2:
+        return [(idx, idx)]
+    k = min(k, n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # "least populated class has only N members"
+        try:
+            return list(StratifiedKFold(k, shuffle=True, random_state=seed).split(idx, labels))
+        except ValueError:
+            return list(KFold(k, shuffle=True, random_state=seed).split(idx))
+
+
+MIN_STEPS = 8
+
+
+def random_crops(segments: Sequence[Segment], config: TrainConfig, rng: np.random.Generator) -> list[Piece]:
+    """Windows of ``label_piece`` samples at random places in each segment (as many as fit), with context."""
+    out = []
+    for seq, start, stop, label in segments:
+        n = stop - start
+        count = -(-n // config.label_piece)
+        for _ in range(count):
+            length = min(n, config.label_piece)
+            a = start + int(rng.integers(0, n - length + 1))
+            out.append(Piece(seq, max(0, a - config.context), a + length, a, label))
+    return out
+
+
+def _ce(model: Classifier, features: Sequence[np.ndarray], pieces: list[Piece], batch: int, dev: str) -> float:
+    total, count = 0.0, 0
+    with torch.inference_mode():
+        for i in range(0, len(pieces), batch):
+            f, labels, mask = (torch.from_numpy(a).to(dev) for a in stage2_batch(features, pieces[i : i + batch]))
+            logits, _ = model(f)
+            n = int(mask.sum())
+            total += float(masked_cross_entropy(logits, labels, mask)) * n
+            count += n
+    return total / max(count, 1)
+
+
+def _predict_whole_logs(
+    model: Classifier, features: Sequence[np.ndarray], segments: Sequence[Segment], dev: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Labels and predictions at ``segments``' steps from one pass over each whole log, as the model is used."""
+    from .inference import run_classifiers
+
+    logs = sorted({s[0] for s in segments})
+    probs = run_classifiers([model], [features[i] for i in logs], device=dev)
+    by_log = dict(zip(logs, probs, strict=True))
+    y_true = [np.full(stop - start, label) for _, start, stop, label in segments]
+    y_pred = [by_log[seq][0, start:stop].argmax(-1) for seq, start, stop, _ in segments]
+    return np.concatenate(y_true), np.concatenate(y_pred)
+
+
+def fit_classifier(
+    features: Sequence[np.ndarray],
+    segments: Sequence[Segment],
+    classes: Sequence[str],
+    *,
+    config: TrainConfig | None = None,
+    hidden: int = 200,
+    dropout: float = 0.2,
+    init: Sequence[Classifier] | None = None,
+    progress: ProgressFn | None = None,
+    cancel: CancelFn = never,
+) -> ClassifierFit:
+    """Train the k fold models on labelled segments of frozen stage-1 features.
+
+    Args:
+        features: Per log, ``(T, F)`` stage-1 features (from the cache).
+        segments: Labelled stretches ``(log index, start, stop, class index)``.
+        classes: The ``K`` class names.
+        config: Training settings; ``k_folds`` folds over segments.
+        hidden: LSTM width.
+        dropout: Dropout after each LSTM layer.
+        init: Previous fold models to warm-start from (used when shapes match).
+        progress: Called after every optimiser step.
+        cancel: Polled after every step.
+
+    Returns:
+        The ensemble and out-of-fold metrics: each labelled step predicted, in a pass over its whole log, by the
+        fold model that did not train on it.
+    """
+    if not segments:
+        raise ValueError("no labelled segments to train the classifier on")
+    config = config or TrainConfig()
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    dev = config.device
+    cfg = ClassifierConfig(features[0].shape[1], len(classes), hidden, dropout)
+    folds = fold_indices([s[3] for s in segments], config.k_folds, config.seed)
+    models, histories, oof_true, oof_pred = [], [], [], []
+    t0 = time.monotonic()
+    for f_i, (train_idx, val_idx) in enumerate(folds, start=1):
+
+        def pieces(idx: np.ndarray) -> list[Piece]:
+            return labelled_pieces([segments[i] for i in idx], piece=config.label_piece, context=config.context)
+
+        train_segments = [segments[i] for i in train_idx]
+        val = pieces(val_idx)
+        model = Classifier(cfg)
+        if init is not None and len(init) >= f_i and init[f_i - 1].config == cfg:
+            model.load_state_dict(init[f_i - 1].state_dict())
+        model.to(dev)
+        optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
+        n_pieces = len(random_crops(train_segments, config, rng))
+        # The paper's batch of 512 is an upper bound: sparse labels make few pieces, and one step per epoch
+        # would leave the classifier untrained; keep at least MIN_STEPS steps per epoch.
+        batch = max(1, min(config.batch_size, -(-n_pieces // MIN_STEPS)))
+        steps = -(-n_pieces // batch)
+        best, best_state, since, history = float("inf"), copy.deepcopy(model.state_dict()), 0, []
+        for epoch in range(1, config.max_epochs + 1):
+            model.train()
+            train = random_crops(train_segments, config, rng)  # fresh crops every epoch
+            order = rng.permutation(len(train))
+            total = 0.0
+            for step in range(steps):
+                group = [train[i] for i in order[step * batch : (step + 1) * batch]]
+                if not group:
+                    break
+                f, labels, mask = (torch.from_numpy(a).to(dev) for a in stage2_batch(features, group))
+                logits, _ = model(f)  # (B, T, K)
+                loss = classifier_loss(logits, labels, mask, model.lstm, config.elastic)
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                torch.nn.utils.clip_grad_norm_(model.parameters(), config.clip)
+                optimizer.step()
+                total += loss.item()
+                if cancel():
+                    raise Cancelled("classifier training cancelled")
+                if progress:
+                    progress(
+                        Progress(
+                            "classifier",
+                            f_i,
+                            len(folds),
+                            epoch,
+                            config.max_epochs,
+                            step + 1,
+                            steps,
+                            total / (step + 1),
+                            history[-1]["val_loss"] if history else None,
+                            None if best == float("inf") else best,
+                            time.monotonic() - t0,
+                        )
+                    )
+            model.eval()
+            val_loss = _ce(model, features, val, config.batch_size, dev)
+            history.append({"epoch": epoch, "train_loss": total / max(steps, 1), "val_loss": val_loss})
+            if val_loss < best - 1e-6:
+                best, best_state, since = val_loss, copy.deepcopy(model.state_dict()), 0
+            else:
+                since += 1
+            if since >= config.patience:
+                break
+        model.load_state_dict(best_state)
+        model.eval()
+        y_true, y_pred = _predict_whole_logs(model, features, [segments[i] for i in val_idx], dev)
+        oof_true.append(y_true)
+        oof_pred.append(y_pred)
+        models.append(model.cpu())
+        histories.append(history)
+    metrics = classification_metrics(np.concatenate(oof_true), np.concatenate(oof_pred), classes)
+    metrics["out_of_fold"] = len(folds) > 1
+    metrics["n_segments"] = len(segments)
+    metrics["labelled_samples"] = int(sum(s[2] - s[1] for s in segments))
+    return ClassifierFit(models, metrics, histories, [v.tolist() for _, v in folds])

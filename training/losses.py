@@ -1,0 +1,59 @@
+"""The paper's losses: eq. (1) MSE and eq. (2) cross-entropy, each plus an elastic net on its LSTM's weights."""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from .config import ElasticNet
+
+
+def lstm_parameters(lstm: nn.LSTM) -> list[torch.Tensor]:
+    """The W (input-hidden), U (hidden-hidden) and B (bias) tensors of an LSTM: what the penalty covers."""
+    return [p for name, p in lstm.named_parameters() if name.startswith(("weight_ih", "weight_hh", "bias_"))]
+
+
+def elastic_net(params: list[torch.Tensor], penalty: ElasticNet) -> torch.Tensor:
+    """``λ(γ·Σ‖θ‖₁ + (1−γ)·Σ‖θ‖₂²)`` summed over ``params``."""
+    l1 = sum(p.abs().sum() for p in params)
+    l2 = sum(p.pow(2).sum() for p in params)
+    return penalty.lam * (penalty.gamma * l1 + (1.0 - penalty.gamma) * l2)
+
+
+def masked_mse(estimate: torch.Tensor, target: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Mean squared error over the timesteps where ``mask`` is true.
+
+    Args:
+        estimate: ``(B, T, C)``.
+        target: ``(B, T, C)``.
+        mask: ``(B, T)`` bool.
+    """
+    err = (estimate - target).pow(2).mean(dim=-1)  # (B, T)
+    return (err * mask).sum() / mask.sum().clamp_min(1)
+
+
+def masked_cross_entropy(logits: torch.Tensor, labels: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """``−Σ y log ŷ`` averaged over the labelled timesteps (the paper prints it without the minus sign).
+
+    Args:
+        logits: ``(B, T, K)``.
+        labels: ``(B, T)`` class indices (any value where ``mask`` is false).
+        mask: ``(B, T)`` bool.
+    """
+    ce = nn.functional.cross_entropy(logits.flatten(0, 1), labels.flatten().clamp_min(0), reduction="none")  # (B*T,)
+    m = mask.flatten()
+    return (ce * m).sum() / m.sum().clamp_min(1)
+
+
+def predictor_loss(
+    estimate: torch.Tensor, target: torch.Tensor, mask: torch.Tensor, lstm: nn.LSTM, penalty: ElasticNet
+) -> torch.Tensor:
+    """Eq. (1): MSE of the next-sample estimate plus the elastic net on the predictor's LSTM."""
+    return masked_mse(estimate, target, mask) + elastic_net(lstm_parameters(lstm), penalty)
+
+
+def classifier_loss(
+    logits: torch.Tensor, labels: torch.Tensor, mask: torch.Tensor, lstm: nn.LSTM, penalty: ElasticNet
+) -> torch.Tensor:
+    """Eq. (2): cross-entropy plus the elastic net on the classifier's LSTM."""
+    return masked_cross_entropy(logits, labels, mask) + elastic_net(lstm_parameters(lstm), penalty)

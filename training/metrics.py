@@ -1,0 +1,29 @@
+"""Classification metrics, computed with scikit-learn."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from sklearn.metrics import accuracy_score, confusion_matrix, f1_score, recall_score
+
+
+def classification_metrics(y_true: np.ndarray, y_pred: np.ndarray, classes: Sequence[str]) -> dict:
+    """Accuracy, macro-F1 (over the classes present in ``y_true``), per-class recall and the confusion matrix.
+
+    Args:
+        y_true: ``(N,)`` class indices.
+        y_pred: ``(N,)`` class indices.
+        classes: Names of all ``K`` classes.
+    """
+    labels = list(range(len(classes)))
+    present = sorted(set(np.asarray(y_true).tolist()))
+    recall = recall_score(y_true, y_pred, labels=labels, average=None, zero_division=0)
+    return {
+        "accuracy": float(accuracy_score(y_true, y_pred)),
+        "macro_f1": float(f1_score(y_true, y_pred, labels=present, average="macro", zero_division=0)),
+        "per_class_recall": {c: float(r) for c, r, k in zip(classes, recall, labels, strict=True) if k in present},
+        "confusion": confusion_matrix(y_true, y_pred, labels=labels).tolist(),
+        "classes": list(classes),
+        "n": len(y_true),
+    }
