@@ -1,0 +1,91 @@
+"""Bundles round-trip without pickle; streaming, ONNX and the offline pass give the same numbers."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from training.bundle import BundleError, ModelBundle, load_bundle, save_bundle
+from training.config import ClassifierConfig, PredictorConfig
+from training.data import Normalizer
+from training.inference import run_classifiers, run_predictor
+from training.models import Classifier, Predictor
+from training.stream import StreamingClassifier
+
+
+def tiny_bundle(mode: str = "hidden", seed: int = 0) -> tuple[ModelBundle, list[np.ndarray]]:
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    logs = [rng.normal(5.0, 2.0, size=(n, 3)).astype(np.float32) for n in (120, 77)]
+    pred = Predictor(PredictorConfig(3, 8)).eval()
+    n_feat = {"hidden": 8, "estimate": 3, "error": 3, "hidden+error": 11}[mode]
+    clfs = [Classifier(ClassifierConfig(n_feat, 4, 6, 0.2)).eval() for _ in range(3)]
+    bundle = ModelBundle(pred, Normalizer.fit(logs), ("a", "b", "c"), 100.0, clfs, ("w", "x", "y", "z"), mode,
+                         {"accuracy": 0.5}, {"note": "tiny"})  # fmt: skip
+    return bundle, logs
+
+
+def offline(bundle: ModelBundle, logs: list[np.ndarray]) -> list[np.ndarray]:
+    outs = run_predictor(bundle.predictor, bundle.normalizer, logs, chunk=50)
+    feats = [o.features(bundle.feature_mode) for o in outs]
+    return [p.mean(0) for p in run_classifiers(bundle.classifiers, feats, chunk=33)]
+
+
+def test_bundle_round_trip_is_exact_and_pickle_free(tmp_path: Path) -> None:
+    bundle, logs = tiny_bundle()
+    path = save_bundle(bundle, tmp_path / "v1")
+    assert sorted(p.name for p in path.iterdir()) == ["classifier.safetensors", "model.json", "predictor.safetensors"]
+    cfg = json.loads((path / "model.json").read_text())
+    assert cfg["predictor"] == {"n_channels": 3, "hidden": 8} and cfg["n_folds"] == 3 and cfg["schema"] == 1
+    again = load_bundle(path)
+    assert again.classes == bundle.classes and again.channels == bundle.channels and again.info == {"note": "tiny"}
+    for a, b in zip(offline(bundle, logs), offline(again, logs), strict=True):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(FileExistsError):
+        save_bundle(bundle, path)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".tmp")]
+
+
+def test_damaged_or_newer_bundles_are_refused(tmp_path: Path) -> None:
+    bundle, _ = tiny_bundle()
+    path = save_bundle(bundle, tmp_path / "v1")
+    (path / "predictor.safetensors").write_bytes(b"garbage")
+    with pytest.raises(BundleError, match="damaged model bundle"):
+        load_bundle(path)
+    path = save_bundle(bundle, tmp_path / "v2")
+    cfg = json.loads((path / "model.json").read_text())
+    cfg["schema"] = 99
+    (path / "model.json").write_text(json.dumps(cfg))
+    with pytest.raises(BundleError, match="newer"):
+        load_bundle(path)
+    with pytest.raises(BundleError, match="not a model bundle"):
+        load_bundle(tmp_path)
+
+
+@pytest.mark.parametrize("mode", ["hidden", "estimate", "error", "hidden+error"])
+def test_streaming_equals_the_offline_pass(mode: str) -> None:
+    bundle, logs = tiny_bundle(mode)
+    expected = offline(bundle, logs)
+    for log, exp in zip(logs, expected, strict=True):
+        got = StreamingClassifier(bundle).run(log)
+        np.testing.assert_allclose(got, exp, atol=1e-5)
+    # several robots at once, each with its own state
+    multi = StreamingClassifier(bundle, streams=2)
+    n = min(len(x) for x in logs)
+    out = np.stack([multi.step(np.stack([logs[0][t], logs[1][t]])) for t in range(n)])  # (T, 2, K)
+    np.testing.assert_allclose(out[:, 0], expected[0][:n], atol=1e-5)
+    np.testing.assert_allclose(out[:, 1], expected[1][:n], atol=1e-5)
+
+
+def test_onnx_matches_pytorch(tmp_path: Path) -> None:
+    pytest.importorskip("onnxruntime")
+    from training.onnx_export import check_onnx, export_onnx, run_onnx
+
+    bundle, logs = tiny_bundle("hidden+error")
+    path = export_onnx(bundle, tmp_path / "classifier.onnx")
+    assert check_onnx(path, bundle, logs[0]) < 1e-4
+    np.testing.assert_allclose(run_onnx(path, bundle, logs[1]), offline(bundle, [logs[1]])[0], atol=1e-4)

@@ -1,0 +1,143 @@
+"""A trained model as files: JSON config + safetensors weights, rebuilt from the config on load (no pickle)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import uuid
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from safetensors import SafetensorError
+from safetensors.torch import load_file, save_file
+
+from .config import ClassifierConfig, FeatureMode, PredictorConfig
+from .data import Normalizer
+from .models import Classifier, Predictor
+
+BUNDLE_SCHEMA = 1
+CONFIG_FILE = "model.json"
+PREDICTOR_FILE = "predictor.safetensors"
+CLASSIFIER_FILE = "classifier.safetensors"
+
+
+class BundleError(Exception):
+    """A bundle folder is missing files, damaged, or from a newer schema."""
+
+
+@dataclass
+class ModelBundle:
+    """Stage 1 (always) and the stage-2 ensemble (once trained), with what is needed to use them.
+
+    Attributes:
+        predictor: The frozen stage-1 model.
+        normalizer: Input normalisation of stage 1.
+        channels: Names of the input channels, in order.
+        rate_hz: Sample rate the model was trained at.
+        classifiers: The k fold models (empty for a predictor-only bundle).
+        classes: Terrain names, in the order of the classifier outputs.
+        feature_mode: What stage 1 hands stage 2.
+        metrics: Out-of-fold metrics of the classifier.
+        info: Free-form description: training data summary, versions, dates.
+    """
+
+    predictor: Predictor
+    normalizer: Normalizer
+    channels: tuple[str, ...]
+    rate_hz: float
+    classifiers: list[Classifier] = field(default_factory=list)
+    classes: tuple[str, ...] = ()
+    feature_mode: FeatureMode = "hidden"
+    metrics: dict = field(default_factory=dict)
+    info: dict = field(default_factory=dict)
+
+    def config(self) -> dict:
+        """Everything but the weights, as JSON-able data."""
+        return {
+            "schema": BUNDLE_SCHEMA,
+            "predictor": asdict(self.predictor.config),
+            "classifier": asdict(self.classifiers[0].config) if self.classifiers else None,
+            "n_folds": len(self.classifiers),
+            "normalizer": self.normalizer.to_dict(),
+            "channels": list(self.channels),
+            "rate_hz": self.rate_hz,
+            "classes": list(self.classes),
+            "feature_mode": self.feature_mode,
+            "metrics": self.metrics,
+            "info": self.info,
+        }
+
+
+def save_bundle(bundle: ModelBundle, directory: str | Path) -> Path:
+    """Write a bundle to ``directory``, which must not exist: written under a temporary name, renamed when whole.
+
+    Returns:
+        ``directory``.
+    """
+    directory = Path(directory)
+    if directory.exists():
+        raise FileExistsError(f"{directory} exists already")
+    tmp = directory.with_name(f".tmp-{directory.name}-{uuid.uuid4().hex[:8]}")
+    tmp.mkdir(parents=True)
+    try:
+        save_file({k: v.contiguous() for k, v in bundle.predictor.state_dict().items()}, tmp / PREDICTOR_FILE)
+        if bundle.classifiers:
+            weights = {
+                f"fold{i}.{k}": v.contiguous()
+                for i, m in enumerate(bundle.classifiers)
+                for k, v in m.state_dict().items()
+            }
+            save_file(weights, tmp / CLASSIFIER_FILE)
+        (tmp / CONFIG_FILE).write_text(json.dumps(bundle.config(), indent=1))
+        for f in tmp.iterdir():
+            with open(f, "rb") as fh:
+                os.fsync(fh.fileno())
+        os.replace(tmp, directory)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return directory
+
+
+def load_bundle(directory: str | Path) -> ModelBundle:
+    """Rebuild a bundle from its config and weights.
+
+    Raises:
+        BundleError: Missing or damaged files, or a newer schema.
+    """
+    directory = Path(directory)
+    try:
+        cfg = json.loads((directory / CONFIG_FILE).read_text())
+    except (OSError, ValueError) as exc:
+        raise BundleError(f"{directory}: not a model bundle ({exc})") from None
+    if int(cfg.get("schema", 0)) > BUNDLE_SCHEMA:
+        raise BundleError(f"{directory}: bundle schema {cfg['schema']} is newer than this workbench ({BUNDLE_SCHEMA})")
+    try:
+        predictor = Predictor(PredictorConfig(**cfg["predictor"]))
+        predictor.load_state_dict(load_file(directory / PREDICTOR_FILE))
+        classifiers = []
+        if cfg.get("classifier"):
+            weights = load_file(directory / CLASSIFIER_FILE)
+            for i in range(int(cfg["n_folds"])):
+                model = Classifier(ClassifierConfig(**cfg["classifier"]))
+                prefix = f"fold{i}."
+                model.load_state_dict({k[len(prefix) :]: v for k, v in weights.items() if k.startswith(prefix)})
+                classifiers.append(model.eval())
+    except (OSError, KeyError, TypeError, RuntimeError, ValueError, SafetensorError) as exc:
+        raise BundleError(f"{directory}: damaged model bundle ({type(exc).__name__}: {exc})") from None
+    return ModelBundle(
+        predictor=predictor.eval(),
+        normalizer=Normalizer.from_dict(cfg["normalizer"]),
+        channels=tuple(cfg["channels"]),
+        rate_hz=float(cfg["rate_hz"]),
+        classifiers=classifiers,
+        classes=tuple(cfg["classes"]),
+        feature_mode=cfg["feature_mode"],
+        metrics=cfg.get("metrics", {}),
+        info=cfg.get("info", {}),
+    )
+
+
+def parameter_count(bundle: ModelBundle) -> int:
+    return sum(p.numel() for m in [bundle.predictor, *bundle.classifiers] for p in m.parameters())

@@ -1,0 +1,70 @@
+"""ONNX model of the streaming classifier: one sample and the recurrent state in, probabilities and new state out."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .bundle import ModelBundle
+from .stream import StepModel, StreamingClassifier
+
+INPUTS = ("x", "h1", "c1", "h2", "c2", "prev", "started")
+OUTPUTS = ("probs", "h1_out", "c1_out", "h2_out", "c2_out", "prev_out")
+
+
+def zero_state(bundle: ModelBundle, streams: int = 1) -> dict[str, np.ndarray]:
+    """The inputs of a stream's first step, apart from ``x``."""
+    m, c = len(bundle.classifiers), len(bundle.channels)
+    h1, h2 = bundle.predictor.config.hidden, bundle.classifiers[0].config.hidden
+    z = np.zeros
+    return {
+        "h1": z((streams, h1), np.float32), "c1": z((streams, h1), np.float32),
+        "h2": z((m, streams, h2), np.float32), "c2": z((m, streams, h2), np.float32),
+        "prev": z((streams, c), np.float32), "started": z((streams, 1), np.float32),
+    }  # fmt: skip
+
+
+def export_onnx(bundle: ModelBundle, path: str | Path) -> Path:
+    """Write the one-step model to ``path`` with a dynamic number of streams."""
+    model = StepModel(bundle).eval()
+    args = tuple(torch.from_numpy(v) for v in {"x": np.zeros((2, len(bundle.channels)), np.float32),
+                                               **zero_state(bundle, 2)}.values())  # fmt: skip
+    batch = torch.export.Dim("streams", min=1, max=4096)
+    shapes = ({0: batch}, {0: batch}, {0: batch}, {1: batch}, {1: batch}, {0: batch}, {0: batch})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the exporter's deprecation chatter is not the user's business
+        program = torch.onnx.export(
+            model,
+            args,
+            input_names=list(INPUTS),
+            output_names=list(OUTPUTS),
+            dynamic_shapes=shapes,
+            dynamo=True,
+            verbose=False,
+        )
+    path = Path(path)
+    program.save(str(path))
+    return path
+
+
+def run_onnx(path: str | Path, bundle: ModelBundle, samples: np.ndarray) -> np.ndarray:
+    """Run an exported model over a ``(T, C)`` log of one stream with onnxruntime: ``(T, K)``."""
+    import onnxruntime as ort
+
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    feed = zero_state(bundle, 1)
+    out = np.empty((len(samples), len(bundle.classes)), np.float32)
+    for t, x in enumerate(np.asarray(samples, np.float32)):
+        probs, h1, c1, h2, c2, prev = session.run(list(OUTPUTS), {"x": x[None], **feed})
+        feed = {"h1": h1, "c1": c1, "h2": h2, "c2": c2, "prev": prev, "started": np.ones((1, 1), np.float32)}
+        out[t] = probs[0]
+    return out
+
+
+def check_onnx(path: str | Path, bundle: ModelBundle, samples: np.ndarray) -> float:
+    """Largest absolute difference between ONNX Runtime and the PyTorch streaming runtime over ``samples``."""
+    ours = StreamingClassifier(bundle).run(samples)
+    return float(np.abs(run_onnx(path, bundle, samples) - ours).max())

@@ -1,0 +1,113 @@
+"""Both stages one sample at a time, for the robot: the same numbers as the offline pass over a whole log.
+
+:class:`StepModel` is the one-step computation (stage-1 LSTM cell, features, every ensemble member's LSTM cell,
+mean probabilities). The streaming runtime runs it in PyTorch; the ONNX export is the same module, traced.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import nn
+
+from .bundle import ModelBundle
+
+
+def _cell(x: torch.Tensor, h: torch.Tensor, c: torch.Tensor, w_ih, w_hh, b) -> tuple[torch.Tensor, torch.Tensor]:
+    """One LSTM step, PyTorch's gate order (i, f, g, o). ``x (B, F)``, ``h, c (B, H)``."""
+    gates = x @ w_ih.T + h @ w_hh.T + b  # (B, 4H)
+    i, f, g, o = gates.chunk(4, dim=-1)
+    c = torch.sigmoid(f) * c + torch.sigmoid(i) * torch.tanh(g)
+    return torch.sigmoid(o) * torch.tanh(c), c
+
+
+class StepModel(nn.Module):
+    """One step of both stages for ``B`` streams; states are explicit inputs and outputs.
+
+    Inputs: ``x (B, C)`` raw sample, ``h1, c1 (B, H1)``, ``h2, c2 (M, B, H2)``, ``prev (B, C)`` stage 1's estimate
+    of this sample from the step before (zeros at a stream's start, meaning "no estimate yet").
+    Outputs: ``probs (B, K)`` ensemble mean, then the new ``h1, c1, h2, c2, prev``.
+    """
+
+    def __init__(self, bundle: ModelBundle) -> None:
+        super().__init__()
+        if not bundle.classifiers:
+            raise ValueError("the bundle has no classifier: train stage 2 first")
+        p = bundle.predictor
+        self.mode = bundle.feature_mode
+        self.register_buffer("mean", torch.from_numpy(bundle.normalizer.mean))
+        self.register_buffer("std", torch.from_numpy(bundle.normalizer.std))
+        self.register_buffer("w1_ih", p.lstm.weight_ih_l0.detach().clone())
+        self.register_buffer("w1_hh", p.lstm.weight_hh_l0.detach().clone())
+        self.register_buffer("b1", (p.lstm.bias_ih_l0 + p.lstm.bias_hh_l0).detach().clone())
+        self.register_buffer("head_w", p.head.weight.detach().clone())
+        self.register_buffer("head_b", p.head.bias.detach().clone())
+        cs = bundle.classifiers
+        self.register_buffer("w2_ih", torch.stack([m.lstm.weight_ih_l0.detach() for m in cs]))  # (M, 4H, F)
+        self.register_buffer("w2_hh", torch.stack([m.lstm.weight_hh_l0.detach() for m in cs]))  # (M, 4H, H)
+        self.register_buffer("b2", torch.stack([(m.lstm.bias_ih_l0 + m.lstm.bias_hh_l0).detach() for m in cs]))
+        self.register_buffer("out_w", torch.stack([m.head.weight.detach() for m in cs]))  # (M, K, H)
+        self.register_buffer("out_b", torch.stack([m.head.bias.detach() for m in cs]))  # (M, K)
+
+    def forward(self, x, h1, c1, h2, c2, prev, started):
+        z = (x - self.mean) / self.std  # (B, C)
+        h1, c1 = _cell(z, h1, c1, self.w1_ih, self.w1_hh, self.b1)
+        estimate = h1 @ self.head_w.T + self.head_b  # (B, C): estimate of the next sample
+        error = (z - prev) * started  # (B, C): zero at a stream's first sample, as offline
+        if self.mode == "hidden":
+            feats = h1
+        elif self.mode == "estimate":
+            feats = estimate
+        elif self.mode == "error":
+            feats = error
+        else:
+            feats = torch.cat([h1, error], dim=-1)
+        gates = torch.einsum("bf,mgf->mbg", feats, self.w2_ih) + torch.einsum("mbh,mgh->mbg", h2, self.w2_hh)
+        gates = gates + self.b2[:, None, :]  # (M, B, 4H)
+        i, f, g, o = gates.chunk(4, dim=-1)
+        c2 = torch.sigmoid(f) * c2 + torch.sigmoid(i) * torch.tanh(g)
+        h2 = torch.sigmoid(o) * torch.tanh(c2)  # (M, B, H)
+        logits = torch.einsum("mbh,mkh->mbk", h2, self.out_w) + self.out_b[:, None, :]
+        probs = torch.softmax(logits, dim=-1).mean(dim=0)  # (B, K)
+        return probs, h1, c1, h2, c2, estimate
+
+
+class StreamingClassifier:
+    """Class probabilities one sample at a time for ``streams`` independent streams (robots), state carried.
+
+    Example:
+        >>> clf = StreamingClassifier(load_bundle("bundle"))
+        >>> for sample in imu_and_force_samples:      # (C,) raw values in bundle.channels order
+        ...     probs = clf.step(sample)             # (K,) in bundle.classes order
+    """
+
+    def __init__(self, bundle: ModelBundle, *, streams: int = 1) -> None:
+        self.bundle = bundle
+        self.model = StepModel(bundle).eval()
+        self.streams = streams
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every stream's past (a new log, a robot restarted)."""
+        b, m = self.streams, len(self.bundle.classifiers)
+        h1 = self.bundle.predictor.config.hidden
+        h2 = self.bundle.classifiers[0].config.hidden
+        c = len(self.bundle.channels)
+        self._state = [torch.zeros(b, h1), torch.zeros(b, h1), torch.zeros(m, b, h2), torch.zeros(m, b, h2),
+                       torch.zeros(b, c)]  # fmt: skip
+        self._started = torch.zeros(b, 1)
+
+    @torch.inference_mode()
+    def step(self, x: np.ndarray) -> np.ndarray:
+        """One raw sample per stream: ``(C,)`` -> ``(K,)`` or ``(B, C)`` -> ``(B, K)``."""
+        single = np.ndim(x) == 1
+        xt = torch.as_tensor(np.asarray(x, np.float32).reshape(self.streams, -1))
+        probs, *state = self.model(xt, *self._state, self._started)
+        self._state = state
+        self._started = torch.ones_like(self._started)
+        out = probs.numpy()
+        return out[0] if single else out
+
+    def run(self, samples: np.ndarray) -> np.ndarray:
+        """A whole ``(T, C)`` log of one stream, step by step: ``(T, K)``."""
+        return np.stack([self.step(s) for s in samples])
