@@ -6,6 +6,7 @@ Knows nothing of training, labelling strategies or the UI; ``workbench`` compose
 from .errors import IngestError, LabelError, SessionError, WorkbenchError
 from .ingest import IngestOptions, Mapping, load_mapping
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
+from .models import ModelVersion
 from .schema import DEFAULT_TERRAINS, SCHEMA_VERSION
 from .store import Session
 
@@ -20,6 +21,7 @@ __all__ = [
     "LabelError",
     "LogInfo",
     "Mapping",
+    "ModelVersion",
     "Segment",
     "Session",
     "SessionError",

@@ -19,6 +19,7 @@ from . import labels as _labels
 from .errors import IngestError, LabelError, SessionError
 from .ingest import AlignedLog, IngestOptions, align, plan_sources, read_source
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
+from .models import ModelRegistry
 from .schema import SCHEMA_VERSION, migrate
 
 DB_NAME = "session.sqlite"
@@ -43,7 +44,7 @@ def _fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
-class Session:
+class Session(ModelRegistry):
     """A session folder. Thread-safe: one SQLite connection guarded by a lock; every write is one transaction.
 
     Use :meth:`create` or :meth:`open`, not the constructor.
@@ -442,6 +443,27 @@ class Session:
         """One segment by id."""
         with self._lock:
             return _labels.get_segment(self._conn, segment_id)
+
+    def export_labels(self, path: str | Path) -> Path:
+        """Write every segment to a CSV, Parquet or JSON file (by suffix)."""
+        from .label_files import segments_frame, write_frame
+
+        logs = {x.id: x for x in self.logs()}
+        return write_frame(segments_frame(self.segments(), logs), Path(path))
+
+    def import_labels(self, path: str | Path, *, author: str) -> list[Segment]:
+        """Import a label file in one transaction: every row, or none when any row is refused.
+
+        Raises:
+            LabelError: Unreadable file, missing columns, unknown logs or terrains, or overlaps.
+        """
+        from .label_files import import_rows, read_frame
+
+        path = Path(path)
+        frame = read_frame(path)
+        logs, terrains = self.logs(), [t.name for t in self.terrains()]
+        with self._write() as conn:
+            return import_rows(conn, frame, logs, terrains, path=path, author=author)
 
     def history(self, *, limit: int | None = None) -> list[HistoryEntry]:
         """Label actions, newest first."""

@@ -75,7 +75,7 @@ class TrainConfig:
     patience: int = 20
     chunk: int = 128
     piece: int = 1024
-    context: int = 1000
+    context: int = 300
     label_piece: int = 400
     val_fraction: float = 0.2
     clip: float = 1.0

@@ -50,7 +50,8 @@ def fold_indices(labels: Sequence[int], k: int, seed: int) -> list[tuple[np.ndar
             return list(KFold(k, shuffle=True, random_state=seed).split(idx))
 
 
-MIN_STEPS = 8
+MIN_BATCH = 32
+MAX_STEPS = 4
 
 
 def random_crops(segments: Sequence[Segment], config: TrainConfig, rng: np.random.Generator) -> list[Piece]:
@@ -144,9 +145,9 @@ def fit_classifier(
         model.to(dev)
         optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
         n_pieces = len(random_crops(train_segments, config, rng))
-        # The paper's batch of 512 is an upper bound: sparse labels make few pieces, and one step per epoch
-        # would leave the classifier untrained; keep at least MIN_STEPS steps per epoch.
-        batch = max(1, min(config.batch_size, -(-n_pieces // MIN_STEPS)))
+        # A step costs about the same at batch 1 as at 32 (the LSTM's sequential length dominates on a CPU), so
+        # small batches only multiply time; up to MAX_STEPS steps per epoch, at most the paper's batch of 512.
+        batch = min(config.batch_size, max(MIN_BATCH, -(-n_pieces // MAX_STEPS)))
         steps = -(-n_pieces // batch)
         best, best_state, since, history = float("inf"), copy.deepcopy(model.state_dict()), 0, []
         for epoch in range(1, config.max_epochs + 1):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import warnings
 from pathlib import Path
 
@@ -34,8 +35,11 @@ def export_onnx(bundle: ModelBundle, path: str | Path) -> Path:
                                                **zero_state(bundle, 2)}.values())  # fmt: skip
     batch = torch.export.Dim("streams", min=1, max=4096)
     shapes = ({0: batch}, {0: batch}, {0: batch}, {1: batch}, {1: batch}, {0: batch}, {0: batch})
+    onnx_log = logging.getLogger("torch.onnx")
+    level = onnx_log.level
+    onnx_log.setLevel(logging.ERROR)  # "torchvision is not installed" and similar are not the user's business
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the exporter's deprecation chatter is not the user's business
+        warnings.simplefilter("ignore")
         program = torch.onnx.export(
             model,
             args,
@@ -45,6 +49,7 @@ def export_onnx(bundle: ModelBundle, path: str | Path) -> Path:
             dynamo=True,
             verbose=False,
         )
+    onnx_log.setLevel(level)
     path = Path(path)
     program.save(str(path))
     return path

@@ -15,6 +15,7 @@ import tyro
 
 from sessions import IngestError, IngestOptions, Session, WorkbenchError, load_mapping
 
+from . import cli_model
 from .ingest_report import dry_run_report
 
 Pos = tyro.conf.Positional
@@ -147,9 +148,11 @@ def demo(
     logs: int = 6,
     minutes: float = 5.0,
     seed: int = 0,
+    seed_labels: float = 0.02,
+    epochs: int = 15,
     serve_ui: Annotated[bool, tyro.conf.arg(name="serve")] = True,
 ) -> None:
-    """Generate demo robot logs, ingest them into a session and serve the UI.
+    """Generate demo robot logs, ingest them, label a few segments, train both stages, serve the UI.
 
     Reuses the session when it exists already, so running it again just serves.
 
@@ -160,9 +163,12 @@ def demo(
         logs: Number of demo walks to generate.
         minutes: Typical length of each walk.
         seed: Seed of the generator.
+        seed_labels: Fraction of the time labelled from the demo's ground truth (0: a blank start, no training).
+        epochs: Most epochs for each stage: a quick start; `workbench train` does the full run.
         serve_ui: Serve the UI when ready (--no-serve: prepare the session and exit).
     """
     from .demo import generate_demo_logs
+    from .seed import seed_labels as add_seed_labels
 
     if (session / "session.sqlite").exists():
         with Session.open(session) as s:
@@ -174,22 +180,45 @@ def demo(
         Session.create(session).close()
         if ingest(session, [log_dir]):
             raise WorkbenchError("demo logs failed to ingest")
+        with Session.open(session) as s:
+            added = add_seed_labels(s, seed_labels, seed=seed)
+            print(f"labelled {len(added)} segment(s) from the demo's ground truth ({seed_labels:.0%} of the time)")
+        if added:
+            cli_model.train(session, stage="all", max_epochs=epochs, patience=max(3, epochs // 4))
     if serve_ui:
         serve(session, host=host, port=port)
 
 
-COMMANDS = {"new": new, "ingest": ingest, "info": info, "serve": serve, "demo": demo}
+def labels() -> None:
+    """Label files: `workbench labels export SESSION --out F`, `workbench labels import SESSION F`."""
+
+
+COMMANDS = {
+    "new": new,
+    "ingest": ingest,
+    "info": info,
+    "train": cli_model.train,
+    "export": cli_model.export,
+    "classify": cli_model.classify,
+    "labels": labels,
+    "serve": serve,
+    "demo": demo,
+}
+LABEL_COMMANDS = {"export": cli_model.labels_export, "import": cli_model.labels_import}
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``workbench`` console script. Returns the exit code."""
+    argv = sys.argv[1:] if argv is None else argv
     try:
-        result = tyro.extras.subcommand_cli_from_dict(
-            COMMANDS,
-            prog="workbench",
-            description="Terrain workbench: label robot logs, train, export.",
-            args=argv,
-        )
+        if argv[:1] == ["labels"]:  # tyro has no nested subcommands over functions: route them here
+            result = tyro.extras.subcommand_cli_from_dict(
+                LABEL_COMMANDS, prog="workbench labels", description="Export or import label files.", args=argv[1:]
+            )
+        else:
+            result = tyro.extras.subcommand_cli_from_dict(
+                COMMANDS, prog="workbench", description="Terrain workbench: label robot logs, train, export.", args=argv
+            )
     except WorkbenchError as exc:
         _err(str(exc))
         return 2

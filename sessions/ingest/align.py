@@ -45,6 +45,13 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
+def _snap(rate: float) -> float:
+    """A rate within 1e-4 of a whole number of Hz is that number: epoch-scale stamps (1.7e9 s) resolve to 0.2 µs,
+    which turns 100 Hz into 100.000095 Hz; the grid's drift from snapping is under one sample per hour."""
+    whole = round(rate)
+    return float(whole) if whole > 0 and abs(rate - whole) < 1e-4 * rate else round(rate, 6)
+
+
 def stream_rate(times: np.ndarray) -> float:
     """Median sample rate (Hz) of sorted, de-duplicated stamps."""
     return float(1.0 / np.median(np.diff(times)))
@@ -68,8 +75,7 @@ def align(parsed: ParsedLog, options: IngestOptions) -> AlignedLog:
         streams.append((stream, times, values, stream_rate(times)))
     if not streams:
         raise IngestError(path, "no stream has at least two samples")
-    # Rounded so that a 100 Hz log is 100 Hz, not 100.0000000000199 from float noise in the stamps.
-    rate = float(options.target_rate or round(max(r for *_, r in streams), 6))
+    rate = float(options.target_rate or _snap(max(r for *_, r in streams)))
     start = max(float(t[0]) for _, t, _, _ in streams)
     stop = min(float(t[-1]) for _, t, _, _ in streams)
     if stop <= start:

@@ -1,0 +1,90 @@
+"""Label files: one row per segment, as CSV, Parquet or JSON; exported and imported (all or nothing)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from .errors import LabelError
+from .labels import add_segment
+from .logs import LogInfo, Segment
+
+COLUMNS = ("log", "source_file", "start_s", "end_s", "start_sample", "end_sample", "terrain", "author", "source",
+           "created_at", "updated_at")  # fmt: skip
+FORMATS = {".csv": "csv", ".parquet": "parquet", ".json": "json"}
+
+
+def segments_frame(segments: list[Segment], logs: dict[int, LogInfo]) -> pd.DataFrame:
+    """A table of segments with times in seconds (from the log's start) and in samples."""
+    rows = []
+    for s in segments:
+        log = logs[s.log_id]
+        rows.append((log.name, log.source_path, s.start / log.rate_hz, s.stop / log.rate_hz, s.start, s.stop,
+                     s.terrain, s.author, s.source, s.created_at, s.updated_at))  # fmt: skip
+    return pd.DataFrame(rows, columns=list(COLUMNS))
+
+
+def file_format(path: Path) -> str:
+    fmt = FORMATS.get(path.suffix.lower())
+    if fmt is None:
+        raise LabelError(f"{path}: unknown label file type {path.suffix!r}; use .csv, .parquet or .json")
+    return fmt
+
+
+def write_frame(frame: pd.DataFrame, path: Path) -> Path:
+    """Write a table as CSV, Parquet or JSON (records), chosen by the file's suffix."""
+    fmt = file_format(path)
+    if fmt == "csv":
+        frame.to_csv(path, index=False)
+    elif fmt == "parquet":
+        frame.to_parquet(path, index=False)
+    else:
+        frame.to_json(path, orient="records", indent=1)
+    return path
+
+
+def read_frame(path: Path) -> pd.DataFrame:
+    fmt = file_format(path)
+    try:
+        if fmt == "csv":
+            return pd.read_csv(path)
+        if fmt == "parquet":
+            return pd.read_parquet(path)
+        return pd.read_json(path, orient="records")
+    except Exception as exc:
+        raise LabelError(f"{path}: cannot read label file ({type(exc).__name__}: {exc})") from None
+
+
+def import_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path,
+                author: str) -> list[Segment]:  # fmt: skip
+    """Add every row as a segment inside the caller's transaction; any bad row refuses the whole file.
+
+    Rows name their log by ``log`` (name) and give ``start_sample``/``end_sample`` or ``start_s``/``end_s``.
+    """
+    missing = {"log", "terrain"} - set(frame.columns)
+    if missing or not (
+        {"start_sample", "end_sample"} <= set(frame.columns) or {"start_s", "end_s"} <= set(frame.columns)
+    ):
+        raise LabelError(f"{path}: label file needs columns log, terrain and start_sample/end_sample or start_s/end_s")
+    by_name: dict[str, LogInfo] = {}
+    for log in logs:
+        by_name.setdefault(log.name, log)
+    out = []
+    for i, row in enumerate(frame.itertuples(index=False), start=2):  # line 1 is the header
+        log = by_name.get(str(row.log))
+        if log is None:
+            raise LabelError(f"{path}: row {i}: unknown log {row.log!r}; nothing was imported")
+        if str(row.terrain) not in terrains:
+            raise LabelError(f"{path}: row {i}: unknown terrain {row.terrain!r}; nothing was imported")
+        if "start_sample" in frame.columns and pd.notna(row.start_sample):
+            start, stop = int(row.start_sample), int(row.end_sample)
+        else:
+            start, stop = round(float(row.start_s) * log.rate_hz), round(float(row.end_s) * log.rate_hz)
+        who = str(row.author) if "author" in frame.columns and pd.notna(row.author) else author
+        try:
+            out.append(add_segment(conn, log_id=log.id, start=start, stop=stop, terrain=str(row.terrain),
+                                   author=who, source="import", kind="import"))  # fmt: skip
+        except LabelError as exc:
+            raise LabelError(f"{path}: row {i}: {exc}; nothing was imported") from None
+    return out

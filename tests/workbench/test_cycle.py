@@ -1,0 +1,156 @@
+"""The cycle on a small session: train both stages, cache stage 1, score, export, classify, label files."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sessions import LabelError, Session, WorkbenchError
+from training.bundle import load_bundle
+from training.config import TrainConfig
+from workbench import cycle
+from workbench.cli import main
+from workbench.seed import seed_labels
+
+TINY = TrainConfig(max_epochs=2, patience=1, chunk=32, piece=256, batch_size=16, label_piece=64, context=32, k_folds=3)
+
+
+@pytest.fixture(scope="module")
+def demo_logs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    from workbench.demo import generate_demo_logs
+
+    return generate_demo_logs(tmp_path_factory.mktemp("logs"), n_logs=2, minutes=1.0, seed=5)
+
+
+@pytest.fixture
+def trained(tmp_path: Path, demo_logs: list[Path]) -> Session:
+    s = Session.create(tmp_path / "s")
+    s.ingest(demo_logs)
+    seed_labels(s, 0.15, seed=1)
+    cycle.train_predictor(s, config=TINY, hidden=8)
+    cycle.train_classifier(s, config=TINY, hidden=8)
+    yield s
+    s.close()
+
+
+def test_versions_are_registered_active_and_loadable(trained: Session) -> None:
+    (p,) = trained.model_versions("predictor")
+    (c,) = trained.model_versions("classifier")
+    assert p.active and c.active and c.config["predictor"] == p.id
+    bundle = load_bundle(trained.path / c.path)
+    assert len(bundle.classifiers) == 3 and bundle.classes == tuple(t.name for t in trained.terrains())
+    assert bundle.channels == trained.logs()[0].channel_names
+    m = c.metrics
+    assert {"accuracy", "macro_f1", "per_class_recall", "confusion", "labelled_fraction"} <= set(m)
+    assert 0.1 < m["labelled_fraction"] < 0.25
+    runs = trained._read("SELECT kind, status FROM runs ORDER BY id")
+    assert runs == [("predictor", "done"), ("classifier", "done")]
+
+
+def test_a_retrain_reuses_cached_stage1_and_warm_starts(trained: Session, monkeypatch) -> None:
+    calls = []
+    real = cycle.run_predictor
+    monkeypatch.setattr(cycle, "run_predictor", lambda *a, **k: calls.append(1) or real(*a, **k))
+    v2 = cycle.train_classifier(trained, config=TINY, hidden=8)
+    assert calls == []  # stage 1 was not run again: its outputs came from the cache
+    assert v2.config["warm_start"] is True
+    assert [v.active for v in trained.model_versions("classifier")] == [False, True]
+    trained.activate_model(trained.model_versions("classifier")[0].id)  # any version can be made active again
+    assert trained.active_model("classifier").id != v2.id
+
+
+def test_scores_have_the_documented_shapes(trained: Session) -> None:
+    scores = cycle.score_session(trained)
+    log = trained.logs()[0]
+    sc = scores[log.id]
+    assert sc.error.shape == (log.n_samples, 22) and sc.error_total.shape == (log.n_samples,)
+    assert sc.probs.shape == (log.n_samples, 6)
+    np.testing.assert_allclose(sc.probs.sum(1), 1.0, atol=1e-5)
+    assert (sc.entropy >= 0).all() and (sc.entropy <= np.log(6) + 1e-5).all()
+    assert (sc.disagreement >= 0).all() and (sc.disagreement <= sc.entropy + 1e-6).all()
+
+
+def test_classifier_needs_two_terrains(tmp_path: Path, demo_logs: list[Path]) -> None:
+    s = Session.create(tmp_path / "s")
+    s.ingest(demo_logs[:1])
+    with pytest.raises(WorkbenchError, match="no predictor yet"):
+        cycle.train_classifier(s, config=TINY, hidden=8)
+    cycle.train_predictor(s, config=TINY, hidden=8)
+    s.add_segment(s.logs()[0].id, 0, 100, "grass", author="a")
+    with pytest.raises(WorkbenchError, match="at least two terrains"):
+        cycle.train_classifier(s, config=TINY, hidden=8)
+
+
+def test_export_writes_bundle_card_checked_onnx_and_label_files(trained: Session, tmp_path: Path) -> None:
+    from workbench.export import export_all
+
+    out = tmp_path / "export"
+    written = dict((p.name, what) for p, what in export_all(trained, out, predictions=True))
+    assert "checked with onnxruntime" in written["classifier_stream.onnx"]
+    assert set(written) >= {"bundle", "labels.csv", "labels.parquet", "labels.json", "predictions.parquet"}
+    card = (out / "bundle" / "MODEL_CARD.md").read_text()
+    assert "Out-of-fold metrics" in card and "imu/angular_velocity.x" in card
+    frames = [pd.read_csv(out / "labels.csv"), pd.read_parquet(out / "labels.parquet"),
+              pd.DataFrame(json.loads((out / "labels.json").read_text()))]  # fmt: skip
+    for f in frames:
+        assert len(f) == len(trained.segments())
+        assert list(f.columns[:7]) == [
+            "log",
+            "source_file",
+            "start_s",
+            "end_s",
+            "start_sample",
+            "end_sample",
+            "terrain",
+        ]
+    pred = pd.read_parquet(out / "predictions.parquet")
+    assert len(pred) == sum(x.n_samples for x in trained.logs())
+    with pytest.raises(WorkbenchError, match="exists already"):
+        export_all(trained, out)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet", ".json"])
+def test_label_files_round_trip(trained: Session, tmp_path: Path, demo_logs: list[Path], suffix: str) -> None:
+    path = trained.export_labels(tmp_path / f"labels{suffix}")
+    other = Session.create(tmp_path / "other")
+    other.ingest(demo_logs)
+    imported = other.import_labels(path, author="x")
+    key = [(s.start, s.stop, s.terrain, s.author) for s in trained.segments()]
+    assert [(s.start, s.stop, s.terrain, s.author) for s in other.segments()] == key
+    assert len(imported) == len(key) and all(s.source == "import" for s in imported)
+
+
+def test_label_import_is_all_or_nothing(trained: Session, tmp_path: Path, demo_logs: list[Path]) -> None:
+    frame = pd.read_csv(trained.export_labels(tmp_path / "l.csv"))
+    frame.loc[len(frame) - 1, "terrain"] = "lava"
+    frame.to_csv(tmp_path / "bad.csv", index=False)
+    other = Session.create(tmp_path / "other")
+    other.ingest(demo_logs)
+    with pytest.raises(LabelError, match=rf"row {len(frame) + 1}: unknown terrain 'lava'; nothing was imported"):
+        other.import_labels(tmp_path / "bad.csv", author="x")
+    assert other.segments() == [] and other.history() == []
+    with pytest.raises(LabelError, match="unknown log 'walk_000'"):
+        Session.create(tmp_path / "empty").import_labels(tmp_path / "l.csv", author="x")
+
+
+def test_cli_train_export_classify_labels(tmp_path: Path, demo_logs: list[Path], capsys) -> None:
+    s = tmp_path / "s"
+    assert main(["new", str(s)]) == 0
+    assert main(["ingest", str(s), *map(str, demo_logs)]) == 0
+    assert main(["train", str(s), "--hidden", "8", "--max-epochs", "1"]) == 0
+    assert "classifier: skipped" in capsys.readouterr().out
+    with Session.open(s) as session:
+        seed_labels(session, 0.1, seed=2)
+    assert main(["train", str(s), "--stage", "classifier", "--hidden", "8", "--max-epochs", "1"]) == 0
+    assert "out-of-fold accuracy" in capsys.readouterr().out
+    assert main(["export", str(s), "--out", str(tmp_path / "x")]) == 0
+    assert main(["classify", str(tmp_path / "x" / "bundle"), str(demo_logs[0]), "--out", str(tmp_path / "p.csv")]) == 0
+    pred = pd.read_csv(tmp_path / "p.csv")
+    assert set(pred["terrain"]) <= {"concrete", "grass", "gravel", "mulch", "dirt", "sand"}
+    assert main(["labels", "export", str(s), "--out", str(tmp_path / "l.json")]) == 0
+    assert main(["labels", "import", str(tmp_path / "s"), str(tmp_path / "l.json")]) == 0  # merges into itself
+    assert main(["train", str(s), "--device", "cuda"]) == 2 or __import__("torch").cuda.is_available()

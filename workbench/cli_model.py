@@ -1,0 +1,148 @@
+"""CLI commands for models and label files: train, export, classify, labels export / import."""
+
+from __future__ import annotations
+
+import getpass
+import sys
+from pathlib import Path
+from typing import Literal
+
+import tyro
+
+from sessions import IngestOptions, Session, WorkbenchError
+from training.config import FeatureMode, TrainConfig
+
+Pos = tyro.conf.Positional
+
+
+class _Bar:
+    """A tqdm bar fed by training progress reports (fraction of the run, loss, validation loss)."""
+
+    def __init__(self, desc: str) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(
+            total=1000, desc=desc, unit="‰", disable=None, bar_format="{l_bar}{bar}| {elapsed}<{remaining} {postfix}"
+        )
+
+    def __call__(self, p) -> None:
+        self.bar.n = int(p.fraction * 1000)
+        post = f"epoch {p.epoch} loss {p.train_loss:.4f}"
+        if p.folds > 1:
+            post = f"fold {p.fold}/{p.folds} " + post
+        if p.val_loss is not None:
+            post += f" val {p.val_loss:.4f}"
+        self.bar.set_postfix_str(post, refresh=False)
+        self.bar.refresh()
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def train(
+    session: Pos[Path],
+    stage: Literal["predictor", "classifier", "all"] = "all",
+    device: Literal["cpu", "cuda"] = "cpu",
+    max_epochs: int = 300,
+    patience: int = 20,
+    feature_mode: FeatureMode = "hidden",
+    hidden: int = 200,
+) -> None:
+    """Train the predictor (stage 1, all logs, no labels) and/or the classifier (stage 2, labelled segments).
+
+    Args:
+        session: The session folder.
+        stage: Which stage; "all" trains stage 1, then stage 2 if there are labels of two terrains or more.
+        device: Where to train.
+        max_epochs: Upper bound on epochs (early stopping on validation loss usually ends sooner).
+        patience: Epochs without improvement before stopping.
+        feature_mode: What stage 1 hands stage 2.
+        hidden: LSTM width of each stage (the paper: 200).
+    """
+    from . import cycle
+
+    if device == "cuda":
+        import torch
+
+        if not torch.cuda.is_available():
+            raise WorkbenchError("--device cuda: no CUDA device is available on this machine")
+    config = TrainConfig(max_epochs=max_epochs, patience=patience, device=device)
+    with Session.open(session) as s:
+        if stage in ("predictor", "all"):
+            bar = _Bar("predictor")
+            try:
+                v = cycle.train_predictor(s, config=config, hidden=hidden, progress=bar)
+            finally:
+                bar.close()
+            print(f"predictor v{v.id}: validation MSE {v.metrics['val_mse']:.4f} (normalised units), "
+                  f"best epoch {v.metrics['best_epoch']} of {v.metrics['epochs']}")  # fmt: skip
+        if stage in ("classifier", "all"):
+            terrains = {seg.terrain for seg in s.segments()}
+            if stage == "all" and len(terrains) < 2:
+                print("classifier: skipped (label segments of at least two terrains first)")
+                return
+            bar = _Bar("classifier")
+            try:
+                v = cycle.train_classifier(s, config=config, feature_mode=feature_mode, hidden=hidden, progress=bar)
+            finally:
+                bar.close()
+            m = v.metrics
+            print(f"classifier v{v.id}: out-of-fold accuracy {m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} "
+                  f"on {m['n_segments']} segments ({m['labelled_seconds']:.0f} s labelled)")  # fmt: skip
+
+
+def export(session: Pos[Path], out: Path, predictions: bool = False) -> None:
+    """Export the active model (bundle, ONNX, model card) and the label files for the robot.
+
+    Args:
+        session: The session folder.
+        out: Folder to create.
+        predictions: Also write per-timestep predictions of every log.
+    """
+    from .export import export_all
+
+    with Session.open(session) as s:
+        written = export_all(s, out, predictions=predictions)
+    for path, what in written:
+        print(f"{path}  {what}")
+
+
+def classify(bundle: Pos[Path], files: Pos[list[Path]], out: Path) -> int:
+    """Per-timestep terrain predictions for log files with an exported bundle (no session needed).
+
+    Args:
+        bundle: A model bundle folder (from `workbench export`).
+        files: Log files (MCAP / CSV) with the channels the model was trained on.
+        out: Output table (.csv, .parquet or .json).
+    """
+    from .export import classify_files
+
+    code, lines = classify_files(bundle, files, out, IngestOptions())
+    for line in lines:
+        print(line, file=sys.stderr if line.startswith("error:") else sys.stdout)
+    return code
+
+
+def labels_export(session: Pos[Path], out: Path) -> None:
+    """Write every label segment to a .csv, .parquet or .json file.
+
+    Args:
+        session: The session folder.
+        out: The label file to write.
+    """
+    with Session.open(session) as s:
+        s.export_labels(out)
+        print(f"wrote {len(s.segments())} segment(s) to {out}")
+
+
+def labels_import(session: Pos[Path], file: Pos[Path], author: str = "") -> None:
+    """Import a label file: every row, or nothing when any row names an unknown log or terrain.
+
+    Args:
+        session: The session folder.
+        file: A .csv, .parquet or .json label file.
+        author: Author for rows that name none (default: your user name).
+    """
+    with Session.open(session) as s:
+        added = s.import_labels(file, author=author or getpass.getuser())
+        print(f"imported {len(added)} segment(s) from {file}")

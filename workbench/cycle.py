@@ -1,0 +1,183 @@
+"""The human-in-the-loop cycle without a UI: train stage 1 on all logs, cache its outputs, train stage 2 on the
+labels, score every log. Composes ``sessions`` (data, labels, versions) and ``training`` (models, arrays only).
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from sessions import LogInfo, ModelVersion, Session, WorkbenchError
+from training.bundle import ModelBundle, load_bundle, save_bundle
+from training.config import FeatureMode, TrainConfig, to_dict
+from training.fit_classifier import fit_classifier
+from training.fit_predictor import fit_predictor
+from training.inference import Stage1Outputs, run_classifiers, run_predictor
+from training.progress import CancelFn, ProgressFn, never
+from training.scoring import LogScores, score_log
+
+
+def model_logs(session: Session, channels: Sequence[str] | None = None) -> list[LogInfo]:
+    """The logs a model uses: those with ``channels``, or with the most common channel set of the session."""
+    logs = session.logs()
+    if not logs:
+        raise WorkbenchError(f"{session.path}: no logs yet; ingest some first")
+    if channels is None:
+        channels = Counter(log.channel_names for log in logs).most_common(1)[0][0]
+    return [log for log in logs if log.channel_names == tuple(channels)]
+
+
+def _save_version(session: Session, stage: str, bundle: ModelBundle, extra: dict) -> ModelVersion:
+    path = session.next_model_dir()
+    if path.exists():  # a crashed save that got as far as the rename but not the catalog
+        shutil.rmtree(path)
+    save_bundle(bundle, path)
+    try:
+        return session.register_model(stage, path, config=extra, metrics=bundle.metrics)
+    except BaseException:
+        shutil.rmtree(path, ignore_errors=True)
+        raise
+
+
+def train_predictor(
+    session: Session,
+    *,
+    config: TrainConfig | None = None,
+    hidden: int = 200,
+    progress: ProgressFn | None = None,
+    cancel: CancelFn = never,
+) -> ModelVersion:
+    """Stage 1 on every log of the session's main channel set; saved as a new, active predictor version."""
+    config = config or TrainConfig()
+    logs = model_logs(session)
+    run = session.start_run("predictor", {"config": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs]})
+    try:
+        fit = fit_predictor([session.array(x.id) for x in logs], config=config, hidden=hidden, progress=progress,
+                            cancel=cancel)  # fmt: skip
+        bundle = ModelBundle(
+            fit.model, fit.normalizer, logs[0].channel_names, logs[0].rate_hz,
+            metrics={"val_mse": min(h["val_loss"] for h in fit.history), "best_epoch": fit.best_epoch,
+                     "epochs": len(fit.history)},
+            info={"logs": len(logs), "timesteps": int(sum(x.n_samples for x in logs)), "history": fit.history},
+        )  # fmt: skip
+        version = _save_version(session, "predictor", bundle, {"train": to_dict(config), "hidden": hidden})
+    except BaseException as exc:
+        session.finish_run(run, "cancelled" if type(exc).__name__ == "Cancelled" else "failed", {"error": str(exc)})
+        raise
+    session.finish_run(run, "done", {"version": version.id})
+    return version
+
+
+def active_predictor(session: Session) -> tuple[ModelVersion, ModelBundle]:
+    version = session.active_model("predictor")
+    if version is None:
+        raise WorkbenchError(
+            f"{session.path}: no predictor yet; run `workbench train {session.path} --stage predictor`"
+        )
+    return version, load_bundle(session.path / version.path)
+
+
+def stage1_outputs(session: Session, version: ModelVersion, bundle: ModelBundle, logs: Sequence[LogInfo]):
+    """Stage-1 outputs of ``logs``, computed once per predictor version and cached in the session folder.
+
+    Stage 1 is frozen, so every stage-2 retrain reuses these instead of running it again.
+    """
+    cache = session.cache_dir(f"stage1-v{version.id:04d}")
+    missing = [x for x in logs if not (cache / f"{x.id:06d}.error.npy").exists()]
+    if missing:
+        outs = run_predictor(bundle.predictor, bundle.normalizer, [session.array(x.id) for x in missing])
+        for log, out in zip(missing, outs, strict=True):
+            # hidden states lie in (-1, 1): float16 keeps them to 5e-4 at half the disk
+            np.save(cache / f"{log.id:06d}.hidden.npy", out.hidden.astype(np.float16))
+            np.save(cache / f"{log.id:06d}.estimate.npy", out.estimate)
+            np.save(cache / f"{log.id:06d}.error.npy", out.error)  # written last: marks the entry complete
+    result = {}
+    for x in logs:
+        base = cache / f"{x.id:06d}"
+        result[x.id] = Stage1Outputs(
+            np.load(f"{base}.hidden.npy").astype(np.float32),
+            np.load(f"{base}.error.npy"),
+            np.load(f"{base}.estimate.npy"),
+        )
+    return result
+
+
+def train_classifier(
+    session: Session,
+    *,
+    config: TrainConfig | None = None,
+    feature_mode: FeatureMode = "hidden",
+    hidden: int = 200,
+    warm_start: bool = True,
+    progress: ProgressFn | None = None,
+    cancel: CancelFn = never,
+) -> ModelVersion:
+    """Stage 2 on the session's labels over the active predictor's cached features; a new, active version."""
+    config = config or TrainConfig()
+    p_version, bundle = active_predictor(session)
+    logs = model_logs(session, bundle.channels)
+    index = {x.id: i for i, x in enumerate(logs)}
+    classes = tuple(t.name for t in session.terrains())
+    segments = [(index[s.log_id], s.start, s.stop, classes.index(s.terrain)) for s in session.segments()
+                if s.log_id in index]  # fmt: skip
+    if len({s[3] for s in segments}) < 2:
+        raise WorkbenchError(f"{session.path}: label segments of at least two terrains before training the classifier")
+    outs = stage1_outputs(session, p_version, bundle, logs)
+    features = [outs[x.id].features(feature_mode) for x in logs]
+    init = None
+    previous = session.active_model("classifier")
+    if warm_start and previous is not None and previous.config.get("predictor") == p_version.id:
+        old = load_bundle(session.path / previous.path)
+        if old.classes == classes and old.feature_mode == feature_mode:
+            init = old.classifiers
+    run = session.start_run("classifier", {"config": to_dict(config), "segments": len(segments)})
+    try:
+        fit = fit_classifier(features, segments, classes, config=config, hidden=hidden, init=init, progress=progress,
+                             cancel=cancel)  # fmt: skip
+        labelled = sum(s[2] - s[1] for s in segments)
+        total = sum(x.n_samples for x in logs)
+        metrics = {**fit.metrics, "labelled_fraction": labelled / total, "labelled_seconds": labelled / logs[0].rate_hz}
+        full = replace(bundle, classifiers=fit.models, classes=classes, feature_mode=feature_mode, metrics=metrics,
+                       info={**bundle.info, "predictor_version": p_version.id, "history": fit.history})  # fmt: skip
+        version = _save_version(
+            session, "classifier", full,
+            {"train": to_dict(config), "hidden": hidden, "feature_mode": feature_mode, "predictor": p_version.id,
+             "warm_start": init is not None},
+        )  # fmt: skip
+    except BaseException as exc:
+        session.finish_run(run, "cancelled" if type(exc).__name__ == "Cancelled" else "failed", {"error": str(exc)})
+        raise
+    session.finish_run(run, "done", {"version": version.id})
+    return version
+
+
+def active_bundle(session: Session) -> tuple[ModelVersion, ModelBundle]:
+    """The active classifier version and its full bundle (both stages)."""
+    version = session.active_model("classifier")
+    if version is None:
+        raise WorkbenchError(f"{session.path}: no classifier yet; label some segments and run `workbench train`")
+    return version, load_bundle(session.path / version.path)
+
+
+def score_session(session: Session, log_ids: Sequence[int] | None = None) -> dict[int, LogScores]:
+    """Per-timestep scores of logs (default: all the model uses) with the active models, from cached features."""
+    c_version, bundle = active_bundle(session)
+    p_version = next(v for v in session.model_versions("predictor") if v.id == c_version.config["predictor"])
+    logs = model_logs(session, bundle.channels)
+    if log_ids is not None:
+        logs = [x for x in logs if x.id in set(log_ids)]
+    outs = stage1_outputs(session, p_version, bundle, logs)
+    probs = run_classifiers(bundle.classifiers, [outs[x.id].features(bundle.feature_mode) for x in logs])
+    return {x.id: score_log(outs[x.id].error, p) for x, p in zip(logs, probs, strict=True)}
+
+
+def export_bundle(session: Session, out: Path) -> Path:
+    """Copy the active classifier version's bundle to ``out``."""
+    version, _ = active_bundle(session)
+    shutil.copytree(session.path / version.path, out)
+    return out

@@ -1,0 +1,184 @@
+"""Export for the robot: model bundle + model card + ONNX (checked against PyTorch on real logs) + label files."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from sessions import IngestError, IngestOptions, Session, WorkbenchError
+from sessions.ingest import align, plan_sources, read_source
+from sessions.label_files import write_frame
+from training.bundle import BundleError, ModelBundle, load_bundle, parameter_count
+from training.inference import run_classifiers, run_predictor
+
+ONNX_TOLERANCE = 1e-4
+CHECK_SAMPLES = 1500  # per log, for the ONNX check: a per-sample loop in onnxruntime
+
+
+def prediction_frame(log: str, probs: np.ndarray, classes: Sequence[str], rate_hz: float) -> pd.DataFrame:
+    """Per-timestep predictions of one log: sample, time, most probable terrain, and ``p_<terrain>`` columns.
+
+    Args:
+        log: The log's name.
+        probs: ``(T, K)`` class probabilities.
+        classes: The ``K`` terrain names.
+        rate_hz: The log's sample rate.
+    """
+    t = np.arange(len(probs))
+    frame = pd.DataFrame(
+        {"log": log, "sample": t, "t_s": t / rate_hz, "terrain": np.asarray(classes)[probs.argmax(-1)]}
+    )
+    for k, c in enumerate(classes):
+        frame[f"p_{c}"] = probs[:, k]
+    return frame
+
+
+def model_card(bundle: ModelBundle, *, version: int, session: str) -> str:
+    """A Markdown description of a bundle: what it is, what it was trained on, how well it does."""
+    m = bundle.metrics
+    lines = [
+        f"# Terrain classifier v{version}",
+        "",
+        f"From session `{session}`. Two stacked LSTMs: a predictor (stage 1, {bundle.predictor.config.hidden} units) "
+        f"trained without labels on all logs, then frozen; a classifier (stage 2, "
+        f"{bundle.classifiers[0].config.hidden} units, dropout {bundle.classifiers[0].config.dropout:.0%}) on "
+        f"`{bundle.feature_mode}` features of stage 1, as an ensemble of {len(bundle.classifiers)} fold models. "
+        f"{parameter_count(bundle):,} parameters.",
+        "",
+        "## Inputs",
+        "",
+        f"{len(bundle.channels)} channels at {bundle.rate_hz:g} Hz, in this order (raw units; the model normalises):",
+        "",
+        ", ".join(f"`{c}`" for c in bundle.channels),
+        "",
+        "## Training data",
+        "",
+        f"- stage 1: {bundle.info.get('logs', '?')} logs, {bundle.info.get('timesteps', 0):,} timesteps",
+        f"- stage 2: {m.get('n_segments', '?')} labelled segments, {m.get('labelled_seconds', 0):.0f} s "
+        f"({m.get('labelled_fraction', 0):.1%} of the time)",
+        "",
+        "## Out-of-fold metrics",
+        "",
+        "Each labelled step predicted, in a pass over its whole log, by the fold model that did not train on it.",
+        "",
+        f"- accuracy: {m.get('accuracy', float('nan')):.1%}",
+        f"- macro-F1: {m.get('macro_f1', float('nan')):.3f}",
+        "",
+        "| terrain | recall |",
+        "| --- | --- |",
+        *[f"| {c} | {r:.1%} |" for c, r in m.get("per_class_recall", {}).items()],
+        "",
+        "Confusion matrix (rows: true, columns: predicted):",
+        "",
+        "| | " + " | ".join(bundle.classes) + " |",
+        "| --- " * (len(bundle.classes) + 1) + "|",
+        *[
+            f"| {c} | " + " | ".join(str(v) for v in row) + " |"
+            for c, row in zip(bundle.classes, m.get("confusion", []), strict=False)
+        ],
+        "",
+        "## Use",
+        "",
+        "```python",
+        "from training.bundle import load_bundle",
+        "from training.stream import StreamingClassifier",
+        "clf = StreamingClassifier(load_bundle('bundle'))",
+        "probs = clf.step(sample)   # one raw sample (channels above) -> probabilities of " + ", ".join(bundle.classes),
+        "```",
+        "",
+        "`classifier_stream.onnx` is the same step: inputs `x (B, C)`, `h1, c1 (B, H1)`, `h2, c2 (M, B, H2)`, "
+        "`prev (B, C)`, `started (B, 1)` (zeros at a stream's start, then ones); outputs `probs (B, K)` and the new "
+        "states.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def export_all(session: Session, out: Path, *, predictions: bool = False) -> list[tuple[Path, str]]:
+    """Write the active model and the labels to a new folder ``out``.
+
+    Returns:
+        What was written, one (path, description) per item.
+    """
+    from training.onnx_export import check_onnx, export_onnx
+
+    from .cycle import active_bundle, model_logs, score_session
+
+    out = Path(out)
+    if out.exists():
+        raise WorkbenchError(f"{out}: exists already; choose a new folder")
+    version, bundle = active_bundle(session)
+    out.mkdir(parents=True)
+    written: list[tuple[Path, str]] = []
+    shutil.copytree(session.path / version.path, out / "bundle")
+    (out / "bundle" / "MODEL_CARD.md").write_text(model_card(bundle, version=version.id, session=session.path.name))
+    written.append((out / "bundle", f"model bundle v{version.id} (safetensors + model.json + MODEL_CARD.md)"))
+    onnx = export_onnx(bundle, out / "classifier_stream.onnx")
+    logs = model_logs(session, bundle.channels)[:2]
+    worst = max(check_onnx(onnx, bundle, session.samples(x.id, 0, CHECK_SAMPLES)) for x in logs)
+    if worst > ONNX_TOLERANCE:
+        raise WorkbenchError(f"ONNX export differs from PyTorch by {worst:.2e} (> {ONNX_TOLERANCE}); not exported")
+    written.append((onnx, f"streaming classifier, checked with onnxruntime: max |Δp| {worst:.1e} on real logs"))
+    for suffix in (".csv", ".parquet", ".json"):
+        written.append((session.export_labels(out / f"labels{suffix}"), "label segments"))
+    if predictions:
+        frames = [
+            prediction_frame(session.log(log_id).name, scores.probs, bundle.classes, bundle.rate_hz)
+            for log_id, scores in score_session(session).items()
+        ]
+        written.append((write_frame(pd.concat(frames), out / "predictions.parquet"), "per-timestep predictions"))
+    return written
+
+
+def _arrays_for(bundle: ModelBundle, files: Sequence[Path], options: IngestOptions):
+    sources, errors = plan_sources(list(files))
+    for src in sources:
+        try:
+            parsed, _ = read_source(src, options)
+        except IngestError as exc:
+            errors.append(exc)
+            continue
+        for p in parsed:
+            try:
+                a = align(p, IngestOptions(rate_hz=bundle.rate_hz, allow_gaps=options.allow_gaps))
+            except IngestError as exc:
+                errors.append(exc)
+                continue
+            names = [c.name for c in a.channels]
+            missing = [c for c in bundle.channels if c not in names]
+            if missing:
+                errors.append(IngestError(src.path, f"lacks channels the model needs: {', '.join(missing[:5])}"))
+                continue
+            yield p.name, a.data[:, [names.index(c) for c in bundle.channels]]
+    for err in errors:
+        yield None, err
+
+
+def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: IngestOptions):
+    """Per-timestep predictions for log files; returns (exit code, lines to print)."""
+    try:
+        bundle = load_bundle(bundle_dir)
+    except BundleError as exc:
+        return 2, [f"error: {exc}"]
+    if not bundle.classifiers:
+        return 2, [f"error: {bundle_dir}: the bundle has no classifier"]
+    names, arrays, lines = [], [], []
+    for name, item in _arrays_for(bundle, files, options):
+        if name is None:
+            lines.append(f"error: {item}")
+        else:
+            names.append(name)
+            arrays.append(item)
+    if arrays:
+        outs = run_predictor(bundle.predictor, bundle.normalizer, arrays)
+        probs = run_classifiers(bundle.classifiers, [o.features(bundle.feature_mode) for o in outs])
+        frames = [
+            prediction_frame(name, p.mean(0), bundle.classes, bundle.rate_hz)
+            for name, p in zip(names, probs, strict=True)
+        ]
+        write_frame(pd.concat(frames), out)
+        lines.append(f"wrote predictions for {len(arrays)} log(s) to {out}")
+    return (2 if any(x.startswith("error:") for x in lines) else 0), lines
