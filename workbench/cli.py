@@ -200,6 +200,7 @@ COMMANDS = {
     "train": cli_model.train,
     "export": cli_model.export,
     "classify": cli_model.classify,
+    "evaluate": cli_model.evaluate,
     "labels": labels,
     "serve": serve,
     "demo": demo,

@@ -146,3 +146,35 @@ def labels_import(session: Pos[Path], file: Pos[Path], author: str = "") -> None
     with Session.open(session) as s:
         added = s.import_labels(file, author=author or getpass.getuser())
         print(f"imported {len(added)} segment(s) from {file}")
+
+
+def evaluate(
+    dataset: Pos[Literal["borealtc"]],
+    folder: Pos[Path],
+    labelled: float = 0.1,
+    variant: Literal["both", "shared", "strict"] = "both",
+    hidden: int = 200,
+    seed: int = 0,
+    stage1_epochs: int = 40,
+    stage2_epochs: int = 150,
+    out: Path | None = None,
+) -> None:
+    """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
+
+    Args:
+        dataset: Which protocol (BorealTC: 5 s partitions, stratified 5-fold CV, 1.7 s windows at 0.1 s stride).
+        folder: The dataset folder (e.g. ../shared/data/borealtc).
+        labelled: Fraction of the training partitions whose labels stage 2 sees.
+        variant: "shared": stage 1 trains once on all partitions' signals (no labels); "strict": stage 1 never sees
+            the test partitions; "both".
+        hidden: LSTM width of both stages.
+        seed: Seed of folds, labelled subset and training.
+        stage1_epochs: Most epochs of stage 1 (early stopping on validation loss).
+        stage2_epochs: Most epochs of stage 2.
+        out: Also write per-fold details as JSON here.
+    """
+    from .evaluate import evaluate_borealtc
+
+    report = evaluate_borealtc(folder, labelled=labelled, variant=variant, hidden=hidden, seed=seed,
+                               stage1_epochs=stage1_epochs, stage2_epochs=stage2_epochs, out=out)  # fmt: skip
+    print(report)
