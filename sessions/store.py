@@ -6,6 +6,7 @@ import contextlib
 import hashlib
 import json
 import os
+import shutil
 import sqlite3
 import threading
 import time
@@ -135,7 +136,7 @@ class Session(ModelRegistry):
             return self._conn.execute(query, args).fetchall()
 
     def _sweep_leftovers(self) -> None:
-        """Remove arrays of ingests that died before commit (temporary files and files no row points to)."""
+        """Remove what crashed ingests and model saves left: files and folders no catalog row points to."""
         known = {r[0] for r in self._read("SELECT file FROM logs")}
         cutoff = time.time() - _STALE_TMP_S
         for f in (self.path / LOGS_DIR).glob("*.npy"):
@@ -143,6 +144,12 @@ class Session(ModelRegistry):
             if rel not in known and f.stat().st_mtime < cutoff:
                 with contextlib.suppress(OSError):
                     f.unlink()
+        # Model versions: a folder no catalog row points to is a save that died before it was registered.
+        models = self.path / "models"
+        registered = {r[0] for r in self._read("SELECT path FROM model_versions")}
+        for d in models.iterdir() if models.is_dir() else ():
+            if f"models/{d.name}" not in registered and d.is_dir() and d.stat().st_mtime < cutoff:
+                shutil.rmtree(d, ignore_errors=True)
 
     # ------------------------------------------------------------------------------------------------- catalog
     def logs(self) -> list[LogInfo]:

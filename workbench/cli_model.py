@@ -149,7 +149,7 @@ def labels_import(session: Pos[Path], file: Pos[Path], author: str = "") -> None
 
 
 def evaluate(
-    dataset: Pos[Literal["borealtc"]],
+    dataset: Pos[Literal["borealtc", "qcat", "demo"]],
     folder: Pos[Path],
     labelled: float = 0.1,
     variant: Literal["both", "shared", "strict"] = "both",
@@ -162,9 +162,11 @@ def evaluate(
     """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
 
     Args:
-        dataset: Which protocol (BorealTC: 5 s partitions, stratified 5-fold CV, 1.7 s windows at 0.1 s stride).
-        folder: The dataset folder (e.g. ../shared/data/borealtc).
-        labelled: Fraction of the training partitions whose labels stage 2 sees.
+        dataset: Which protocol. borealtc: 5 s partitions, stratified 5-fold CV, 1.7 s windows at 0.1 s stride.
+            qcat: the paper's 90 % / 5 % / 5 % split of step sequences, and one holding out whole trials.
+            demo: leave-logs-out on demo logs against their truth, for each stage-1 feature mode.
+        folder: The dataset folder (e.g. ../shared/data/borealtc, a QCAT folder, demo logs).
+        labelled: Fraction labelled: of the training partitions (borealtc), of the training logs' time (demo).
         variant: "shared": stage 1 trains once on all partitions' signals (no labels); "strict": stage 1 never sees
             the test partitions; "both".
         hidden: LSTM width of both stages.
@@ -173,8 +175,13 @@ def evaluate(
         stage2_epochs: Most epochs of stage 2.
         out: Also write per-fold details as JSON here.
     """
-    from .evaluate import evaluate_borealtc
+    from . import evaluate as ev
 
-    report = evaluate_borealtc(folder, labelled=labelled, variant=variant, hidden=hidden, seed=seed,
-                               stage1_epochs=stage1_epochs, stage2_epochs=stage2_epochs, out=out)  # fmt: skip
+    if dataset == "borealtc":
+        report = ev.evaluate_borealtc(folder, labelled=labelled, variant=variant, hidden=hidden, seed=seed,
+                                      stage1_epochs=stage1_epochs, stage2_epochs=stage2_epochs, out=out)  # fmt: skip
+    elif dataset == "qcat":
+        report = ev.evaluate_qcat(folder, hidden=hidden, seed=seed)
+    else:
+        report = ev.evaluate_demo(folder, labelled=labelled, hidden=hidden, seed=seed)
     print(report)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
@@ -11,17 +12,27 @@ import numpy as np
 
 from sessions import IngestError, IngestOptions, WorkbenchError
 from sessions.ingest import align, plan_sources, read_source
-from training.config import TrainConfig
+from training.config import FEATURE_MODES, TrainConfig
 from training.evaluate import FoldResult, borealtc_protocol
 
 BOREALTC_PUBLISHED = {"CNN (spectrograms)": 93.96, "Mamba": 93.51, "LSTM": 82.47, "SVM": 78.04}
 
 
-def load_runs(folder: Path) -> tuple[list[np.ndarray], list[str], list[str]]:
-    """Every recording under ``folder`` with its reference terrain, aligned, on the most common channel set.
+@dataclass(frozen=True)
+class Recording:
+    """A recording read for evaluation: its aligned samples and reference truth."""
+
+    name: str
+    data: np.ndarray  # (T, C)
+    terrain: str  # the file's terrain, or the most common one of its truth
+    truth: tuple[tuple[int, int, str], ...]  # (start, stop, terrain) in samples
+
+
+def load_recordings(folder: Path) -> tuple[list[Recording], list[str]]:
+    """Every recording under ``folder`` with reference truth, aligned, on the most common channel set.
 
     Returns:
-        Arrays, their terrains, and notes on what was left out.
+        The recordings and notes on what was left out.
     """
     sources, errors = plan_sources([folder])
     loaded, notes = [], [f"refused: {e}" for e in errors]
@@ -30,16 +41,29 @@ def load_runs(folder: Path) -> tuple[list[np.ndarray], list[str], list[str]]:
             parsed, _ = read_source(src, IngestOptions())
             for p in parsed:
                 a = align(p, IngestOptions())
-                loaded.append((tuple(c.name for c in a.channels), a.data, p.reference_terrain or "?"))
+                truth = a.reference
+                if not truth and p.reference_terrain:  # one terrain for the whole file (QCAT, BorealTC)
+                    truth = ((0, len(a.data), p.reference_terrain),)
+                if not truth:
+                    notes.append(f"left out {p.name}: no reference truth")
+                    continue
+                main = Counter({t: b - s for s, b, t in truth}).most_common(1)[0][0]
+                loaded.append((tuple(c.name for c in a.channels), Recording(p.name, a.data, main, tuple(truth))))
         except IngestError as exc:
             notes.append(f"refused: {exc}")
     if not loaded:
-        raise WorkbenchError(f"{folder}: no recordings found")
-    channels = Counter(c for c, _, _ in loaded).most_common(1)[0][0]
-    keep = [(d, t) for c, d, t in loaded if c == channels]
+        raise WorkbenchError(f"{folder}: no recordings with reference truth found")
+    channels = Counter(c for c, _ in loaded).most_common(1)[0][0]
+    keep = [r for c, r in loaded if c == channels]
     if len(keep) < len(loaded):
         notes.append(f"left out {len(loaded) - len(keep)} recording(s) without the channels {', '.join(channels)}")
-    return [d for d, _ in keep], [t for _, t in keep], notes
+    return keep, notes
+
+
+def load_runs(folder: Path) -> tuple[list[np.ndarray], list[str], list[str]]:
+    """Arrays, their terrains and notes (see :func:`load_recordings`)."""
+    recs, notes = load_recordings(folder)
+    return [r.data for r in recs], [r.terrain for r in recs], notes
 
 
 def summarize(results: list[FoldResult]) -> tuple[float, float, float, float]:
@@ -95,3 +119,59 @@ def evaluate_borealtc(
     if out is not None:
         out.write_text(json.dumps(detail, indent=1, default=str))
     return report
+
+
+def _table(rows: list[tuple[str, list[dict]]], extra: list[str] | None = None) -> str:
+    lines = ["| method | accuracy (%) | macro-F1 | folds |", "| --- | --- | --- | --- |"]
+    for name, res in rows:
+        acc = np.array([r["accuracy"] for r in res]) * 100
+        f1 = np.array([r["macro_f1"] for r in res])
+        lines.append(f"| {name} | {acc.mean():.2f} ± {acc.std():.2f} | {f1.mean():.3f} ± {f1.std():.3f} | {len(res)} |")
+    return "\n".join(lines + (extra or []))
+
+
+def evaluate_qcat(folder: Path, *, hidden: int = 200, seed: int = 0, steps: int = 8, folds: int = 5) -> str:
+    """The paper's QCAT protocol, and a leak-free variant holding out whole trials."""
+    from training.evaluate_sequences import qcat_protocol
+
+    recs, notes = load_recordings(folder)
+    for n in notes:
+        print(n)
+    classes = sorted({r.terrain for r in recs})
+    seqs, labels, groups = [], [], []
+    for g, r in enumerate(recs):  # one recording per trial; each trial is cut into its steps, as QCAT's users do
+        size = len(r.data) // steps
+        for k in range(steps):
+            seqs.append(r.data[k * size : (k + 1) * size])
+            labels.append(classes.index(r.terrain))
+            groups.append(g)
+    print(f"{len(recs)} trials, {len(seqs)} step sequences, classes: {', '.join(classes)}")
+    rows = []
+    for leak_free in (False, True):
+        print("--- " + ("whole trials held out" if leak_free else "the paper's random split of sequences"))
+        res = qcat_protocol(seqs, labels, groups, classes, leak_free=leak_free, folds=folds, hidden=hidden, seed=seed)
+        rows.append(("this work, trials held out" if leak_free else "this work, paper's split (steps of a trial on "
+                     "both sides)", res))  # fmt: skip
+    return _table(rows, ["| paper: proposed method (published) | 89.04 | | |", "| paper: TCN (published) | 87.5 | | |"])
+
+
+def evaluate_demo(
+    folder: Path, *, labelled: float = 0.05, hidden: int = 200, seed: int = 0, modes: tuple[str, ...] = FEATURE_MODES
+) -> str:
+    """Leave-logs-out on demo logs against their sidecar truth, for each way stage 1 can feed stage 2."""
+    from training.evaluate_sequences import held_out_logs_protocol
+
+    recs, notes = load_recordings(folder)
+    for n in notes:
+        print(n)
+    classes = sorted({t for r in recs for _, _, t in r.truth})
+    truth = []
+    for r in recs:
+        y = np.full(len(r.data), -1)
+        for a, b, t in r.truth:
+            y[a:b] = classes.index(t)
+        truth.append(y)
+    print(f"{len(recs)} logs, {sum(len(r.data) for r in recs) / 6000:.1f} min, {labelled:.0%} labelled")
+    res = held_out_logs_protocol([r.data for r in recs], truth, classes, labelled=labelled, modes=modes, hidden=hidden,
+                                 seed=seed)  # fmt: skip
+    return _table([(f"stage 2 on `{m}` features, {labelled:.0%} labels", r) for m, r in res.items()])

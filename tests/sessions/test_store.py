@@ -153,6 +153,13 @@ def test_leftovers_of_a_crashed_ingest_are_swept(tmp_path: Path) -> None:
     Session.open(tmp_path / "s").close()
     assert not stale.exists()
     assert fresh.exists()  # might belong to an ingest running in another process right now
+    for name in (".tmp-v0001-dead", "v0001"):  # a model save that died before it was registered
+        d = tmp_path / "s" / "models" / name
+        d.mkdir(parents=True)
+        (d / "model.json").write_text("{}")
+        os.utime(d, (old, old))
+    Session.open(tmp_path / "s").close()
+    assert list((tmp_path / "s" / "models").iterdir()) == []
 
 
 def test_a_session_folder_that_cannot_be_written_gives_a_clear_error(
