@@ -157,6 +157,7 @@ def evaluate(
     seed: int = 0,
     stage1_epochs: int = 40,
     stage2_epochs: int = 150,
+    folds: int = 5,
     out: Path | None = None,
 ) -> None:
     """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
@@ -173,6 +174,7 @@ def evaluate(
         seed: Seed of folds, labelled subset and training.
         stage1_epochs: Most epochs of stage 1 (early stopping on validation loss).
         stage2_epochs: Most epochs of stage 2.
+        folds: Outer folds of the qcat and demo protocols (borealtc keeps the authors' 5).
         out: Also write per-fold details as JSON here.
     """
     from . import evaluate as ev
@@ -181,7 +183,9 @@ def evaluate(
         report = ev.evaluate_borealtc(folder, labelled=labelled, variant=variant, hidden=hidden, seed=seed,
                                       stage1_epochs=stage1_epochs, stage2_epochs=stage2_epochs, out=out)  # fmt: skip
     elif dataset == "qcat":
-        report = ev.evaluate_qcat(folder, hidden=hidden, seed=seed)
+        report = ev.evaluate_qcat(folder, hidden=hidden, seed=seed, folds=folds, epochs=(stage1_epochs, stage2_epochs))
     else:
-        report = ev.evaluate_demo(folder, labelled=labelled, hidden=hidden, seed=seed)
+        report = ev.evaluate_demo(
+            folder, labelled=labelled, hidden=hidden, seed=seed, folds=folds, epochs=(stage1_epochs, stage2_epochs)
+        )
     print(report)

@@ -130,7 +130,15 @@ def _table(rows: list[tuple[str, list[dict]]], extra: list[str] | None = None) -
     return "\n".join(lines + (extra or []))
 
 
-def evaluate_qcat(folder: Path, *, hidden: int = 200, seed: int = 0, steps: int = 8, folds: int = 5) -> str:
+def evaluate_qcat(
+    folder: Path,
+    *,
+    hidden: int = 200,
+    seed: int = 0,
+    steps: int = 8,
+    folds: int = 5,
+    epochs: tuple[int, int] = (60, 150),
+) -> str:
     """The paper's QCAT protocol, and a leak-free variant holding out whole trials."""
     from training.evaluate_sequences import qcat_protocol
 
@@ -149,14 +157,25 @@ def evaluate_qcat(folder: Path, *, hidden: int = 200, seed: int = 0, steps: int 
     rows = []
     for leak_free in (False, True):
         print("--- " + ("whole trials held out" if leak_free else "the paper's random split of sequences"))
-        res = qcat_protocol(seqs, labels, groups, classes, leak_free=leak_free, folds=folds, hidden=hidden, seed=seed)
+        res = qcat_protocol(
+            seqs, labels, groups, classes, leak_free=leak_free, folds=folds, hidden=hidden, seed=seed,
+            stage1=TrainConfig(max_epochs=epochs[0], patience=8, seed=seed),
+            stage2=TrainConfig(max_epochs=epochs[1], patience=15, seed=seed),
+        )  # fmt: skip
         rows.append(("this work, trials held out" if leak_free else "this work, paper's split (steps of a trial on "
                      "both sides)", res))  # fmt: skip
     return _table(rows, ["| paper: proposed method (published) | 89.04 | | |", "| paper: TCN (published) | 87.5 | | |"])
 
 
 def evaluate_demo(
-    folder: Path, *, labelled: float = 0.05, hidden: int = 200, seed: int = 0, modes: tuple[str, ...] = FEATURE_MODES
+    folder: Path,
+    *,
+    labelled: float = 0.05,
+    hidden: int = 200,
+    seed: int = 0,
+    folds: int = 5,
+    epochs: tuple[int, int] = (40, 150),
+    modes: tuple[str, ...] = FEATURE_MODES,
 ) -> str:
     """Leave-logs-out on demo logs against their sidecar truth, for each way stage 1 can feed stage 2."""
     from training.evaluate_sequences import held_out_logs_protocol
@@ -172,6 +191,9 @@ def evaluate_demo(
             y[a:b] = classes.index(t)
         truth.append(y)
     print(f"{len(recs)} logs, {sum(len(r.data) for r in recs) / 6000:.1f} min, {labelled:.0%} labelled")
-    res = held_out_logs_protocol([r.data for r in recs], truth, classes, labelled=labelled, modes=modes, hidden=hidden,
-                                 seed=seed)  # fmt: skip
+    res = held_out_logs_protocol(
+        [r.data for r in recs], truth, classes, labelled=labelled, modes=modes, hidden=hidden, seed=seed, folds=folds,
+        stage1=TrainConfig(max_epochs=epochs[0], patience=5, seed=seed),
+        stage2=TrainConfig(max_epochs=epochs[1], patience=15, seed=seed),
+    )  # fmt: skip
     return _table([(f"stage 2 on `{m}` features, {labelled:.0%} labels", r) for m, r in res.items()])

@@ -154,3 +154,16 @@ def test_cli_train_export_classify_labels(tmp_path: Path, demo_logs: list[Path],
     assert main(["labels", "export", str(s), "--out", str(tmp_path / "l.json")]) == 0
     assert main(["labels", "import", str(tmp_path / "s"), str(tmp_path / "l.json")]) == 0  # merges into itself
     assert main(["train", str(s), "--device", "cuda"]) == 2 or __import__("torch").cuda.is_available()
+
+
+def test_cli_evaluate_qcat_on_a_generated_fixture(tmp_path: Path, capsys) -> None:
+    from tests.sessions.test_ingest_csv import qcat_fixture
+
+    for terrain in range(6):
+        qcat_fixture(tmp_path, terrain=str(terrain), speed=1, trials=4, rows=80)
+    code = main(["evaluate", "qcat", str(tmp_path), "--hidden", "8", "--folds", "2", "--stage1-epochs", "2",
+                 "--stage2-epochs", "3"])  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "24 trials, 192 step sequences" in out
+    assert "paper's split" in out and "trials held out" in out and "| paper: proposed method (published) | 89.04" in out
