@@ -117,6 +117,13 @@ def fit_predictor(
     history: list[dict[str, float]] = []
     best, best_state, best_epoch, since = float("inf"), copy.deepcopy(model.state_dict()), 0, 0
     t0 = time.monotonic()
+
+    def report(epoch: int, step: int, train_loss: float) -> None:
+        val = history[-1]["val_loss"] if history else None
+        best_val = None if best == float("inf") else best
+        progress(Progress("predictor", 0, 1, epoch, config.max_epochs, step, steps, train_loss, val, best_val,
+                          time.monotonic() - t0))  # fmt: skip
+
     for epoch in range(1, config.max_epochs + 1):
         model.train()
         order = rng.permutation(len(train))
@@ -129,21 +136,7 @@ def fit_predictor(
             if cancel():
                 raise Cancelled("predictor training cancelled")
             if progress:
-                progress(
-                    Progress(
-                        "predictor",
-                        0,
-                        1,
-                        epoch,
-                        config.max_epochs,
-                        step,
-                        steps,
-                        total / max(count, 1),
-                        history[-1]["val_loss"] if history else None,
-                        None if best == float("inf") else best,
-                        time.monotonic() - t0,
-                    )
-                )
+                report(epoch, step, total / max(count, 1))
         model.eval()
         with torch.inference_mode():
             vs = [_run_batch(model, *batch, config.chunk, optimizer=None, config=config) for batch in val_batches]
@@ -154,21 +147,7 @@ def fit_predictor(
         else:
             since += 1
         if progress:
-            progress(
-                Progress(
-                    "predictor",
-                    0,
-                    1,
-                    epoch,
-                    config.max_epochs,
-                    steps,
-                    steps,
-                    history[-1]["train_loss"],
-                    val_loss,
-                    best,
-                    time.monotonic() - t0,
-                )
-            )
+            report(epoch, steps, history[-1]["train_loss"])
         if since >= config.patience:
             break
     model.load_state_dict(best_state)

@@ -164,7 +164,7 @@ def demo(
         minutes: Typical length of each walk.
         seed: Seed of the generator.
         seed_labels: Fraction of the time labelled from the demo's ground truth (0: a blank start, no training).
-        epochs: Most epochs for each stage: a quick start; `workbench train` does the full run.
+        epochs: Most epochs of stage 1: a quick start; `workbench train` does the full run.
         serve_ui: Serve the UI when ready (--no-serve: prepare the session and exit).
     """
     from .demo import generate_demo_logs
@@ -184,7 +184,12 @@ def demo(
             added = add_seed_labels(s, seed_labels, seed=seed)
             print(f"labelled {len(added)} segment(s) from the demo's ground truth ({seed_labels:.0%} of the time)")
         if added:
-            cli_model.train(session, stage="all", max_epochs=epochs, patience=max(3, epochs // 4))
+            cli_model.train(session, stage="predictor", max_epochs=epochs, patience=max(3, epochs // 4))
+            if len({seg.terrain for seg in added}) >= 2:
+                # stage 2 on a few seconds of labels is cheap: let early stopping end it, not the quick-start cap
+                cli_model.train(session, stage="classifier", max_epochs=100, patience=20)
+            else:
+                print("classifier: skipped (the seed labels cover fewer than two terrains)")
     if serve_ui:
         serve(session, host=host, port=port)
 

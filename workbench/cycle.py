@@ -4,9 +4,10 @@ labels, score every log. Composes ``sessions`` (data, labels, versions) and ``tr
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from training.config import FeatureMode, TrainConfig, to_dict
 from training.fit_classifier import fit_classifier
 from training.fit_predictor import fit_predictor
 from training.inference import Stage1Outputs, run_classifiers, run_predictor
-from training.progress import CancelFn, ProgressFn, never
+from training.progress import CancelFn, Cancelled, ProgressFn, never
 from training.scoring import LogScores, score_log
 
 
@@ -44,6 +45,19 @@ def _save_version(session: Session, stage: str, bundle: ModelBundle, extra: dict
         raise
 
 
+@contextlib.contextmanager
+def _recorded_run(session: Session, kind: str, params: dict) -> Iterator[dict]:
+    """Record a training run in the session: "done" with the result the block fills in, else why it ended."""
+    run = session.start_run(kind, params)
+    result: dict = {}
+    try:
+        yield result
+    except BaseException as exc:
+        session.finish_run(run, "cancelled" if isinstance(exc, Cancelled) else "failed", {"error": str(exc)})
+        raise
+    session.finish_run(run, "done", result)
+
+
 def train_predictor(
     session: Session,
     *,
@@ -55,8 +69,8 @@ def train_predictor(
     """Stage 1 on every log of the session's main channel set; saved as a new, active predictor version."""
     config = config or TrainConfig()
     logs = model_logs(session)
-    run = session.start_run("predictor", {"config": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs]})
-    try:
+    params = {"config": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs]}
+    with _recorded_run(session, "predictor", params) as result:
         fit = fit_predictor([session.array(x.id) for x in logs], config=config, hidden=hidden, progress=progress,
                             cancel=cancel)  # fmt: skip
         bundle = ModelBundle(
@@ -66,10 +80,7 @@ def train_predictor(
             info={"logs": len(logs), "timesteps": int(sum(x.n_samples for x in logs)), "history": fit.history},
         )  # fmt: skip
         version = _save_version(session, "predictor", bundle, {"train": to_dict(config), "hidden": hidden})
-    except BaseException as exc:
-        session.finish_run(run, "cancelled" if type(exc).__name__ == "Cancelled" else "failed", {"error": str(exc)})
-        raise
-    session.finish_run(run, "done", {"version": version.id})
+        result["version"] = version.id
     return version
 
 
@@ -135,8 +146,7 @@ def train_classifier(
         old = load_bundle(session.path / previous.path)
         if old.classes == classes and old.feature_mode == feature_mode:
             init = old.classifiers
-    run = session.start_run("classifier", {"config": to_dict(config), "segments": len(segments)})
-    try:
+    with _recorded_run(session, "classifier", {"config": to_dict(config), "segments": len(segments)}) as result:
         fit = fit_classifier(features, segments, classes, config=config, hidden=hidden, init=init, progress=progress,
                              cancel=cancel)  # fmt: skip
         labelled = sum(s[2] - s[1] for s in segments)
@@ -149,10 +159,7 @@ def train_classifier(
             {"train": to_dict(config), "hidden": hidden, "feature_mode": feature_mode, "predictor": p_version.id,
              "warm_start": init is not None},
         )  # fmt: skip
-    except BaseException as exc:
-        session.finish_run(run, "cancelled" if type(exc).__name__ == "Cancelled" else "failed", {"error": str(exc)})
-        raise
-    session.finish_run(run, "done", {"version": version.id})
+        result["version"] = version.id
     return version
 
 
