@@ -1,6 +1,48 @@
-"""The two-stage model (stage-1 predictor, stage-2 classifier), its training, scoring and export.
+"""The two-stage model (stage-1 predictor, stage-2 classifier), its training, scoring, export and evaluation.
 
-Takes arrays, never sessions: ``workbench`` wires it to the session store. Built in issue #3; empty until then.
+Takes arrays, never sessions: ``workbench`` wires it to the session store.
 """
 
-__all__: list[str] = []
+from .bundle import BundleError, ModelBundle, load_bundle, save_bundle
+from .config import FEATURE_MODES, ClassifierConfig, ElasticNet, FeatureMode, PredictorConfig, TrainConfig
+from .data import Normalizer
+from .fit_classifier import ClassifierFit, fit_classifier
+from .fit_predictor import PredictorFit, fit_predictor
+from .inference import Stage1Outputs, run_classifiers, run_predictor
+from .losses import classifier_loss, elastic_net, predictor_loss
+from .models import Classifier, Predictor
+from .progress import Cancelled, Progress
+from .scoring import LogScores, entropy, score_log
+from .stream import StreamingClassifier
+
+__all__ = [
+    "FEATURE_MODES",
+    "BundleError",
+    "Cancelled",
+    "Classifier",
+    "ClassifierConfig",
+    "ClassifierFit",
+    "ElasticNet",
+    "FeatureMode",
+    "LogScores",
+    "ModelBundle",
+    "Normalizer",
+    "Predictor",
+    "PredictorConfig",
+    "PredictorFit",
+    "Progress",
+    "Stage1Outputs",
+    "StreamingClassifier",
+    "TrainConfig",
+    "classifier_loss",
+    "elastic_net",
+    "entropy",
+    "fit_classifier",
+    "fit_predictor",
+    "load_bundle",
+    "predictor_loss",
+    "run_classifiers",
+    "run_predictor",
+    "save_bundle",
+    "score_log",
+]
