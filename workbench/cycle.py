@@ -9,7 +9,6 @@ import shutil
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
@@ -181,10 +180,3 @@ def score_session(session: Session, log_ids: Sequence[int] | None = None) -> dic
     outs = stage1_outputs(session, p_version, bundle, logs)
     probs = run_classifiers(bundle.classifiers, [outs[x.id].features(bundle.feature_mode) for x in logs])
     return {x.id: score_log(outs[x.id].error, p) for x, p in zip(logs, probs, strict=True)}
-
-
-def export_bundle(session: Session, out: Path) -> Path:
-    """Copy the active classifier version's bundle to ``out``."""
-    version, _ = active_bundle(session)
-    shutil.copytree(session.path / version.path, out)
-    return out
