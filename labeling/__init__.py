@@ -1,6 +1,59 @@
-"""Active labelling: acquisition scores, suggestions, segment snapping, label-efficiency simulation.
+"""Active labelling: highlight tracks, suggestions, segment snapping, label-efficiency simulation.
 
-NumPy in, NumPy out: no torch, no UI, no session. Built in issue #4; empty until then.
+NumPy in, NumPy out: no torch, no UI, no session (``workbench`` wires it to the model and the store).
 """
 
-__all__: list[str] = []
+from .changepoints import Snap, block_summary, change_points, snap_range, spans
+from .simulate import CurvePoint, Learner, Round, mean_curve, oracle, plot, savings, simulate, table, time_to_reach
+from .suggest import STRATEGIES, Strategy, Suggestion, candidates, class_weights, coverage, suggest
+from .tracks import (
+    KINDS,
+    Interval,
+    Kind,
+    LogScores,
+    entropy,
+    highlight_intervals,
+    intervals,
+    margin_uncertainty,
+    mutual_information,
+    normalised_tracks,
+    session_normaliser,
+    smooth,
+)
+
+__all__ = [
+    "KINDS",
+    "STRATEGIES",
+    "CurvePoint",
+    "Interval",
+    "Kind",
+    "Learner",
+    "LogScores",
+    "Round",
+    "Snap",
+    "Strategy",
+    "Suggestion",
+    "block_summary",
+    "candidates",
+    "change_points",
+    "class_weights",
+    "coverage",
+    "entropy",
+    "highlight_intervals",
+    "intervals",
+    "margin_uncertainty",
+    "mean_curve",
+    "mutual_information",
+    "normalised_tracks",
+    "oracle",
+    "plot",
+    "savings",
+    "session_normaliser",
+    "simulate",
+    "smooth",
+    "snap_range",
+    "spans",
+    "suggest",
+    "table",
+    "time_to_reach",
+]

@@ -30,6 +30,7 @@ class WindowProtocol:
     window_s: float = 1.7
     stride_s: float = 0.1
     folds: int = 5
+    train_stride_s: float | None = None  # stage 2 trains on windows at this stride; None: on whole partitions
 
 
 @dataclass
@@ -68,6 +69,14 @@ def windows(parts: Sequence[np.ndarray], window: int, stride: int) -> tuple[list
             out.append(p[start : start + window])
             owner.append(i)
     return out, np.asarray(owner)
+
+
+def labelled_subset(train_idx: np.ndarray, y: np.ndarray, labelled: float, *, seed: int) -> np.ndarray:
+    """The labelled share of the training partitions, stratified by terrain (all of them when ``labelled >= 1``)."""
+    if labelled >= 1.0:
+        return np.asarray(train_idx)
+    chosen, _ = train_test_split(train_idx, train_size=labelled, stratify=y[train_idx], random_state=seed)
+    return np.asarray(chosen)
 
 
 def classify_windows(pfit, cfit, feature_mode: FeatureMode, wins: Sequence[np.ndarray]) -> np.ndarray:
@@ -135,11 +144,17 @@ def borealtc_protocol(
     for fold, (train_idx, test_idx) in enumerate(cv.split(np.zeros(len(y)), y), start=1):
         t0 = time.monotonic()
         pfit = shared or fit_predictor([parts[i] for i in train_idx], config=replace(stage1, piece=size), hidden=hidden)
-        # the labelled share of the training partitions, stratified by terrain
-        chosen, _ = train_test_split(train_idx, train_size=labelled, stratify=y[train_idx], random_state=seed + fold)
-        outs = run_predictor(pfit.model, pfit.normalizer, [parts[i] for i in chosen], batch=512)
+        chosen = labelled_subset(train_idx, y, labelled, seed=seed + fold)
+        if protocol.train_stride_s is None:
+            train_seqs, train_y = [parts[i] for i in chosen], y[chosen]
+        else:
+            # Stage 2 sees what it is tested on: windows whose stage-1 features start from a zero state. Features
+            # of a whole partition carry a warmed-up stage-1 state that no test window has.
+            train_seqs, owner = windows([parts[i] for i in chosen], win, round(protocol.train_stride_s * rate))
+            train_y = y[chosen][owner]
+        outs = run_predictor(pfit.model, pfit.normalizer, train_seqs, batch=512)
         feats = [o.features(feature_mode) for o in outs]
-        segments = [(j, 0, size, int(y[i])) for j, i in enumerate(chosen)]
+        segments = [(j, 0, len(s), int(c)) for j, (s, c) in enumerate(zip(train_seqs, train_y, strict=True))]
         cfit = fit_classifier(feats, segments, classes, config=stage2, hidden=hidden)
         test_wins, owner = windows([parts[i] for i in test_idx], win, stride)
         y_true = y[test_idx][owner]

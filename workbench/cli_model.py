@@ -159,8 +159,16 @@ def evaluate(
     stage2_epochs: int = 150,
     folds: int = 5,
     out: Path | None = None,
+    simulate: bool = False,
+    strategies: tuple[str, ...] = ("random", "combined"),
+    seeds: int = 3,
+    rounds: int = 8,
+    batch: int = 4,
 ) -> None:
     """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
+
+    With ``--simulate``, compare suggestion strategies instead: an oracle labels each suggestion from the truth,
+    stage 2 retrains after every batch, and held-out accuracy is printed against labelled time (table + PNG plot).
 
     Args:
         dataset: Which protocol. borealtc: 5 s partitions, stratified 5-fold CV, 1.7 s windows at 0.1 s stride.
@@ -175,9 +183,18 @@ def evaluate(
         stage1_epochs: Most epochs of stage 1 (early stopping on validation loss).
         stage2_epochs: Most epochs of stage 2.
         folds: Outer folds of the qcat and demo protocols (borealtc keeps the authors' 5).
-        out: Also write per-fold details as JSON here.
+        out: Also write per-fold details as JSON here (with --simulate: the folder for the plot).
+        simulate: Run the label-efficiency simulation (borealtc and demo).
+        strategies: Strategies to compare: random, entropy, margin, disagreement, surprise, combined.
+        seeds: Seeds per strategy (BorealTC: seed s uses outer fold s + 1).
+        rounds: Rounds of labelling, each followed by a retrain.
+        batch: Suggestions labelled per round.
     """
     from . import evaluate as ev
+
+    if simulate:
+        print(ev.simulate(dataset, folder, strategies=strategies, seeds=seeds, rounds=rounds, batch=batch, out=out))
+        return
 
     if dataset == "borealtc":
         report = ev.evaluate_borealtc(folder, labelled=labelled, variant=variant, hidden=hidden, seed=seed,

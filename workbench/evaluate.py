@@ -66,6 +66,17 @@ def load_runs(folder: Path) -> tuple[list[np.ndarray], list[str], list[str]]:
     return [r.data for r in recs], [r.terrain for r in recs], notes
 
 
+def truth_arrays(recs: list[Recording], classes: list[str]) -> list[np.ndarray]:
+    """Per recording, ``(T,)`` class index of each sample (``-1`` where the truth says nothing)."""
+    out = []
+    for r in recs:
+        y = np.full(len(r.data), -1)
+        for a, b, t in r.truth:
+            y[a:b] = classes.index(t)
+        out.append(y)
+    return out
+
+
 def summarize(results: list[FoldResult]) -> tuple[float, float, float, float]:
     acc = np.array([r.accuracy for r in results]) * 100
     f1 = np.array([r.macro_f1 for r in results])
@@ -184,12 +195,7 @@ def evaluate_demo(
     for n in notes:
         print(n)
     classes = sorted({t for r in recs for _, _, t in r.truth})
-    truth = []
-    for r in recs:
-        y = np.full(len(r.data), -1)
-        for a, b, t in r.truth:
-            y[a:b] = classes.index(t)
-        truth.append(y)
+    truth = truth_arrays(recs, classes)
     print(f"{len(recs)} logs, {sum(len(r.data) for r in recs) / 6000:.1f} min, {labelled:.0%} labelled")
     res = held_out_logs_protocol(
         [r.data for r in recs], truth, classes, labelled=labelled, modes=modes, hidden=hidden, seed=seed, folds=folds,
@@ -197,3 +203,35 @@ def evaluate_demo(
         stage2=TrainConfig(max_epochs=epochs[1], patience=15, seed=seed),
     )  # fmt: skip
     return _table([(f"stage 2 on `{m}` features, {labelled:.0%} labels", r) for m, r in res.items()])
+
+
+def simulate(
+    dataset: str,
+    folder: Path,
+    *,
+    strategies: tuple[str, ...],
+    seeds: int,
+    rounds: int,
+    batch: int,
+    out: Path | None,
+) -> str:
+    """The label-efficiency simulation on ``folder`` (see :mod:`workbench.simulate`)."""
+    from labeling import STRATEGIES
+
+    from .simulate import SimSettings, simulate_logs, simulate_partitions
+
+    unknown = [s for s in strategies if s not in STRATEGIES]
+    if unknown:
+        raise WorkbenchError(f"unknown strategy {', '.join(unknown)}; choose from {', '.join(STRATEGIES)}")
+    settings = SimSettings(strategies=tuple(strategies), seeds=seeds, rounds=rounds, batch=batch)
+    recs, notes = load_recordings(folder)
+    for n in notes:
+        print(n)
+    if dataset == "borealtc":
+        classes = sorted({r.terrain for r in recs})
+        labels = [classes.index(r.terrain) for r in recs]
+        return simulate_partitions([r.data for r in recs], labels, classes, settings=settings, out=out)
+    if dataset == "demo":
+        classes = sorted({t for r in recs for _, _, t in r.truth})
+        return simulate_logs([r.data for r in recs], truth_arrays(recs, classes), classes, settings=settings, out=out)
+    raise WorkbenchError(f"--simulate runs on borealtc or demo data, not {dataset}")

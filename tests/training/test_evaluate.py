@@ -44,7 +44,7 @@ def test_group_split_keeps_groups_whole() -> None:
 
 def test_borealtc_protocol_learns_easy_terrains() -> None:
     runs, labels = noisy_runs()
-    proto = WindowProtocol(partition_s=1.0, window_s=0.3, stride_s=0.1, folds=2)
+    proto = WindowProtocol(partition_s=1.0, window_s=0.3, stride_s=0.1, folds=2, train_stride_s=0.1)
     res = borealtc_protocol(runs, labels, ["calm", "rough"], rate_hz=100.0, labelled=0.5, protocol=proto, stage1=S1,
                             stage2=S2, hidden=8, log=lambda _: None)  # fmt: skip
     assert len(res) == 2

@@ -1,0 +1,109 @@
+"""Change points in a log's signals, and snapping a rough range's edges to them.
+
+Terrain transitions change the statistics of the signals and of the stage-1 prediction error. The signals are
+summarised in short blocks (mean and spread of each column), scaled by a robust noise estimate, and segmented with
+``ruptures``' kernel change-point detection (linear kernel, penalised: a C implementation, linear in the number of
+blocks in practice).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+import ruptures as rpt
+
+
+@dataclass(frozen=True)
+class Snap:
+    """A proposal for a rough range: where its edges move, and whether each moved."""
+
+    start: int
+    stop: int
+    moved_start: bool
+    moved_stop: bool
+
+    @property
+    def moved(self) -> bool:
+        return self.moved_start or self.moved_stop
+
+
+def block_summary(signal: np.ndarray, block: int) -> np.ndarray:
+    """Mean and standard deviation of each column over consecutive blocks: ``(T, C)`` -> ``(T // block, 2C)``.
+
+    A tail shorter than a block is dropped.
+    """
+    x = np.asarray(signal, np.float64)
+    if x.ndim == 1:
+        x = x[:, None]
+    n = len(x) // block
+    if n == 0:
+        return np.zeros((0, 2 * x.shape[1]))
+    b = x[: n * block].reshape(n, block, x.shape[1])  # (N, block, C)
+    return np.concatenate([b.mean(axis=1), b.std(axis=1)], axis=1)
+
+
+def _robust_scale(z: np.ndarray) -> np.ndarray:
+    """Scale each column by its noise level, estimated from first differences (robust to the steps themselves)."""
+    if len(z) < 3:
+        return z
+    d = np.diff(z, axis=0)
+    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0) * 1.4826 / np.sqrt(2.0)
+    scale = np.where(mad > 1e-9, mad, np.maximum(z.std(axis=0), 1e-9))
+    return (z - np.median(z, axis=0)) / scale
+
+
+def change_points(signal: np.ndarray, *, block: int = 25, penalty: float = 3.0, min_blocks: int = 4) -> np.ndarray:
+    """Sample indices where the signal's statistics change.
+
+    Args:
+        signal: ``(T, C)`` (or ``(T,)``) signals of one log, e.g. the channels and the prediction error.
+        block: Samples per summary block (the resolution of the result).
+        penalty: Cost of a change, per summary dimension and per log of the number of blocks; larger finds fewer.
+        min_blocks: Shortest stretch between two changes, in blocks.
+
+    Returns:
+        ``(N,)`` sorted int64 indices in ``(0, T)``, multiples of ``block``.
+    """
+    z = block_summary(signal, block)
+    if len(z) < 2 * min_blocks:
+        return np.zeros(0, np.int64)
+    z = _robust_scale(z)
+    pen = penalty * z.shape[1] * np.log(len(z))
+    bkps = rpt.KernelCPD(kernel="linear", min_size=min_blocks).fit(z).predict(pen=pen)
+    return np.asarray(bkps[:-1], np.int64) * block  # ruptures ends the list with len(z)
+
+
+def snap_range(start: int, stop: int, points: np.ndarray, *, radius: int) -> Snap:
+    """Move each edge of ``[start, stop)`` to the nearest change point within ``radius`` samples.
+
+    An edge with no change point that near stays. The proposal is never empty: an edge that would cross the other
+    stays where it was.
+    """
+    pts = np.asarray(points, np.int64)
+
+    def nearest(edge: int) -> int | None:
+        if len(pts) == 0:
+            return None
+        i = int(np.argmin(np.abs(pts - edge)))
+        return int(pts[i]) if abs(int(pts[i]) - edge) <= radius else None
+
+    a, b = nearest(start), nearest(stop)
+    new_a = a if a is not None and a < stop else start
+    new_b = b if b is not None and b > new_a else stop
+    return Snap(new_a, new_b, new_a != start, new_b != stop)
+
+
+def spans(length: int, points: np.ndarray, *, max_len: int, min_len: int = 1) -> list[tuple[int, int]]:
+    """Cut ``[0, length)`` at the change points, then cut longer stretches into equal pieces of at most ``max_len``.
+
+    Pieces shorter than ``min_len`` are dropped.
+    """
+    edges = [0, *sorted(int(p) for p in points if 0 < p < length), length]
+    out = []
+    for a, b in itertools.pairwise(edges):
+        n = -(-(b - a) // max_len)
+        cuts = np.linspace(a, b, n + 1).round().astype(int)
+        out += [(int(x), int(y)) for x, y in itertools.pairwise(cuts) if y - x >= min_len]
+    return out

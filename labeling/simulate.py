@@ -1,0 +1,187 @@
+"""Label-efficiency simulation: an oracle answers each suggestion from the reference truth, the classifier retrains
+after every batch, and accuracy on held-out data is recorded against labelled time.
+
+The model is not here (``labeling`` has no torch): the caller passes a ``learner`` that retrains on the labels so far
+and returns the pool's scores and the held-out accuracy.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .suggest import Strategy, suggest
+from .tracks import LogScores
+
+Labelled = tuple[int, int, int, int]  # (log, start, stop, class)
+
+
+@dataclass(frozen=True)
+class Round:
+    """What the learner reports after training on the labels so far."""
+
+    scores: list[LogScores]  # per pool log
+    accuracy: float  # on held-out data; NaN when nothing is trained yet
+    macro_f1: float = float("nan")
+
+
+Learner = Callable[[Sequence[Labelled]], Round]
+
+
+@dataclass(frozen=True)
+class CurvePoint:
+    labelled_samples: int
+    accuracy: float
+    macro_f1: float
+
+
+def oracle(span: tuple[int, int, int], truth: Sequence[np.ndarray]) -> list[Labelled]:
+    """Label ``(log, start, stop)`` from the truth as a careful person would: one label per terrain run inside it.
+
+    Samples with unknown truth (``-1``) are left unlabelled.
+    """
+    log, a, b = span
+    y = truth[log][a:b]
+    edges = np.flatnonzero(np.diff(y)) + 1
+    bounds = [0, *edges.tolist(), len(y)]
+    return [(log, a + s, a + e, int(y[s])) for s, e in itertools.pairwise(bounds) if y[s] >= 0]
+
+
+def simulate(
+    learner: Learner,
+    truth: Sequence[np.ndarray],
+    *,
+    strategy: Strategy,
+    rounds: int,
+    batch: int,
+    classes: Sequence[str],
+    change_points: Sequence[np.ndarray] | None = None,
+    max_len: int = 500,
+    min_len: int = 100,
+    embeddings: Sequence[np.ndarray] | None = None,
+    seed: int = 0,
+    log: Callable[[str], None] | None = None,
+) -> list[CurvePoint]:
+    """Label ``batch`` suggestions per round for ``rounds`` rounds; the curve has one point per trained round.
+
+    Args:
+        learner: Retrains on the labels and reports scores and held-out accuracy.
+        truth: Per pool log, ``(T,)`` class index per sample (``-1`` unknown).
+        strategy: Which suggestion strategy picks the segments.
+        rounds: Rounds of labelling (each followed by a retrain).
+        batch: Suggestions labelled per round.
+        classes: Class names.
+        change_points: Per pool log, change points where candidates are cut.
+        max_len: Longest suggestion, samples.
+        min_len: Shortest suggestion, samples.
+        embeddings: Per pool log, ``(T, D)`` features for the diversity of ``combined``.
+        seed: Seed of the random strategy (varied per round).
+        log: Where progress lines go.
+    """
+    labels: list[Labelled] = []
+    spans: list[tuple[int, int, int]] = []
+    state = learner(labels)
+    curve = []
+    for r in range(rounds):
+        counts = np.bincount([c for *_, c in labels], [b - a for _, a, b, _ in labels], minlength=len(classes))
+        picks = suggest(state.scores, labelled=spans, label_counts=counts, change_points=change_points,
+                        classes=classes, strategy=strategy, n=batch, max_len=max_len, min_len=min_len,
+                        embeddings=embeddings, seed=seed * 1000 + r)  # fmt: skip
+        if not picks:
+            break
+        for p in picks:
+            spans.append((p.log, p.start, p.stop))
+            labels += oracle((p.log, p.start, p.stop), truth)
+        state = learner(labels)
+        done = sum(b - a for _, a, b in spans)
+        curve.append(CurvePoint(done, state.accuracy, state.macro_f1))
+        if log:
+            log(f"{strategy} seed {seed} round {r + 1}: {done} samples labelled, accuracy {state.accuracy:.2%}")
+    return curve
+
+
+def time_to_reach(curve: Sequence[CurvePoint], accuracy: float) -> float:
+    """Labelled samples at which ``curve`` first reaches ``accuracy`` (linear between points); ``inf`` if never."""
+    prev_x, prev_y = 0.0, -np.inf
+    for p in curve:
+        if p.accuracy >= accuracy:
+            if not np.isfinite(prev_y) or p.accuracy == prev_y:
+                return float(p.labelled_samples)
+            return prev_x + (accuracy - prev_y) / (p.accuracy - prev_y) * (p.labelled_samples - prev_x)
+        prev_x, prev_y = float(p.labelled_samples), p.accuracy
+    return float("inf")
+
+
+def mean_curve(curves: Sequence[Sequence[CurvePoint]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean labelled samples, mean and std of accuracy per round over seeds (rounds all seeds reached)."""
+    n = min(len(c) for c in curves)
+    x = np.array([[c[i].labelled_samples for i in range(n)] for c in curves], np.float64)
+    y = np.array([[c[i].accuracy for i in range(n)] for c in curves], np.float64)
+    return x.mean(0), y.mean(0), y.std(0)
+
+
+def savings(curves: dict[str, Sequence[Sequence[CurvePoint]]], *, method: str, reference: str = "random") -> dict:
+    """How much labelled time ``method`` needs to match ``reference`` at each of its rounds (seed means).
+
+    Returns:
+        ``{"rounds": [(reference samples, reference accuracy, method samples, ratio)], "final_ratio": ...}`` where the
+        ratio is method time over reference time to reach the same accuracy (0.5: half as much labelling).
+    """
+    rx, ry, _ = mean_curve(curves[reference])
+    mx, my, _ = mean_curve(curves[method])
+    pts = [CurvePoint(int(x), float(y), float("nan")) for x, y in zip(mx, my, strict=True)]
+    rows = []
+    for x, y in zip(rx, ry, strict=True):
+        t = time_to_reach(pts, float(y))
+        rows.append((float(x), float(y), t, t / x))
+    return {"rounds": rows, "final_ratio": rows[-1][3] if rows else float("nan")}
+
+
+def table(curves: dict[str, Sequence[Sequence[CurvePoint]]], *, total_samples: int, rate_hz: float) -> str:
+    """Markdown: labelled time (s and % of all time) and mean ± std accuracy per round, one column per strategy."""
+    names = list(curves)
+    means = {k: mean_curve(v) for k, v in curves.items()}
+    rounds = min(len(m[0]) for m in means.values())
+    head = "| round | " + " | ".join(f"{k}: labelled s (%) | {k}: accuracy (%)" for k in names) + " |"
+    lines = [head, "| --- |" + " --- | --- |" * len(names)]
+    for r in range(rounds):
+        cells = []
+        for k in names:
+            x, y, sd = means[k]
+            share = 100 * x[r] / total_samples
+            cells.append(f"{x[r] / rate_hz:.0f} ({share:.2f}) | {100 * y[r]:.2f} ± {100 * sd[r]:.2f}")
+        lines.append(f"| {r + 1} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def plot(
+    curves: dict[str, Sequence[Sequence[CurvePoint]]], path: Path, *, total_samples: int, rate_hz: float, title: str
+) -> Path:
+    """Accuracy against labelled time (seconds; % of all time on the top axis), mean ± std over seeds, as a PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 4.5), dpi=120)
+    for k, v in curves.items():
+        x, y, sd = mean_curve(v)
+        style = {"lw": 2.5} if k == "combined" else {"lw": 1.4}
+        ax.plot(x / rate_hz, 100 * y, marker="o", ms=3, label=f"{k} ({len(v)} seeds)", **style)
+        ax.fill_between(x / rate_hz, 100 * (y - sd), 100 * (y + sd), alpha=0.12)
+    ax.set_xlabel("labelled time (s)")
+    ax.set_ylabel("held-out accuracy (%)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
+    top = ax.secondary_xaxis("top", functions=(lambda s: 100 * s * rate_hz / total_samples,
+                                               lambda p: p * total_samples / (100 * rate_hz)))  # fmt: skip
+    top.set_xlabel("labelled time (% of all time)")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path

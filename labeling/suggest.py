@@ -1,0 +1,291 @@
+"""Suggestions: a ranked queue of unlabelled segments worth labelling next, each with its reason and a guess.
+
+Candidates are the log cut at its change points (long stretches cut into pieces of at most ``max_len``) and the
+highlighted intervals of the strategy's tracks, minus labelled time. Each candidate gets the mean of the strategy's
+normalised track over it; the combined default mixes uncertainty, disagreement and surprise and favours classes with
+few labels. Selection is greedy and never overlaps labelled time or an earlier suggestion; the combined strategy
+also spreads picks over logs and over guessed classes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from .changepoints import spans
+from .tracks import Kind, LogScores, intervals, normalised_tracks
+
+Strategy = Literal["random", "entropy", "margin", "disagreement", "surprise", "combined"]
+STRATEGIES: tuple[Strategy, ...] = ("random", "entropy", "margin", "disagreement", "surprise", "combined")
+Span = tuple[int, int, int]  # (log, start, stop) in samples
+
+# weights of the combined score; renormalised over the kinds the model can give
+WEIGHTS: dict[str, float] = {"unsure": 0.45, "disagreement": 0.3, "surprise": 0.25}
+LOG_DECAY, CLASS_DECAY, NEIGHBOUR_DECAY = 0.7, 0.8, 0.5
+NOVELTY_FLOOR, NOVELTY_CAP = 0.25, 2.0
+
+
+@dataclass(frozen=True)
+class Suggestion:
+    """A segment to label next.
+
+    Attributes:
+        log: Log index.
+        start: First sample.
+        stop: One past the last sample.
+        score: The strategy's score after diversity (higher first).
+        reason: Why, in words a person reads in the UI.
+        guess: The model's most probable class over the segment, or ``None`` before a classifier exists.
+        rank: 0 for the first suggestion.
+    """
+
+    log: int
+    start: int
+    stop: int
+    score: float
+    reason: str
+    guess: int | None
+    rank: int
+
+
+def unlabelled_runs(start: int, stop: int, covered: np.ndarray, *, min_len: int) -> list[tuple[int, int]]:
+    """The parts of ``[start, stop)`` where ``covered`` (``(T,)`` bool) is false, at least ``min_len`` long."""
+    free = ~covered[start:stop]
+    if not free.any():
+        return []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], free.astype(np.int8), [0]])))
+    return [(start + int(a), start + int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= min_len]
+
+
+def coverage(lengths: Sequence[int], labelled: Sequence[Span]) -> list[np.ndarray]:
+    """Per log, ``(T,)`` bool: true where labelled."""
+    cov = [np.zeros(n, bool) for n in lengths]
+    for log, a, b in labelled:
+        cov[log][max(a, 0) : max(b, 0)] = True
+    return cov
+
+
+def _kinds_for(strategy: Strategy) -> tuple[Kind, ...]:
+    if strategy in ("random", "surprise"):
+        return ("surprise",)
+    if strategy == "combined":
+        return ("surprise", "entropy", "margin", "disagreement")
+    return (strategy, "surprise")  # surprise is the fallback before a classifier exists
+
+
+def candidates(
+    lengths: Sequence[int],
+    labelled: Sequence[Span],
+    change_points: Sequence[np.ndarray] | None,
+    tracks: Sequence[dict[Kind, np.ndarray]],
+    *,
+    max_len: int,
+    min_len: int,
+    threshold: float = 0.9,
+) -> list[Span]:
+    """Unlabelled candidate segments, deduplicated and sorted; they may overlap each other (selection will not)."""
+    cov = coverage(lengths, labelled)
+    out: set[Span] = set()
+    for log, n in enumerate(lengths):
+        pts = change_points[log] if change_points is not None else np.zeros(0, np.int64)
+        for a, b in spans(n, pts, max_len=max_len, min_len=min_len):
+            out.update((log, x, y) for x, y in unlabelled_runs(a, b, cov[log], min_len=min_len))
+        for kind, track in tracks[log].items():
+            for iv in intervals(track, threshold, log=log, kind=kind, min_len=min_len):
+                # an interval longer than a segment is centred on its peak
+                a, b = iv.start, iv.stop
+                if b - a > max_len:
+                    peak = a + int(np.argmax(track[a:b]))
+                    a = int(np.clip(peak - max_len // 2, iv.start, iv.stop - max_len))
+                    b = a + max_len
+                out.update((log, x, y) for x, y in unlabelled_runs(a, b, cov[log], min_len=min_len))
+    return sorted(out)
+
+
+def class_weights(label_counts: np.ndarray) -> np.ndarray:
+    """``(K,)`` label counts (samples per class) -> ``(K,)`` weights favouring rare classes, in ``[0.5, 3]``."""
+    counts = np.asarray(label_counts, np.float64)
+    return np.clip(np.sqrt((counts.mean() + 1.0) / (counts + 1.0)), 0.5, 3.0)
+
+
+def suggest(
+    scores: Sequence[LogScores],
+    *,
+    labelled: Sequence[Span] = (),
+    label_counts: np.ndarray | None = None,
+    change_points: Sequence[np.ndarray] | None = None,
+    classes: Sequence[str] = (),
+    strategy: Strategy = "combined",
+    n: int = 10,
+    max_len: int = 500,
+    min_len: int = 100,
+    window: int = 25,
+    embeddings: Sequence[np.ndarray] | None = None,
+    seed: int = 0,
+) -> list[Suggestion]:
+    """The next ``n`` segments to label.
+
+    Args:
+        scores: Per log, the model's scores (``probs`` ``None`` before a classifier exists).
+        labelled: Labelled stretches ``(log, start, stop)``; never suggested again.
+        label_counts: ``(K,)`` labelled samples per class (favours rare classes in ``combined``).
+        change_points: Per log, ``(N,)`` change-point sample indices where candidates are cut.
+        classes: ``K`` class names, for the reasons.
+        strategy: ``random``, ``entropy``, ``margin``, ``disagreement`` (BALD), ``surprise`` or ``combined``.
+        n: How many suggestions.
+        max_len: Longest suggestion, samples.
+        min_len: Shortest suggestion, samples.
+        window: Smoothing of the tracks, samples.
+        embeddings: Per log, ``(T, D)`` features (e.g. stage 1's hidden state). ``combined`` then prefers segments
+            unlike anything labelled or already suggested (distance of their mean feature vectors), which covers
+            the kinds of terrain before a classifier exists and keeps the queue diverse after.
+        seed: Seed of ``random`` (other strategies are deterministic; ties break by log then start).
+
+    Returns:
+        At most ``n`` suggestions, best first, overlapping neither labelled time nor each other.
+    """
+    lengths = [len(s) for s in scores]
+    tracks = normalised_tracks(scores, window=window, kinds=_kinds_for(strategy))
+    cands = candidates(lengths, labelled, change_points, tracks, max_len=max_len, min_len=min_len)
+    if not cands:
+        return []
+    logs = np.array([c[0] for c in cands])
+    starts = np.array([c[1] for c in cands])
+    stops = np.array([c[2] for c in cands])
+    parts, mean_probs = _components(cands, tracks, scores)
+    base, why = _base_scores(strategy, parts, len(cands), seed)
+    guess = None if mean_probs is None else mean_probs.argmax(axis=1)
+    rare = np.ones(len(cands))
+    if strategy == "combined" and guess is not None and label_counts is not None and len(label_counts):
+        rare = class_weights(label_counts)[guess]
+    base = base * rare
+
+    novelty = np.ones(len(cands))
+    emb = None
+    if strategy == "combined" and embeddings is not None:
+        emb, ref, novelty = _novelty(cands, labelled, embeddings)
+        base = (NOVELTY_FLOOR + base) * novelty
+        if mean_probs is None:
+            why = ["novel"] * len(cands)
+
+    chosen: list[int] = []
+    alive = np.ones(len(cands), bool)
+    factor = np.ones(len(cands))
+    while len(chosen) < n and alive.any():
+        adjusted = np.where(alive, base * factor, -np.inf)
+        # lexsort's last key is the primary: score (descending), then log, then start, for a deterministic order
+        best = int(np.lexsort((starts, logs, -adjusted))[0])
+        chosen.append(best)
+        alive &= (stops <= starts[best]) | (starts >= stops[best]) | (logs != logs[best])
+        if strategy == "combined":
+            same_log = logs == logs[best]
+            factor = factor * np.where(same_log, LOG_DECAY, 1.0)
+            near = same_log & (np.minimum(np.abs(starts - stops[best]), np.abs(stops - starts[best])) < max_len)
+            factor = factor * np.where(near, NEIGHBOUR_DECAY, 1.0)
+            if guess is not None:
+                factor = factor * np.where(guess == guess[best], CLASS_DECAY, 1.0)
+            if emb is not None:  # the pick now counts as covered: novelty is distance to the nearest covered
+                d_new = np.linalg.norm(emb - emb[best], axis=1) / ref
+                factor = factor * np.minimum(1.0, np.minimum(d_new, NOVELTY_CAP) / np.maximum(novelty, 1e-9))
+                novelty = np.minimum(novelty, np.minimum(d_new, NOVELTY_CAP))
+    out = []
+    for rank, i in enumerate(chosen):
+        g = None if guess is None else int(guess[i])
+        reason = _reason(why[i], mean_probs[i] if mean_probs is not None else None, classes, rare[i])
+        out.append(Suggestion(int(logs[i]), int(starts[i]), int(stops[i]), float(base[i] * factor[i]), reason, g, rank))
+    return out
+
+
+def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Euclidean distances ``(N, D), (M, D) -> (N, M)`` without an ``(N, M, D)`` temporary."""
+    sq = (a * a).sum(1)[:, None] + (b * b).sum(1)[None] - 2.0 * a @ b.T
+    return np.sqrt(np.maximum(sq, 0.0))
+
+
+def _novelty(
+    cands: Sequence[Span], labelled: Sequence[Span], embeddings: Sequence[np.ndarray]
+) -> tuple[np.ndarray, float, np.ndarray]:
+    """Standardised mean embedding of each candidate ``(N, D)``, the reference distance, and ``(N,)`` novelty.
+
+    Novelty is the distance to the nearest labelled segment over the median such distance, capped at
+    ``NOVELTY_CAP``; with nothing labelled every candidate has the cap.
+    """
+
+    def mean(g: int, a: int, b: int) -> np.ndarray:
+        return np.asarray(embeddings[g][a:b], np.float64).mean(axis=0)
+
+    emb = np.array([mean(*c) for c in cands])  # (N, D)
+    mu, sd = emb.mean(axis=0), emb.std(axis=0) + 1e-9
+    emb = (emb - mu) / sd
+    done = [(mean(g, a, b) - mu) / sd for g, a, b in labelled if b > a]
+    if not done:
+        dist = np.full(len(cands), np.inf)
+        # the typical spacing of candidates sets the scale of "novel"
+        sample = emb[:: max(1, len(emb) // 200)]
+        gaps = _distances(sample, sample)
+        ref = float(np.median(gaps[gaps > 0])) if (gaps > 0).any() else 1.0
+    else:
+        dist = _distances(emb, np.array(done)).min(axis=1)  # (N,)
+        ref = float(np.median(dist)) or 1.0
+    return emb, ref, np.minimum(dist / ref, NOVELTY_CAP)
+
+
+def _components(
+    cands: Sequence[Span], tracks: Sequence[dict[Kind, np.ndarray]], scores: Sequence[LogScores]
+) -> tuple[dict[str, np.ndarray], np.ndarray | None]:
+    """Mean normalised track of each kind over each candidate, and ``(N, K)`` mean probabilities (or ``None``)."""
+    kinds = sorted({k for t in tracks for k in t})
+    cums = [{k: np.concatenate([[0.0], np.cumsum(t[k])]) for k in t} for t in tracks]
+    parts = {k: np.array([(cums[g][k][b] - cums[g][k][a]) / (b - a) for g, a, b in cands]) for k in kinds}
+    if any(s.probs is None for s in scores):
+        return parts, None
+    pc = [np.concatenate([np.zeros((1, s.probs.shape[1])), np.cumsum(s.probs, axis=0)]) for s in scores]
+    probs = np.array([(pc[g][b] - pc[g][a]) / (b - a) for g, a, b in cands])  # (N, K)
+    return parts, probs
+
+
+def _base_scores(strategy: Strategy, parts: dict[str, np.ndarray], n: int, seed: int) -> tuple[np.ndarray, list[str]]:
+    """``(N,)`` score of each candidate and the name of the component that drives it."""
+    if strategy == "random":
+        return np.random.default_rng(seed).random(n), ["random"] * n
+    if strategy != "combined":
+        kind = strategy if strategy in parts else "surprise"
+        return parts[kind], [kind] * n
+    comps = {"surprise": parts["surprise"]}
+    if "entropy" in parts:
+        comps["unsure"] = np.maximum(parts["entropy"], parts["margin"])
+    if "disagreement" in parts:
+        comps["disagreement"] = parts["disagreement"]
+    total = sum(WEIGHTS[k] for k in comps)
+    weighted = {k: WEIGHTS[k] / total * v for k, v in comps.items()}
+    names = list(weighted)
+    stack = np.stack([weighted[k] for k in names])  # (kinds, N)
+    return stack.sum(axis=0), [names[i] for i in stack.argmax(axis=0)]
+
+
+def _reason(driver: str, probs: np.ndarray | None, classes: Sequence[str], rarity: float) -> str:
+    def name(i: int) -> str:
+        return classes[i] if i < len(classes) else f"class {i}"
+
+    if probs is not None:
+        order = np.argsort(probs)[::-1]
+        first, second = name(int(order[0])), name(int(order[1])) if len(order) > 1 else ""
+    text = {
+        "random": "random pick",
+        "surprise": "predictor surprised",
+        "disagreement": "models disagree",
+        "entropy": "classifier unsure",
+        "margin": "classifier unsure",
+        "unsure": "classifier unsure",
+        "novel": "unlike anything labelled yet",
+    }[driver]
+    if probs is not None and driver in ("entropy", "margin", "unsure") and second:
+        text = f"classifier unsure between {first} and {second}"
+    elif probs is not None and driver == "disagreement":
+        text = f"models disagree (guess {first})"
+    if probs is not None and rarity >= 1.5:
+        text += f"; few labels of {first}"
+    return text

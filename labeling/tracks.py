@@ -1,0 +1,177 @@
+"""Highlight tracks: per-timestep acquisition scores, smoothed, normalised per session, cut into intervals.
+
+Every function takes and returns NumPy arrays. Shapes: ``T`` timesteps of one log, ``K`` classes, ``M`` ensemble
+members.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+Kind = Literal["surprise", "entropy", "margin", "disagreement"]
+KINDS: tuple[Kind, ...] = ("surprise", "entropy", "margin", "disagreement")
+_EPS = 1e-12
+
+
+@dataclass(frozen=True)
+class LogScores:
+    """The model's per-timestep scores of one log, as ``labeling`` needs them.
+
+    Attributes:
+        surprise: ``(T,)`` stage-1 prediction error (any non-negative scale).
+        probs: ``(T, K)`` ensemble-mean class probabilities, or ``None`` before a classifier exists.
+        disagreement: ``(T,)`` ensemble mutual information (BALD), or ``None``.
+    """
+
+    surprise: np.ndarray
+    probs: np.ndarray | None = None
+    disagreement: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.surprise)
+
+    def raw(self, kind: Kind) -> np.ndarray | None:
+        """``(T,)`` the unsmoothed track of ``kind``; higher is more worth labelling. ``None`` when unavailable."""
+        if kind == "surprise":
+            return np.asarray(self.surprise, np.float64)
+        if kind == "disagreement":
+            return None if self.disagreement is None else np.asarray(self.disagreement, np.float64)
+        if self.probs is None:
+            return None
+        return entropy(self.probs) if kind == "entropy" else margin_uncertainty(self.probs)
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A highlighted stretch ``[start, stop)`` of one log, in samples; ``score`` is its peak normalised score."""
+
+    log: int
+    start: int
+    stop: int
+    score: float
+    kind: Kind
+
+
+def entropy(probs: np.ndarray) -> np.ndarray:
+    """Predictive entropy in nats: ``(T, K)`` -> ``(T,)``."""
+    p = np.clip(np.asarray(probs, np.float64), _EPS, 1.0)
+    return -(p * np.log(p)).sum(axis=-1)
+
+
+def margin_uncertainty(probs: np.ndarray) -> np.ndarray:
+    """One minus the gap between the two most probable classes: ``(T, K)`` -> ``(T,)`` in ``[0, 1]``.
+
+    1 where the top two classes tie, 0 where one class has all the mass.
+    """
+    p = np.asarray(probs, np.float64)
+    if p.shape[-1] < 2:
+        return np.zeros(p.shape[:-1])
+    top2 = np.partition(p, -2, axis=-1)[..., -2:]  # (T, 2): second, first
+    return 1.0 - (top2[..., 1] - top2[..., 0])
+
+
+def mutual_information(member_probs: np.ndarray) -> np.ndarray:
+    """BALD disagreement of an ensemble: ``(M, T, K)`` -> ``(T,)``, entropy of the mean minus mean entropy."""
+    mean = member_probs.mean(axis=0)
+    return np.maximum(entropy(mean) - np.mean([entropy(m) for m in member_probs], axis=0), 0.0)
+
+
+def smooth(x: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average over ``window`` samples, shrinking at the ends: ``(T,)`` -> ``(T,)``."""
+    x = np.asarray(x, np.float64)
+    if window <= 1 or len(x) == 0:
+        return x.copy()
+    c = np.concatenate([[0.0], np.cumsum(x)])
+    t = np.arange(len(x))
+    lo = np.clip(t - window // 2, 0, len(x))
+    hi = np.clip(t - window // 2 + window, 0, len(x))
+    return (c[hi] - c[lo]) / (hi - lo)
+
+
+def session_normaliser(tracks: Sequence[np.ndarray], *, max_reference: int = 200_000, seed: int = 0):
+    """A function mapping a track's values to their rank in the whole session, in ``[0, 1]``.
+
+    Ranks make kinds on different scales (nats, squared error) comparable, and make a threshold mean "the top
+    ``1 - threshold`` of this session's time". At most ``max_reference`` values (a seeded sample) are kept.
+    """
+    ref = np.concatenate([np.asarray(t, np.float64).ravel() for t in tracks]) if tracks else np.zeros(1)
+    if len(ref) > max_reference:
+        ref = np.random.default_rng(seed).choice(ref, max_reference, replace=False)
+    ref = np.sort(ref)
+
+    def normalise(x: np.ndarray) -> np.ndarray:
+        # mid-rank: ties (a flat track) land in the middle, not at the top
+        lo = np.searchsorted(ref, x, side="left")
+        hi = np.searchsorted(ref, x, side="right")
+        return (lo + hi) / (2.0 * len(ref))
+
+    return normalise
+
+
+def normalised_tracks(
+    scores: Sequence[LogScores], *, window: int = 25, kinds: Sequence[Kind] = KINDS
+) -> list[dict[Kind, np.ndarray]]:
+    """Each available kind of each log, smoothed over ``window`` samples and ranked across the session.
+
+    Returns:
+        Per log, ``kind -> (T,)`` in ``[0, 1]``; kinds the model cannot give yet are left out.
+    """
+    out: list[dict[Kind, np.ndarray]] = [{} for _ in scores]
+    for kind in kinds:
+        smoothed = [None if (r := s.raw(kind)) is None else smooth(r, window) for s in scores]
+        present = [t for t in smoothed if t is not None]
+        if not present:
+            continue
+        norm = session_normaliser(present)
+        for i, t in enumerate(smoothed):
+            if t is not None:
+                out[i][kind] = norm(t)
+    return out
+
+
+def intervals(track: np.ndarray, threshold: float, *, log: int, kind: Kind, min_len: int = 1, gap: int = 0):
+    """Stretches where ``track`` (normalised, ``(T,)``) is at or above ``threshold``.
+
+    Args:
+        track: ``(T,)`` normalised scores.
+        threshold: Highlight where the score is at least this (the user's slider).
+        log: Log index, carried into the intervals.
+        kind: Track kind, carried into the intervals.
+        min_len: Drop stretches shorter than this many samples.
+        gap: Merge stretches separated by at most this many samples.
+
+    Returns:
+        ``list[Interval]`` in time order, never overlapping.
+    """
+    above = np.asarray(track) >= threshold
+    if not above.any():
+        return []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], above.astype(np.int8), [0]])))
+    runs = [[int(a), int(b)] for a, b in zip(edges[::2], edges[1::2], strict=True)]
+    merged = [runs[0]]
+    for a, b in runs[1:]:
+        if a - merged[-1][1] <= gap:
+            merged[-1][1] = b
+        else:
+            merged.append([a, b])
+    return [Interval(log, a, b, float(np.max(track[a:b])), kind) for a, b in merged if b - a >= min_len]
+
+
+def highlight_intervals(
+    tracks: Sequence[Mapping[Kind, np.ndarray]],
+    threshold: float = 0.9,
+    *,
+    min_len: int = 1,
+    gap: int = 0,
+) -> list[Interval]:
+    """Intervals of every kind of every log (see :func:`intervals`), sorted by log, kind, start."""
+    out = []
+    for i, per_kind in enumerate(tracks):
+        for kind in KINDS:
+            if kind in per_kind:
+                out += intervals(per_kind[kind], threshold, log=i, kind=kind, min_len=min_len, gap=gap)
+    return out

@@ -1,0 +1,71 @@
+"""Change points and snapping."""
+
+import itertools
+
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+
+from labeling import block_summary, change_points, snap_range, spans
+
+
+def steps(seed: int = 0) -> tuple[np.ndarray, list[int]]:
+    rng = np.random.default_rng(seed)
+    means = [0.0, 2.0, -1.0, 1.5]
+    lengths = [600, 400, 800, 500]
+    x = np.concatenate([rng.normal(m, 1.0, (n, 3)) for m, n in zip(means, lengths, strict=True)])
+    return x, np.cumsum(lengths)[:-1].tolist()
+
+
+def test_block_summary_shapes_and_values() -> None:
+    x = np.arange(10.0)[:, None]
+    z = block_summary(x, 4)  # two blocks, tail of 2 dropped
+    np.testing.assert_allclose(z, [[1.5, np.std([0, 1, 2, 3])], [5.5, np.std([4, 5, 6, 7])]])
+    assert block_summary(x, 20).shape == (0, 2)
+
+
+def test_change_points_find_the_steps_within_a_block() -> None:
+    x, truth = steps()
+    got = change_points(x, block=25)
+    assert len(got) == len(truth)
+    assert np.all(np.abs(got - np.array(truth)) <= 25)
+
+
+def test_change_points_on_noise_and_short_signals() -> None:
+    rng = np.random.default_rng(1)
+    assert len(change_points(rng.normal(size=(3000, 4)), block=25)) <= 1
+    assert len(change_points(np.zeros((50, 2)), block=25)) == 0
+
+
+def test_snap_moves_edges_to_nearby_change_points_only() -> None:
+    pts = np.array([100, 500, 900])
+    assert snap_range(120, 480, pts, radius=50) == snap_range(120, 480, pts, radius=50)
+    s = snap_range(120, 480, pts, radius=50)
+    assert (s.start, s.stop, s.moved) == (100, 500, True)
+    s = snap_range(250, 700, pts, radius=50)
+    assert (s.start, s.stop, s.moved_start, s.moved_stop) == (250, 700, False, False)
+    s = snap_range(480, 520, pts, radius=50)  # both edges near 500: never an empty proposal
+    assert s.start < s.stop
+
+
+@given(
+    st.lists(st.integers(0, 2000), max_size=10),
+    st.integers(0, 1900),
+    st.integers(1, 300),
+    st.integers(0, 200),
+)
+def test_snap_is_never_empty_and_moves_at_most_radius(points: list[int], start: int, length: int, radius: int) -> None:
+    stop = start + length
+    s = snap_range(start, stop, np.array(points, dtype=np.int64), radius=radius)
+    assert s.start < s.stop
+    assert abs(s.start - start) <= radius and abs(s.stop - stop) <= radius
+    assert s.moved_start == (s.start != start) and s.moved_stop == (s.stop != stop)
+
+
+@given(st.integers(1, 3000), st.lists(st.integers(-10, 3010), max_size=12), st.integers(1, 700), st.integers(1, 50))
+def test_spans_tile_the_log_without_overlap(length: int, points: list[int], max_len: int, min_len: int) -> None:
+    got = spans(length, np.array(points), max_len=max_len, min_len=min_len)
+    assert all(0 <= a < b <= length and min_len <= b - a <= max_len for a, b in got)
+    assert all(b1 <= a2 for (_, b1), (a2, _) in itertools.pairwise(got))
+    if min_len == 1:
+        assert sum(b - a for a, b in got) == length

@@ -1,0 +1,70 @@
+"""The simulation loop with a stand-in learner (no model): oracle, curves, savings, table and plot."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from labeling import CurvePoint, LogScores, Round, savings, simulate, table, time_to_reach
+from labeling import plot as plot_curves
+
+
+def stand_in(truth: list[np.ndarray], k: int):
+    """Accuracy = share of classes seen; surprise high where a class is still unlabelled."""
+    calls = []
+
+    def learner(labels) -> Round:
+        calls.append(list(labels))
+        seen = {c for *_, c in labels}
+        scores = []
+        for y in truth:
+            surprise = np.where(np.isin(y, list(seen)), 0.1, 1.0)
+            probs = np.full((len(y), k), 1.0 / k) if labels else None
+            scores.append(LogScores(surprise, probs, None if probs is None else np.zeros(len(y))))
+        return Round(scores, len(seen) / k if labels else float("nan"))
+
+    return learner, calls
+
+
+def test_simulate_labels_suggestions_through_the_oracle() -> None:
+    truth = [np.repeat([0, 1, 2, 0], 250), np.repeat([3, 1], 500)]
+    learner, calls = stand_in(truth, 4)
+    curve = simulate(learner, truth, strategy="surprise", rounds=3, batch=2, classes=list("abcd"), max_len=100,
+                     min_len=50)  # fmt: skip
+    assert len(curve) == 3 and len(calls) == 4  # a cold start, then one retrain per round
+    assert [p.labelled_samples for p in curve] == [200, 400, 600]
+    assert calls[0] == []
+    for log, a, b, c in calls[-1]:
+        assert (truth[log][a:b] == c).all()  # the oracle labels from the truth
+    # surprise goes to unseen classes: every class is found within three rounds
+    assert curve[-1].accuracy == 1.0
+
+
+def test_random_strategy_is_reproducible() -> None:
+    truth = [np.repeat([0, 1], 1000)]
+    a = simulate(stand_in(truth, 2)[0], truth, strategy="random", rounds=2, batch=3, classes=["a", "b"], seed=5)
+    b = simulate(stand_in(truth, 2)[0], truth, strategy="random", rounds=2, batch=3, classes=["a", "b"], seed=5)
+    assert a == b
+
+
+def test_time_to_reach_and_savings_by_hand() -> None:
+    curve = [CurvePoint(100, 0.5, 0.0), CurvePoint(200, 0.7, 0.0), CurvePoint(300, 0.8, 0.0)]
+    assert time_to_reach(curve, 0.4) == 100
+    assert time_to_reach(curve, 0.6) == pytest.approx(150)
+    assert time_to_reach(curve, 0.9) == float("inf")
+    slow = [[CurvePoint(200, 0.5, 0.0), CurvePoint(400, 0.7, 0.0), CurvePoint(600, 0.8, 0.0)]]
+    s = savings({"random": slow, "fast": [curve]}, method="fast")
+    assert s["final_ratio"] == pytest.approx(0.5)
+    assert [r[3] for r in s["rounds"]] == pytest.approx([0.5, 0.5, 0.5])
+
+
+def test_table_and_plot(tmp_path: Path) -> None:
+    curves = {
+        "random": [[CurvePoint(100, 0.5, 0.0), CurvePoint(200, 0.6, 0.0)]] * 2,
+        "combined": [[CurvePoint(100, 0.6, 0.0), CurvePoint(200, 0.7, 0.0)], [CurvePoint(100, 0.8, 0.0),
+                     CurvePoint(200, 0.9, 0.0)]],
+    }  # fmt: skip
+    text = table(curves, total_samples=1000, rate_hz=100.0)
+    assert "| 2 | 2 (20.00) | 60.00 ± 0.00 | 2 (20.00) | 80.00 ± 10.00 |" in text
+    png = plot_curves(curves, tmp_path / "c.png", total_samples=1000, rate_hz=100.0, title="t")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -1,0 +1,125 @@
+"""Suggestions: never on labelled time, never overlapping, deterministic, with reasons and guesses."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from labeling import STRATEGIES, LogScores, candidates, class_weights, coverage, suggest
+from labeling.simulate import oracle
+
+
+def make_scores(lengths: list[int], k: int, seed: int, *, cold: bool = False) -> list[LogScores]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for n in lengths:
+        err = rng.gamma(2.0, 1.0, n)
+        if cold:
+            out.append(LogScores(err))
+        else:
+            out.append(LogScores(err, rng.dirichlet(np.ones(k) * 0.5, n), rng.random(n) * 0.3))
+    return out
+
+
+@st.composite
+def situations(draw):
+    seed = draw(st.integers(0, 10_000))
+    lengths = draw(st.lists(st.integers(50, 1500), min_size=1, max_size=4))
+    labelled = []
+    for log, n in enumerate(lengths):
+        for _ in range(draw(st.integers(0, 3))):
+            a = draw(st.integers(0, n - 1))
+            labelled.append((log, a, min(n, a + draw(st.integers(1, 400)))))
+    points = [np.array(sorted(draw(st.lists(st.integers(1, n - 1), max_size=5)))) for n in lengths]
+    return seed, lengths, labelled, points
+
+
+@settings(max_examples=60, deadline=None)
+@given(situations(), st.sampled_from(STRATEGIES), st.booleans(), st.integers(1, 12), st.booleans())
+def test_suggestions_never_overlap_labels_or_each_other(situation, strategy, cold, n, with_embeddings) -> None:
+    seed, lengths, labelled, points = situation
+    scores = make_scores(lengths, 3, seed, cold=cold)
+    rng = np.random.default_rng(seed)
+    embeddings = [rng.normal(size=(m, 4)) for m in lengths] if with_embeddings else None
+    kwargs = dict(labelled=labelled, label_counts=np.array([100, 5, 0]), change_points=points, classes=["a", "b", "c"],
+                  strategy=strategy, n=n, max_len=200, min_len=20, window=9, seed=seed)  # fmt: skip
+    kwargs["embeddings"] = embeddings
+    got = suggest(scores, **kwargs)
+    assert len(got) <= n
+    cov = coverage(lengths, labelled)
+    for s in got:
+        assert 20 <= s.stop - s.start <= 200 and 0 <= s.start < s.stop <= lengths[s.log]
+        assert not cov[s.log][s.start : s.stop].any(), "suggested labelled time"
+    for i, s in enumerate(got):
+        for t in got[i + 1 :]:
+            assert s.log != t.log or s.stop <= t.start or t.stop <= s.start, "suggestions overlap"
+    assert [s.rank for s in got] == list(range(len(got)))
+    assert all(s.reason for s in got)
+    assert all((s.guess is None) == cold for s in got)
+    # deterministic for a fixed seed
+    assert suggest(scores, **kwargs) == got
+
+
+def test_ranking_follows_the_strategy() -> None:
+    n = 2000
+    probs = np.tile([0.98, 0.01, 0.01], (n, 1))
+    probs[1200:1400] = [0.4, 0.35, 0.25]  # unsure here
+    err = np.ones(n)
+    err[300:500] = 10.0  # surprised here
+    scores = [LogScores(err, probs, np.zeros(n))]
+    top = suggest(scores, strategy="entropy", n=1, max_len=200, min_len=50, classes=["a", "b", "c"])[0]
+    assert top.start >= 1100 and top.stop <= 1500
+    assert top.reason == "classifier unsure between a and b"
+    top = suggest(scores, strategy="surprise", n=1, max_len=200, min_len=50)[0]
+    assert top.start >= 200 and top.stop <= 600 and top.reason == "predictor surprised"
+
+
+def test_random_depends_on_the_seed_only() -> None:
+    scores = make_scores([3000], 3, 0)
+    a = suggest(scores, strategy="random", n=5, max_len=100, min_len=50, seed=1)
+    assert a == suggest(scores, strategy="random", n=5, max_len=100, min_len=50, seed=1)
+    assert a != suggest(scores, strategy="random", n=5, max_len=100, min_len=50, seed=2)
+
+
+def test_combined_spreads_over_logs_and_favours_rare_classes() -> None:
+    scores = make_scores([3000, 3000, 3000], 3, 4)
+    got = suggest(scores, strategy="combined", n=6, max_len=200, min_len=50)
+    assert len({s.log for s in got}) == 3
+    np.testing.assert_allclose(class_weights(np.array([100.0, 100.0, 100.0])), 1.0)
+    w = class_weights(np.array([300.0, 100.0, 0.0]))
+    assert w[2] > w[1] > w[0]
+
+
+def test_cold_start_suggests_from_surprise() -> None:
+    scores = make_scores([1000], 3, 0, cold=True)
+    got = suggest(scores, strategy="combined", n=3, max_len=200, min_len=50)
+    assert len(got) == 3 and all(s.guess is None and s.reason == "predictor surprised" for s in got)
+
+
+def test_candidates_cover_unlabelled_time_only() -> None:
+    tracks = [{"surprise": np.linspace(0, 1, 1000)}]
+    got = candidates([1000], [(0, 100, 300)], [np.array([500])], tracks, max_len=250, min_len=10)
+    assert all(b <= 100 or a >= 300 for _, a, b in got)
+    assert (0, 0, 100) in got and (0, 300, 500) in got
+
+
+def test_oracle_splits_at_terrain_changes_and_skips_unknown() -> None:
+    truth = [np.array([0, 0, 1, 1, 1, -1, 2])]
+    assert oracle((0, 1, 7), truth) == [(0, 1, 2, 0), (0, 2, 5, 1), (0, 6, 7, 2)]
+
+
+def test_combined_with_embeddings_covers_distinct_regimes_first() -> None:
+    # three regimes of feature space in one log; surprise is flat, so only novelty can spread the picks
+    n = 3000
+    emb = np.zeros((n, 2))
+    emb[1000:2000] = [5.0, 0.0]
+    emb[2000:] = [0.0, 5.0]
+    emb += np.random.default_rng(0).normal(scale=0.1, size=emb.shape)
+    scores = [LogScores(np.ones(n))]
+    got = suggest(scores, strategy="combined", n=3, max_len=200, min_len=50, embeddings=[emb],
+                  change_points=[np.array([1000, 2000])])  # fmt: skip
+    assert sorted(s.start // 1000 for s in got) == [0, 1, 2]
+    assert all(s.reason == "unlike anything labelled yet" for s in got)
+    # with the first regime labelled, the first pick is in another
+    again = suggest(scores, strategy="combined", n=1, max_len=200, min_len=50, embeddings=[emb],
+                    labelled=[(0, 0, 300)], change_points=[np.array([1000, 2000])])  # fmt: skip
+    assert again[0].start >= 1000

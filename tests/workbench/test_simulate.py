@@ -1,0 +1,38 @@
+"""``evaluate --simulate`` end to end at tiny sizes: stage 1, retrains per round, report and plot."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from workbench.simulate import SimSettings, simulate_logs, simulate_partitions
+
+TINY = SimSettings(strategies=("random", "combined"), seeds=1, rounds=2, batch=2, hidden=8, stage1_epochs=1,
+                   stage2_epochs=2, folds=2)  # fmt: skip
+
+
+def test_simulate_logs_reports_both_strategies(tmp_path: Path) -> None:
+    rng = np.random.default_rng(0)
+    logs, truth = [], []
+    for _ in range(3):
+        y = np.repeat(rng.permutation(3), 100)
+        logs.append((rng.normal(size=(300, 2)) * (1 + y[:, None])).astype(np.float32))
+        truth.append(y)
+    lines: list[str] = []
+    text = simulate_logs(logs, truth, ["a", "b", "c"], rate_hz=20.0, settings=TINY, out=tmp_path, log=lines.append)
+    assert "| round | random: labelled s (%)" in text and "`combined` reaches random's final accuracy" in text
+    assert sum("round 2" in s for s in lines) == 2  # both strategies ran both rounds
+    assert (tmp_path / "simulate-demo.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_simulate_partitions_labels_whole_partitions(tmp_path: Path) -> None:
+    rng = np.random.default_rng(1)
+    runs = [(rng.normal(size=(400, 2)) * (0.5 + r % 2)).astype(np.float32) for r in range(6)]
+    lines: list[str] = []
+    text = simulate_partitions(runs, [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=TINY, out=tmp_path,
+                               log=lines.append)  # fmt: skip
+    assert "BorealTC" in text
+    # two partitions of 5 s (100 samples at 20 Hz) per round
+    assert any("random seed 0 round 2: 400 samples labelled" in s for s in lines)
+    assert (tmp_path / "simulate-borealtc.png").exists()

@@ -1,0 +1,208 @@
+"""``workbench evaluate ... --simulate``: label-efficiency curves of the suggestion strategies.
+
+Wires ``labeling.simulate`` (oracle, loop, curves) to the model: stage 1 trains once without labels and its features
+are cached; every round retrains stage 2 (warm-started from the previous round, as the UI's retrain does), rescores
+the pool and measures held-out accuracy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from sklearn.model_selection import StratifiedKFold
+
+import labeling
+from training.config import TrainConfig
+from training.evaluate import partitions, windows
+from training.fit_classifier import fit_classifier
+from training.fit_predictor import fit_predictor
+from training.inference import run_classifiers, run_predictor
+from training.metrics import classification_metrics
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Sizes of the simulation (small models: every round retrains)."""
+
+    strategies: tuple[str, ...] = ("random", "combined")
+    seeds: int = 3
+    rounds: int = 8
+    batch: int = 4
+    hidden: int = 64
+    stage1_epochs: int = 20
+    stage2_epochs: int = 40
+    folds: int = 3  # ensemble members (disagreement needs more than one)
+
+
+class FeatureLearner:
+    """Retrains stage 2 on cached features of the pool and reports pool scores and held-out accuracy.
+
+    ``train_features(labels)`` gives the features and segments stage 2 trains on (the pool's own features, or
+    windows cut from them to match how the test data is classified); ``test_predict(models)`` the held-out
+    predictions and truth.
+    """
+
+    def __init__(self, pool_features, pool_error, classes, config, hidden, train_features, test_predict):
+        self.pool_features, self.pool_error = pool_features, pool_error
+        self.classes, self.config, self.hidden = classes, config, hidden
+        self.train_features, self.test_predict = train_features, test_predict
+        self.models = None
+
+    def __call__(self, labels: Sequence[labeling.simulate.Labelled]) -> labeling.Round:
+        if not labels:
+            self.models = None
+            return labeling.Round([labeling.LogScores(e) for e in self.pool_error], float("nan"))
+        feats, segments = self.train_features(labels)
+        fit = fit_classifier(feats, segments, self.classes, config=self.config, hidden=self.hidden, init=self.models)
+        self.models = fit.models
+        members = run_classifiers(self.models, self.pool_features, batch=256)  # per log (M, T, K)
+        scores = [
+            labeling.LogScores(e, m.mean(0), labeling.mutual_information(m))
+            for e, m in zip(self.pool_error, members, strict=True)
+        ]
+        y_true, y_pred = self.test_predict(self.models)
+        m = classification_metrics(y_true, y_pred, self.classes)
+        return labeling.Round(scores, m["accuracy"], m["macro_f1"])
+
+
+def _run(learner_for_seed, truth, classes, settings: SimSettings, *, max_len, min_len, change_points, embeddings, log):
+    curves: dict[str, list] = {s: [] for s in settings.strategies}
+    for seed in range(settings.seeds):
+        for strategy in settings.strategies:
+            learner = learner_for_seed(seed)
+            curve = labeling.simulate(learner, truth(seed), strategy=strategy, rounds=settings.rounds,
+                                      batch=settings.batch, classes=classes, change_points=change_points(seed),
+                                      max_len=max_len, min_len=min_len, embeddings=embeddings(seed), seed=seed,
+                                      log=log)  # fmt: skip
+            curves[strategy].append(curve)
+    return curves
+
+
+def report(curves, *, total: int, rate_hz: float, title: str, out: Path | None) -> str:
+    """Table, the savings of each strategy against random, and the plot (when ``out`` is given)."""
+    lines = [f"### {title}", "", labeling.table(curves, total_samples=total, rate_hz=rate_hz), ""]
+    if "random" in curves:
+        for k in curves:
+            if k == "random":
+                continue
+            s = labeling.savings(curves, method=k)
+            x, acc, t, ratio = s["rounds"][-1]
+            lines.append(f"- `{k}` reaches random's final accuracy ({100 * acc:.2f} % at {x / rate_hz:.0f} s "
+                         f"labelled) with {t / rate_hz:.0f} s: {ratio:.2f}× the labelled time")  # fmt: skip
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        name = title.lower().split()[0]
+        png = labeling.plot(curves, out / f"simulate-{name}.png", total_samples=total, rate_hz=rate_hz, title=title)
+        lines.append(f"\nplot: {png}")
+    return "\n".join(lines)
+
+
+def simulate_logs(
+    logs: Sequence[np.ndarray],
+    truth: Sequence[np.ndarray],
+    classes: Sequence[str],
+    *,
+    rate_hz: float = 100.0,
+    settings: SimSettings = SimSettings(),
+    out: Path | None = None,
+    log=print,
+) -> str:
+    """Demo-style logs with per-sample truth: a third of the logs held out, suggestions of 1–5 s on the rest."""
+    cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0)
+    pfit = fit_predictor(list(logs), config=cfg1, hidden=settings.hidden)
+    log(f"stage 1 on {len(logs)} logs (no labels): {len(pfit.history)} epochs")
+    outs = run_predictor(pfit.model, pfit.normalizer, list(logs))
+    feats = [o.features("hidden") for o in outs]
+    errors = [np.square(o.error).mean(1) for o in outs]
+    order = np.random.default_rng(0).permutation(len(logs))
+    test = np.sort(order[: max(1, len(logs) // 3)])
+    pool = np.sort(order[len(test) :])
+    pool_truth = [truth[i] for i in pool]
+    # change points on the signals and the surprise together, as the UI computes them
+    cps = [labeling.change_points(np.column_stack([pfit.normalizer(logs[i]), errors[i]]), block=25) for i in pool]
+    cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=8, k_folds=settings.folds)
+
+    def test_predict(models):
+        probs = run_classifiers(models, [feats[i] for i in test], batch=256)
+        y_true = np.concatenate([truth[i] for i in test])
+        y_pred = np.concatenate([p.mean(0).argmax(-1) for p in probs])
+        known = y_true >= 0
+        return y_true[known], y_pred[known]
+
+    def learner(seed: int) -> FeatureLearner:
+        pool_feats = [feats[i] for i in pool]
+        return FeatureLearner(pool_feats, [errors[i] for i in pool], classes, replace(cfg2, seed=seed),
+                              settings.hidden, lambda labels: (pool_feats, list(labels)), test_predict)  # fmt: skip
+
+    total = sum(len(t) for t in pool_truth)
+    log(f"pool: {len(pool)} logs, {total / rate_hz / 60:.1f} min; held out: {len(test)} logs")
+    curves = _run(learner, lambda s: pool_truth, classes, settings, max_len=round(5 * rate_hz),
+                  min_len=round(1 * rate_hz), change_points=lambda s: cps,
+                  embeddings=lambda s: [feats[i] for i in pool], log=log)  # fmt: skip
+    return report(curves, total=total, rate_hz=rate_hz, title="Demo logs (held-out logs)", out=out)
+
+
+def simulate_partitions(
+    runs: Sequence[np.ndarray],
+    labels: Sequence[int],
+    classes: Sequence[str],
+    *,
+    rate_hz: float = 100.0,
+    settings: SimSettings = SimSettings(),
+    out: Path | None = None,
+    log=print,
+) -> str:
+    """BorealTC's protocol: the pool is a fold's training partitions (one suggestion = one 5 s partition), accuracy
+    on the test partitions' 1.7 s windows; seed ``s`` uses outer fold ``s + 1``."""
+    size, win = round(5 * rate_hz), round(1.7 * rate_hz)
+    parts, y, _ = partitions(runs, labels, size)
+    cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, piece=size)
+    pfit = fit_predictor(parts, config=cfg1, hidden=settings.hidden)
+    log(f"stage 1 on all {len(parts)} partitions (no labels): {len(pfit.history)} epochs")
+    outs = run_predictor(pfit.model, pfit.normalizer, parts, batch=512)
+    feats = [o.features("hidden") for o in outs]
+    errors = [np.square(o.error).mean(1) for o in outs]
+    folds = list(StratifiedKFold(5, shuffle=True, random_state=0).split(np.zeros(len(y)), y))
+    cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=8, k_folds=settings.folds, context=0,
+                       label_piece=win)  # fmt: skip
+    window_cache: dict[int, list[np.ndarray]] = {}
+
+    def window_features(i: int) -> list[np.ndarray]:
+        # zero-state windows, as the test windows are classified (see training.evaluate)
+        if i not in window_cache:
+            w, _ = windows([parts[i]], win, round(0.5 * rate_hz))
+            window_cache[i] = [o.features("hidden") for o in run_predictor(pfit.model, pfit.normalizer, w)]
+        return window_cache[i]
+
+    def learner(seed: int) -> FeatureLearner:
+        train_idx, test_idx = folds[seed % len(folds)]
+        test_w, owner = windows([parts[i] for i in test_idx], win, round(0.5 * rate_hz))
+        test_feats = [o.features("hidden") for o in run_predictor(pfit.model, pfit.normalizer, test_w, batch=512)]
+        y_test = y[test_idx][owner]
+
+        def train_features(lab):
+            f, segs = [], []
+            for log_i, _, _, cls in lab:
+                for w in window_features(int(train_idx[log_i])):
+                    f.append(w)
+                    segs.append((len(f) - 1, 0, len(w), cls))
+            return f, segs
+
+        def test_predict(models):
+            probs = run_classifiers(models, test_feats, batch=512)
+            return y_test, np.array([p.mean(0)[-1].argmax() for p in probs])
+
+        return FeatureLearner([feats[i] for i in train_idx], [errors[i] for i in train_idx], classes,
+                              replace(cfg2, seed=seed), settings.hidden, train_features, test_predict)  # fmt: skip
+
+    def truth(seed: int) -> list[np.ndarray]:
+        return [np.full(size, y[i]) for i in folds[seed % len(folds)][0]]
+
+    total = len(folds[0][0]) * size
+    log(f"pool: {len(folds[0][0])} training partitions ({total / rate_hz / 60:.1f} min) per fold")
+    curves = _run(learner, truth, classes, settings, max_len=size, min_len=size, change_points=lambda s: None,
+                  embeddings=lambda s: [feats[i] for i in folds[s % len(folds)][0]], log=log)  # fmt: skip
+    return report(curves, total=total, rate_hz=rate_hz, title="BorealTC (partition protocol)", out=out)
