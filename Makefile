@@ -7,7 +7,7 @@ PIP := $(PY) -m pip
 STAMP := $(VENV)/.installed
 PORT ?= 8080
 
-.PHONY: install demo test lint format browser stress bench clean
+.PHONY: install demo test lint format browser stress bench paper clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -45,6 +45,10 @@ stress: install browser
 
 bench: install
 	@ls benchmarks/*.py >/dev/null 2>&1 && for f in benchmarks/bench_*.py; do $(PY) $$f || exit 1; done || echo "no benchmarks yet"
+
+# paper-scale evaluation runs (about an hour each on 2 cores); reports in benchmarks/results/
+paper: install
+	$(PY) benchmarks/paper_borealtc.py all
 
 clean:
 	rm -rf $(VENV) demo-session test-artifacts .pytest_cache .ruff_cache

@@ -25,7 +25,7 @@ Span = tuple[int, int, int]  # (log, start, stop) in samples
 # weights of the combined score; renormalised over the kinds the model can give
 WEIGHTS: dict[str, float] = {"unsure": 0.45, "disagreement": 0.3, "surprise": 0.25}
 LOG_DECAY, CLASS_DECAY, NEIGHBOUR_DECAY = 0.7, 0.8, 0.5
-NOVELTY_FLOOR, NOVELTY_CAP = 0.25, 2.0
+NOVELTY_FLOOR, CLUSTER_DECAY, PREFILTER = 0.25, 0.05, 10
 
 
 @dataclass(frozen=True)
@@ -139,9 +139,10 @@ def suggest(
         max_len: Longest suggestion, samples.
         min_len: Shortest suggestion, samples.
         window: Smoothing of the tracks, samples.
-        embeddings: Per log, ``(T, D)`` features (e.g. stage 1's hidden state). ``combined`` then prefers segments
-            unlike anything labelled or already suggested (distance of their mean feature vectors), which covers
-            the kinds of terrain before a classifier exists and keeps the queue diverse after.
+        embeddings: Per log, ``(T, D)`` features (e.g. stage 1's hidden state). ``combined`` then clusters the
+            candidates' mean feature vectors and takes the most typical member of each cluster first, holding back
+            segments like labelled ones: before a classifier exists this covers the kinds of terrain, after it
+            keeps the queue diverse.
         seed: Seed of ``random`` (other strategies are deterministic; ties break by log then start).
 
     Returns:
@@ -163,11 +164,14 @@ def suggest(
         rare = class_weights(label_counts)[guess]
     base = base * rare
 
-    novelty = np.ones(len(cands))
-    emb = None
+    cluster = np.full(len(cands), -1)
     if strategy == "combined" and embeddings is not None:
-        emb, ref, novelty = _novelty(cands, labelled, embeddings)
-        base = (NOVELTY_FLOOR + base) * novelty
+        emb, novelty = _novelty(cands, labelled, embeddings)
+        # informative, but not like what is labelled, and representative of many candidates (Zhdanov 2019:
+        # k-means weighted by informativeness over the top candidates, the member nearest each centre first)
+        weight = (NOVELTY_FLOOR + base) * novelty
+        cluster, typical = _clusters(emb, weight, n, prefilter=mean_probs is not None, seed=seed)
+        base = weight * typical
         if mean_probs is None:
             why = ["novel"] * len(cands)
 
@@ -187,10 +191,8 @@ def suggest(
             factor = factor * np.where(near, NEIGHBOUR_DECAY, 1.0)
             if guess is not None:
                 factor = factor * np.where(guess == guess[best], CLASS_DECAY, 1.0)
-            if emb is not None:  # the pick now counts as covered: novelty is distance to the nearest covered
-                d_new = np.linalg.norm(emb - emb[best], axis=1) / ref
-                factor = factor * np.minimum(1.0, np.minimum(d_new, NOVELTY_CAP) / np.maximum(novelty, 1e-9))
-                novelty = np.minimum(novelty, np.minimum(d_new, NOVELTY_CAP))
+            if cluster[best] >= 0:  # one pick per cluster before a second
+                factor = factor * np.where(cluster == cluster[best], CLUSTER_DECAY, 1.0)
     out = []
     for rank, i in enumerate(chosen):
         g = None if guess is None else int(guess[i])
@@ -207,11 +209,11 @@ def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _novelty(
     cands: Sequence[Span], labelled: Sequence[Span], embeddings: Sequence[np.ndarray]
-) -> tuple[np.ndarray, float, np.ndarray]:
-    """Standardised mean embedding of each candidate ``(N, D)``, the reference distance, and ``(N,)`` novelty.
+) -> tuple[np.ndarray, np.ndarray]:
+    """Standardised mean embedding of each candidate ``(N, D)``, and ``(N,)`` novelty in ``[0, 1]``.
 
-    Novelty is the distance to the nearest labelled segment over the median such distance, capped at
-    ``NOVELTY_CAP``; with nothing labelled every candidate has the cap.
+    Novelty is the distance to the nearest labelled segment over the median such distance, capped at 1: it only
+    holds back candidates like what is labelled (an uncapped distance would chase outliers). 1 with no labels.
     """
 
     def mean(g: int, a: int, b: int) -> np.ndarray:
@@ -222,15 +224,37 @@ def _novelty(
     emb = (emb - mu) / sd
     done = [(mean(g, a, b) - mu) / sd for g, a, b in labelled if b > a]
     if not done:
-        dist = np.full(len(cands), np.inf)
-        # the typical spacing of candidates sets the scale of "novel"
-        sample = emb[:: max(1, len(emb) // 200)]
-        gaps = _distances(sample, sample)
-        ref = float(np.median(gaps[gaps > 0])) if (gaps > 0).any() else 1.0
-    else:
-        dist = _distances(emb, np.array(done)).min(axis=1)  # (N,)
-        ref = float(np.median(dist)) or 1.0
-    return emb, ref, np.minimum(dist / ref, NOVELTY_CAP)
+        return emb, np.ones(len(cands))
+    dist = _distances(emb, np.array(done)).min(axis=1)  # (N,)
+    ref = float(np.median(dist)) or 1.0
+    return emb, np.minimum(dist / ref, 1.0)
+
+
+def _clusters(
+    emb: np.ndarray, weight: np.ndarray, n: int, *, prefilter: bool, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted k-means with ``n`` clusters over the candidates (the top ``PREFILTER · n`` by weight if
+    ``prefilter``).
+
+    Returns:
+        ``(N,)`` cluster of each candidate (``-1`` outside the prefiltered set) and ``(N,)`` typicality in
+        ``(0, 1]``: 1 at a cluster centre, falling with distance (0.1 outside the prefiltered set).
+    """
+    from sklearn.cluster import KMeans
+
+    idx = np.argsort(-weight, kind="stable")[: PREFILTER * n] if prefilter else np.arange(len(emb))
+    cluster, typical = np.full(len(emb), -1), np.full(len(emb), 0.1)
+    k = min(n, len(idx))
+    if k < 2:
+        typical[idx] = 1.0
+        cluster[idx] = 0
+        return cluster, typical
+    km = KMeans(k, n_init=3, random_state=seed).fit(emb[idx], sample_weight=np.maximum(weight[idx], 1e-9))
+    d = np.linalg.norm(emb[idx] - km.cluster_centers_[km.labels_], axis=1)
+    ref = float(np.median(d)) or 1.0
+    cluster[idx] = km.labels_
+    typical[idx] = 1.0 / (1.0 + d / ref)
+    return cluster, typical
 
 
 def _components(
