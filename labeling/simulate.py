@@ -171,7 +171,8 @@ def plot(
     for k, v in curves.items():
         x, y, sd = mean_curve(v)
         style = {"lw": 2.5} if k == "combined" else {"lw": 1.4}
-        ax.plot(x / rate_hz, 100 * y, marker="o", ms=3, label=f"{k} ({len(v)} seeds)", **style)
+        seeds = f"{len(v)} seed" + ("" if len(v) == 1 else "s")
+        ax.plot(x / rate_hz, 100 * y, marker="o", ms=3, label=f"{k} ({seeds})", **style)
         ax.fill_between(x / rate_hz, 100 * (y - sd), 100 * (y + sd), alpha=0.12)
     ax.set_xlabel("labelled time (s)")
     ax.set_ylabel("held-out accuracy (%)")
