@@ -7,7 +7,7 @@ the pool and measures held-out accuracy.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -45,7 +45,16 @@ class FeatureLearner:
     predictions and truth.
     """
 
-    def __init__(self, pool_features, pool_error, classes, config, hidden, train_features, test_predict):
+    def __init__(
+        self,
+        pool_features: list[np.ndarray],
+        pool_error: list[np.ndarray],
+        classes: Sequence[str],
+        config: TrainConfig,
+        hidden: int,
+        train_features: Callable[[Sequence[labeling.simulate.Labelled]], tuple[list[np.ndarray], list]],
+        test_predict: Callable[[list], tuple[np.ndarray, np.ndarray]],
+    ) -> None:
         self.pool_features, self.pool_error = pool_features, pool_error
         self.classes, self.config, self.hidden = classes, config, hidden
         self.train_features, self.test_predict = train_features, test_predict
@@ -177,11 +186,19 @@ def simulate_partitions(
             window_cache[i] = [o.features("hidden") for o in run_predictor(pfit.model, pfit.normalizer, w)]
         return window_cache[i]
 
+    test_cache: dict[int, tuple[list[np.ndarray], np.ndarray]] = {}
+
+    def test_windows(fold: int) -> tuple[list[np.ndarray], np.ndarray]:
+        # every strategy of a seed shares the fold: its test windows go through stage 1 once
+        if fold not in test_cache:
+            test_w, owner = windows([parts[i] for i in folds[fold][1]], win, round(0.5 * rate_hz))
+            outs_w = run_predictor(pfit.model, pfit.normalizer, test_w, batch=512)
+            test_cache[fold] = [o.features("hidden") for o in outs_w], y[folds[fold][1]][owner]
+        return test_cache[fold]
+
     def learner(seed: int) -> FeatureLearner:
-        train_idx, test_idx = folds[seed % len(folds)]
-        test_w, owner = windows([parts[i] for i in test_idx], win, round(0.5 * rate_hz))
-        test_feats = [o.features("hidden") for o in run_predictor(pfit.model, pfit.normalizer, test_w, batch=512)]
-        y_test = y[test_idx][owner]
+        train_idx, _ = folds[seed % len(folds)]
+        test_feats, y_test = test_windows(seed % len(folds))
 
         def train_features(lab):
             f, segs = [], []
