@@ -62,27 +62,51 @@ def terrains_html(session: Session) -> str:
 
 
 class WorkbenchApp:
-    """A viser server over one session; the page refreshes its lists when the session changes."""
+    """A viser server over one session: shared state and training job, and one :class:`ClientView` per browser."""
 
-    def __init__(self, session: Session, *, host: str = "127.0.0.1", port: int = 8080) -> None:
+    def __init__(
+        self,
+        session: Session,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        hidden: int = 200,
+        max_epochs: tuple[int, int] = (30, 100),
+    ) -> None:
         import viser
 
+        from training.config import TrainConfig
+
+        from .ui.jobs import TrainJob
+        from .ui.state import SharedState
+        from .ui.view import ClientView
+
         self.session = session
-        self.server = viser.ViserServer(host=host, port=port, label="Terrain workbench", verbose=False)
-        gui = self.server.gui
-        gui.configure_theme(
-            titlebar_content=None,
-            control_layout="fixed",
-            control_width="large",
-            show_logo=False,
-            show_share_button=False,
-            brand_color=(46, 125, 50),
+        self.state = SharedState(session)
+        self.job = TrainJob(
+            self.state,
+            hidden=hidden,
+            predictor_config=TrainConfig(max_epochs=max_epochs[0], patience=5),
+            classifier_config=TrainConfig(max_epochs=max_epochs[1], patience=20),
         )
-        gui.add_markdown(f"## Terrain workbench\nSession `{html.escape(Path(session.path).name)}`")
-        with gui.add_folder("Logs"):
-            self._logs = gui.add_html(logs_table_html(session))
-        with gui.add_folder("Terrains"):
-            self._terrains = gui.add_html(terrains_html(session))
+        self.server = viser.ViserServer(host=host, port=port, label="Terrain workbench", verbose=False)
+        self.server.gui.set_panel_label(f"Terrain workbench · {Path(session.path).name}")
+        self.views: dict[int, ClientView] = {}
+        self._views_lock = threading.Lock()
+
+        def connect(client) -> None:
+            view = ClientView(client, self.state, self.job)
+            with self._views_lock:
+                self.views[client.client_id] = view
+
+        def disconnect(client) -> None:
+            with self._views_lock:
+                view = self.views.pop(client.client_id, None)
+            if view is not None:
+                view.close()
+
+        self.server.on_client_connect(connect)
+        self.server.on_client_disconnect(disconnect)
         self._stop = threading.Event()
         self._watch = threading.Thread(target=self._poll, name="session-watch", daemon=True)
         self._watch.start()
@@ -91,20 +115,34 @@ class WorkbenchApp:
     def url(self) -> str:
         return f"http://{self.server.get_host()}:{self.server.get_port()}"
 
+    def _fingerprint(self) -> tuple:
+        history = self.session.history(limit=1)
+        return (len(self.session.logs()), history[0].op_id if history else 0,
+                len(self.session.segments()), tuple(v.id for v in self.session.model_versions()))  # fmt: skip
+
     def _poll(self) -> None:
-        # Another process (a CLI ingest) may change the session: refresh what the page shows.
-        last = (self._logs.content, self._terrains.content)
+        # Another process (a CLI ingest, import or train) may change the session: follow it.
+        last = self._fingerprint()
         while not self._stop.wait(2.0):
             try:
-                now = (logs_table_html(self.session), terrains_html(self.session))
+                now = self._fingerprint()
             except Exception:
                 continue
-            if now != last:
-                self._logs.content, self._terrains.content = now
-                last = now
+            if now == last:
+                continue
+            if now[0] != last[0]:
+                self.state.logs_changed()
+            if now[1:3] != last[1:3]:
+                self.state.notify("labels")
+                self.state.refresh(scores=False)
+            if now[3] != last[3] and not self.job.running:
+                self.state.notify("models")
+                self.state.refresh(scores=True)
+            last = now
 
     def stop(self) -> None:
         self._stop.set()
+        self.state.stop()
         self.server.stop()
 
     def serve_forever(self) -> None:

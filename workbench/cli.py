@@ -119,13 +119,23 @@ def info(session: Pos[Path]) -> None:
         print(f"{len(segments)} label segment(s)")
 
 
-def serve(session: Pos[Path], host: str = "127.0.0.1", port: int = 8080) -> None:
+def serve(
+    session: Pos[Path],
+    host: str = "127.0.0.1",
+    port: int = 8080,
+    hidden: int = 200,
+    stage1_epochs: int = 30,
+    stage2_epochs: int = 100,
+) -> None:
     """Serve the workbench UI for a session in the browser.
 
     Args:
         session: The session folder.
         host: Address to bind. The default serves this machine only; viser has no authentication.
         port: Port to listen on.
+        hidden: LSTM width of a predictor trained from the UI (a classifier takes its predictor's width).
+        stage1_epochs: Most epochs of a predictor retrain from the UI (early stopping may end it sooner).
+        stage2_epochs: Most epochs of a classifier retrain from the UI.
     """
     from .app import WorkbenchApp
 
@@ -136,7 +146,7 @@ def serve(session: Pos[Path], host: str = "127.0.0.1", port: int = 8080) -> None
             "(viser has no authentication); prefer an SSH tunnel, see README",
             file=sys.stderr,
         )
-    app = WorkbenchApp(s, host=host, port=port)
+    app = WorkbenchApp(s, host=host, port=port, hidden=hidden, max_epochs=(stage1_epochs, stage2_epochs))
     print(f"workbench serving {s.path} at {app.url}", flush=True)
     app.serve_forever()
 

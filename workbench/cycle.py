@@ -78,7 +78,9 @@ def train_predictor(
                      "epochs": len(fit.history)},
             info={"logs": len(logs), "timesteps": int(sum(x.n_samples for x in logs)), "history": fit.history},
         )  # fmt: skip
-        version = _save_version(session, "predictor", bundle, {"train": to_dict(config), "hidden": hidden})
+        version = _save_version(
+            session, "predictor", bundle, {"train": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs]}
+        )
         result["version"] = version.id
     return version
 

@@ -74,7 +74,8 @@ def _smooth(x: np.ndarray, n: int) -> np.ndarray:
 def _slow_noise(rng: np.random.Generator, n: int, fs: float, cutoff_hz: float) -> np.ndarray:
     """Unit-variance noise with no content above ``cutoff_hz``."""
     spec = np.fft.rfft(rng.standard_normal(n))
-    spec[np.fft.rfftfreq(n, 1 / fs) > cutoff_hz] = 0
+    spec[0] = 0  # zero mean; and a walk shorter than 1 / cutoff keeps its slowest wave, not only a constant
+    spec[np.fft.rfftfreq(n, 1 / fs) > max(cutoff_hz, 1.5 * fs / n)] = 0
     x = np.fft.irfft(spec, n)
     return x / (x.std() + 1e-12)
 

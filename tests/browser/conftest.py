@@ -7,6 +7,7 @@ import shutil
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -35,28 +36,33 @@ def free_port() -> int:
 
 
 class Server:
-    """A ``workbench serve`` subprocess."""
+    """A ``workbench serve`` subprocess; its output goes to a file (a pipe nobody reads could block it)."""
 
-    def __init__(self, session: Path) -> None:
+    def __init__(self, session: Path, *extra: str) -> None:
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        self.log_path = Path(tempfile.mkstemp(prefix="workbench-serve-", suffix=".log")[1])
+        self._log = self.log_path.open("w")
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "workbench.cli", "serve", str(session), "--port", str(self.port)],
-            stdout=subprocess.PIPE,
+            [sys.executable, "-m", "workbench.cli", "serve", str(session), "--port", str(self.port), *extra],
+            stdout=self._log,
             stderr=subprocess.STDOUT,
             text=True,
             env=env,
         )
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
-            line = self.proc.stdout.readline()
-            if "workbench serving" in line:
+            if "workbench serving" in self.output():
                 return
-            if not line and self.proc.poll() is not None:
+            if self.proc.poll() is not None:
                 break
+            time.sleep(0.1)
         self.stop()
-        raise RuntimeError(f"server did not start (exit {self.proc.returncode})")
+        raise RuntimeError(f"server did not start (exit {self.proc.returncode}):\n{self.output()}")
+
+    def output(self) -> str:
+        return self.log_path.read_text(errors="replace")
 
     def stop(self) -> None:
         self.proc.terminate()
@@ -64,14 +70,19 @@ class Server:
             self.proc.wait(10)
         except subprocess.TimeoutExpired:
             self.proc.kill()
+        self._log.close()
+        if "Traceback" in self.output():
+            print(f"--- server output ({self.log_path}) ---\n{self.output()}")
+        else:
+            self.log_path.unlink(missing_ok=True)
 
 
 @pytest.fixture
 def serve() -> Iterator:
     servers: list[Server] = []
 
-    def start(session: Path) -> Server:
-        servers.append(Server(session))
+    def start(session: Path, *extra: str) -> Server:
+        servers.append(Server(session, *extra))
         return servers[-1]
 
     yield start
@@ -93,10 +104,21 @@ def browser():
         b.close()
 
 
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_runtest_makereport(item, call):
+    report = yield
+    if report.when == "call":
+        item.browser_failed = report.failed
+    return report
+
+
 @pytest.fixture
-def page(browser):
+def page(browser, request):
     context = browser.new_context(viewport={"width": 1400, "height": 850})
-    yield context.new_page()
+    page = context.new_page()
+    yield page
+    if getattr(request.node, "browser_failed", False):
+        save_screenshot(page, f"failed-{request.node.name}")  # what the page showed when the test failed
     context.close()
 
 

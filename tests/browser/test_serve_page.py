@@ -23,7 +23,8 @@ def test_page_lists_logs_and_refreshes_when_a_log_is_ingested(tmp_path: Path, se
     assert main(["ingest", str(session), str(logs[0]), str(logs[1])]) == 0
     server = serve(session)
     page.goto(server.url)
-    page.get_by_text("walk_001").wait_for(timeout=30_000)
+    page.get_by_role("tab", name="Data").click()
+    page.get_by_text("walk_001").first.wait_for(timeout=30_000)
     body = page.inner_text("body")
     assert "Terrain workbench" in body and "walk_000" in body and "2 logs" in body
     assert "grass" in body and "sand" in body
@@ -31,7 +32,7 @@ def test_page_lists_logs_and_refreshes_when_a_log_is_ingested(tmp_path: Path, se
     save_screenshot(page, "serve-logs")
     # another process ingests a log while the page is open: the page shows it without a reload
     assert main(["ingest", str(session), str(logs[2])]) == 0
-    page.get_by_text("walk_002").wait_for(timeout=15_000)
+    page.get_by_text("walk_002").first.wait_for(timeout=15_000)
     assert "3 logs" in page.inner_text("body")
 
 

@@ -1,0 +1,169 @@
+"""The workbench in a real browser: label through the widgets and hotkeys, retrain, take a suggestion, download the
+label file, and see another browser's label appear. Tiny models (hidden 8, a few epochs) over two short demo logs."""
+
+from __future__ import annotations
+
+import shutil
+import sqlite3
+import time
+from pathlib import Path
+
+import pytest
+
+from sessions import Session
+from training.config import TrainConfig
+
+from .conftest import save_screenshot
+
+pytestmark = pytest.mark.browser
+TINY = ("--hidden", "8", "--stage1-epochs", "2", "--stage2-epochs", "3")
+
+
+@pytest.fixture(scope="module")
+def base_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from workbench.cycle import train_classifier, train_predictor
+    from workbench.demo import generate_demo_logs
+    from workbench.seed import seed_labels
+
+    root = tmp_path_factory.mktemp("ui")
+    logs = generate_demo_logs(root / "logs", n_logs=2, minutes=0.6, seed=3)
+    path = root / "base"
+    with Session.create(path) as s:
+        s.ingest(logs)
+        seed_labels(s, 0.15, seed=0, segment_s=2.0)
+        train_predictor(s, config=TrainConfig(max_epochs=2, piece=256), hidden=8)
+        train_classifier(s, config=TrainConfig(max_epochs=3, k_folds=2), hidden=8)
+    return path
+
+
+@pytest.fixture
+def session_path(base_session: Path, tmp_path: Path) -> Path:
+    path = tmp_path / "s"
+    shutil.copytree(base_session, path)
+    return path
+
+
+def rows(path: Path, where: str = "1") -> list[tuple]:
+    with sqlite3.connect(path / "session.sqlite") as conn:
+        return conn.execute(
+            "SELECT s.log_id, s.start, s.stop, t.name, s.source FROM segments s JOIN terrains t ON t.id = s.terrain_id"
+            f" WHERE {where} ORDER BY s.id"
+        ).fetchall()
+
+
+def free_seconds(path: Path, log_id: int, length: float, *, after: float = 1.0) -> float:
+    """Start (s, whole) of an unlabelled stretch of ``length`` seconds in a log (100 Hz demo logs)."""
+    taken = sorted((a / 100, b / 100) for g, a, b, _, _ in rows(path) if g == log_id)
+    t = after
+    for a, b in taken:
+        if t + length <= a:
+            break
+        t = max(t, float(int(b) + 1))
+    return t
+
+
+def wait_until(check, timeout: float = 30.0, what: str = "condition"):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = check()
+        if value:
+            return value
+        time.sleep(0.2)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def open_workbench(page, url: str) -> None:
+    page.goto(url)
+    page.get_by_text("walk_000", exact=False).first.wait_for(timeout=30_000)
+    page.get_by_text("cursor 0.00 s").wait_for(timeout=30_000)
+    # headless Chromium renders WebGL in software and viser says so in a notification over the tabs: close it
+    warning = page.get_by_text("Software WebGL rendering detected")
+    try:
+        warning.wait_for(timeout=3_000)
+        warning.locator("xpath=ancestor::div[contains(@class,'Notification-root')]//button").first.click()
+    except Exception:
+        pass
+
+
+def set_cursor(page, seconds: float) -> None:
+    box = page.locator(
+        "xpath=//label[text()='Cursor (s)']/ancestor::div[contains(@class,'mantine-Flex-root')][1]"
+        "//input[contains(@class,'NumberInput-input')]"
+    )
+    box.fill(str(seconds))
+    box.press("Tab")
+    page.get_by_text(f"cursor {seconds:.2f} s").wait_for(timeout=10_000)
+    blur(page)
+
+
+def blur(page) -> None:
+    """Focus leaves any input, so hotkeys go to the page."""
+    page.evaluate("document.activeElement && document.activeElement.blur()")
+
+
+def test_label_with_hotkeys_retrain_suggest_and_download(session_path: Path, serve, page) -> None:
+    before = rows(session_path)
+    server = serve(session_path, *TINY)
+    open_workbench(page, server.url)
+    # label 2 s of the first log as terrain 2 (grass) with the keyboard: cursor, B, cursor, E, 2, Enter
+    t = free_seconds(session_path, 1, 2.0)
+    set_cursor(page, t)
+    page.keyboard.press("b")
+    set_cursor(page, t + 2)
+    page.keyboard.press("e")
+    page.get_by_text(f"range {t:.2f}–{t + 2:.2f} s").wait_for(timeout=10_000)
+    page.keyboard.press("2")
+    page.keyboard.press("Enter")
+    page.get_by_text("Saved").first.wait_for(timeout=10_000)
+    added = [r for r in rows(session_path) if r not in before]
+    assert added == [(1, round(100 * t), round(100 * t) + 200, "grass", "manual")]
+    save_screenshot(page, "workbench-main")
+
+    # Retrain from the Train tab: a new classifier version appears in the page
+    page.get_by_role("tab", name="Train").click()
+    versions_before = len(Session.open(session_path).model_versions())
+    page.get_by_role("button", name="Retrain (R)").click()
+    page.get_by_text(f"v{versions_before + 1}", exact=True).first.wait_for(timeout=120_000)
+    assert Session.open(session_path).active_model("classifier").id == versions_before + 1
+
+    # take a suggestion with its hotkeys: N shows it, A labels it with the model's guess
+    page.get_by_role("tab", name="Suggest").click()
+    page.get_by_text("segments suggested").wait_for(timeout=60_000)
+    blur(page)
+    page.keyboard.press("n")
+    page.get_by_text("model's guess").wait_for(timeout=10_000)
+    page.keyboard.press("a")
+    wait_until(lambda: rows(session_path, "s.source = 'suggestion'"), what="the accepted suggestion in SQLite")
+
+    # download the label file through the browser
+    page.get_by_role("tab", name="Data").click()
+    with page.expect_download(timeout=30_000) as info:
+        page.get_by_role("button", name="Labels (CSV)").click()
+    text = Path(info.value.path()).read_text()
+    assert "walk_000" in text and "grass" in text
+    assert len(text.strip().splitlines()) == 1 + len(rows(session_path))
+
+
+def test_a_second_browser_sees_the_first_ones_label(session_path: Path, serve, browser) -> None:
+    server = serve(session_path, *TINY)
+    pages = []
+    for _ in range(2):
+        ctx = browser.new_context(viewport={"width": 1400, "height": 900})
+        pages.append(ctx.new_page())
+        open_workbench(pages[-1], server.url)
+    first, second = pages
+    n = len(rows(session_path))
+    second.get_by_text(f"{n} segments labelled").wait_for(timeout=10_000)
+    t = free_seconds(session_path, 1, 2.5)
+    set_cursor(first, t)
+    first.keyboard.press("b")
+    set_cursor(first, t + 2.5)
+    first.keyboard.press("e")
+    first.keyboard.press("4")
+    first.keyboard.press("Enter")
+    second.get_by_text(f"{n + 1} segments labelled").wait_for(timeout=10_000)
+    assert len(rows(session_path)) == n + 1
+    # the second browser kept its own view: its cursor did not move with the first one's
+    assert "cursor 0.00 s" in second.inner_text("body")
+    for p in pages:
+        p.context.close()

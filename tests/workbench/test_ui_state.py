@@ -1,0 +1,129 @@
+"""The state every browser shares, and the Retrain job, without a browser: events, suggestions, snapping, jobs."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from sessions import Session, WorkbenchError
+from workbench.seed import seed_labels
+from workbench.ui.jobs import JobStatus, TrainJob, needs_predictor
+from workbench.ui.state import SharedState
+
+from .test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
+
+
+def wait_for(check, timeout: float = 60.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if check():
+            return
+        time.sleep(0.05)
+    raise AssertionError("timed out")
+
+
+@pytest.fixture
+def state(trained: Session):  # noqa: F811
+    st = SharedState(trained, on_error=lambda msg: pytest.fail(msg))
+    wait_for(lambda: st.scored and not st.busy)
+    yield st
+    st.stop()
+
+
+def test_scores_and_a_queue_that_avoids_labelled_time(state: SharedState) -> None:
+    assert state.scores.predictor is not None and state.scores.classifier is not None
+    assert state.queue, "a trained session has suggestions"
+    labelled = {(s.log_id, s.start, s.stop) for s in state.session.segments()}
+    for q in state.queue:
+        assert not any(g == q.log.id and a < q.stop and q.start < b for g, a, b in labelled)
+        assert q.guess in [t.name for t in state.terrains()]
+        assert 1.0 <= (q.stop - q.start) / q.log.rate_hz <= 5.0
+    keys = [q.key for q in state.queue]
+    assert len(set(keys)) == len(keys)
+
+
+def test_a_saved_label_is_committed_before_views_hear_of_it_and_the_queue_follows(state: SharedState) -> None:
+    heard: list[tuple[str, int]] = []
+    state.subscribe(lambda e: heard.append((e, len(state.session.segments()))))
+    n = len(state.session.segments())
+    q = state.queue[0]
+    state.add_label(q.log.id, q.start, q.stop, "grass", author="browser-1", source="suggestion")
+    assert ("labels", n + 1) in heard  # the view redraws from the store, which already holds the label
+    wait_for(lambda: all(x.key != q.key for x in state.queue) and ("suggestions", n + 1) in heard)
+    assert state.undo(author="browser-1") == "add"
+    assert len(state.session.segments()) == n
+
+
+def test_one_broken_view_does_not_stop_the_others(trained: Session) -> None:  # noqa: F811
+    errors: list[str] = []
+    st = SharedState(trained, on_error=errors.append)
+    try:
+        got = threading.Event()
+        st.subscribe(lambda e: 1 / 0)
+        st.subscribe(lambda e: got.set())
+        st.notify("labels")
+        assert got.is_set() and any("ZeroDivisionError" in e for e in errors)
+    finally:
+        st.stop()
+
+
+def test_snap_moves_edges_to_change_points_only_nearby(state: SharedState) -> None:
+    log = state.logs()[0]
+    cps = state.change_points(log.id)
+    assert len(cps) > 0
+    p = int(cps[len(cps) // 2])
+    snap = state.snap(log.id, p - 30, p + 700)  # start 0.3 s from a change point
+    assert snap.start == p and snap.moved_start
+    far = state.snap(log.id, 0, 1)
+    assert far.stop > far.start
+
+
+def test_retrain_job_runs_in_the_background_and_reports(state: SharedState) -> None:
+    job = TrainJob(state, hidden=8, predictor_config=TINY, classifier_config=TINY)
+    statuses: list[JobStatus] = []
+    state.subscribe(lambda e: statuses.append(job.status) if e == "job" else None)
+    before = len(state.session.model_versions("classifier"))
+    assert not needs_predictor(state)
+    assert job.start() == "classifier"
+    with pytest.raises(WorkbenchError, match="already"):
+        job.start()
+    wait_for(lambda: not job.running, timeout=120)
+    assert job.status.state == "done", job.status.message
+    assert len(state.session.model_versions("classifier")) == before + 1
+    assert any(s.state == "running" for s in statuses)
+    wait_for(lambda: state.scores.classifier == state.session.active_model("classifier").id)
+
+
+def test_retrain_can_be_cancelled_and_saves_nothing(state: SharedState) -> None:
+    slow = TINY.__class__(**{**TINY.__dict__, "max_epochs": 500, "patience": 500})
+    job = TrainJob(state, hidden=8, predictor_config=slow, classifier_config=slow)
+    before = len(state.session.model_versions())
+    job.start()
+    wait_for(lambda: job.status.fraction > 0 or not job.running)
+    job.cancel()
+    wait_for(lambda: not job.running, timeout=60)
+    assert job.status.state == "cancelled"
+    assert len(state.session.model_versions()) == before
+
+
+def test_retrain_needs_two_terrains_and_stage1_follows_new_logs(tmp_path: Path, demo_logs) -> None:  # noqa: F811
+    with Session.create(tmp_path / "s") as s:
+        s.ingest(demo_logs[:1])
+        st = SharedState(s)
+        try:
+            assert needs_predictor(st)  # no predictor yet
+            job = TrainJob(st, hidden=8, predictor_config=TINY, classifier_config=TINY)
+            assert job.start() == "predictor + classifier"  # stage 1 alone when there are no labels yet
+            wait_for(lambda: not job.running, timeout=120)
+            assert s.active_model("predictor") is not None and s.active_model("classifier") is None
+            with pytest.raises(WorkbenchError, match="two terrains"):
+                job.start()
+            s.ingest(demo_logs[1:])
+            st.logs_changed()
+            assert needs_predictor(st)
+            seed_labels(s, 0.2, seed=0)
+        finally:
+            st.stop()

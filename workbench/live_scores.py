@@ -1,0 +1,125 @@
+"""What the workbench shows and suggests from the active models: per-log surprise, probabilities, disagreement,
+stage-1 features for diversity, and change points for snapping. Composes ``sessions``, ``training``, ``labeling``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import labeling
+from sessions import LogInfo, Session
+from training.bundle import load_bundle
+from training.inference import run_classifiers
+
+from .cycle import model_logs, stage1_outputs
+
+
+@dataclass(frozen=True)
+class SessionScores:
+    """Scores of every log the active models cover, keyed by log id.
+
+    Attributes:
+        predictor: Active predictor version id (``None``: nothing trained yet, every dict is empty).
+        classifier: Classifier version the probabilities come from (``None``: stage 1 only).
+        classes: Class names of ``probs``' last axis.
+        scores: Per log, ``labeling.LogScores`` (``(T,)`` surprise; ``(T, K)`` probs and ``(T,)`` disagreement
+            once a classifier exists).
+        tracks: Per log, the session-normalised, smoothed tracks in ``[0, 1]`` by kind.
+        embeddings: Per log, ``(T, H)`` stage-1 hidden state (float16), for diverse suggestions.
+    """
+
+    predictor: int | None = None
+    classifier: int | None = None
+    classes: tuple[str, ...] = ()
+    scores: dict[int, labeling.LogScores] = field(default_factory=dict)
+    tracks: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
+    embeddings: dict[int, np.ndarray] = field(default_factory=dict)
+
+    def predicted(self, log_id: int) -> np.ndarray | None:
+        """``(T,)`` most probable class index of a log, or ``None`` before a classifier."""
+        s = self.scores.get(log_id)
+        return None if s is None or s.probs is None else s.probs.argmax(axis=1)
+
+
+def compute_scores(session: Session, *, window: int = 25) -> SessionScores:
+    """Score every log with the active predictor (and the active classifier when it was trained on it)."""
+    p_version = session.active_model("predictor")
+    if p_version is None:
+        return SessionScores()
+    bundle = load_bundle(session.path / p_version.path)
+    logs = model_logs(session, bundle.channels)
+    outs = stage1_outputs(session, p_version, bundle, logs)
+    c_version = session.active_model("classifier")
+    if c_version is not None and c_version.config.get("predictor") != p_version.id:
+        c_version = None  # trained on another predictor's features: its probabilities would mean nothing
+    classes: tuple[str, ...] = ()
+    members: list[np.ndarray | None] = [None] * len(logs)
+    if c_version is not None:
+        c_bundle = load_bundle(session.path / c_version.path)
+        classes = tuple(c_bundle.classes)
+        members = run_classifiers(c_bundle.classifiers, [outs[x.id].features(c_bundle.feature_mode) for x in logs])
+    scores: dict[int, labeling.LogScores] = {}
+    for x, m in zip(logs, members, strict=True):
+        surprise = np.square(outs[x.id].error).mean(axis=1)  # (T,)
+        if m is None:
+            scores[x.id] = labeling.LogScores(surprise)
+        else:
+            scores[x.id] = labeling.LogScores(surprise, m.mean(axis=0), labeling.mutual_information(m))
+    ids = [x.id for x in logs]
+    tracks = labeling.normalised_tracks([scores[i] for i in ids], window=window)
+    return SessionScores(
+        p_version.id,
+        None if c_version is None else c_version.id,
+        classes,
+        scores,
+        dict(zip(ids, tracks, strict=True)),
+        {x.id: outs[x.id].hidden.astype(np.float16) for x in logs},
+    )
+
+
+def log_change_points(samples: np.ndarray, surprise: np.ndarray | None, *, rate_hz: float) -> np.ndarray:
+    """Change points (sample indices) of one log over its z-scored channels and, when known, its surprise."""
+    x = np.asarray(samples, np.float32)
+    z = (x - x.mean(axis=0)) / (x.std(axis=0) + 1e-6)  # (T, C)
+    if surprise is not None:
+        z = np.column_stack([z, surprise])
+    return labeling.change_points(z, block=max(1, round(0.25 * rate_hz)))
+
+
+def suggest_for_session(
+    session: Session,
+    scores: SessionScores,
+    change_points: dict[int, np.ndarray],
+    *,
+    logs: list[LogInfo],
+    n: int = 12,
+    strategy: labeling.Strategy = "combined",
+) -> list[tuple[LogInfo, labeling.Suggestion]]:
+    """The session's suggestion queue: ``n`` segments of 1–5 s to label next, with the log each lies in."""
+    logs = [x for x in logs if x.id in scores.scores]
+    if not logs:
+        return []
+    index = {x.id: i for i, x in enumerate(logs)}
+    labelled = [(index[s.log_id], s.start, s.stop) for s in session.segments() if s.log_id in index]
+    terrains = [t.name for t in session.terrains()]
+    classes = list(scores.classes) or terrains
+    counts = np.zeros(len(classes))
+    for s in session.segments():
+        if s.terrain in classes:
+            counts[classes.index(s.terrain)] += s.length
+    rate = logs[0].rate_hz
+    out = labeling.suggest(
+        [scores.scores[x.id] for x in logs],
+        labelled=labelled,
+        label_counts=counts,
+        change_points=[change_points.get(x.id, np.zeros(0, np.int64)) for x in logs],
+        classes=classes,
+        strategy=strategy,
+        n=n,
+        max_len=round(5 * rate),
+        min_len=round(1 * rate),
+        embeddings=[scores.embeddings[x.id] for x in logs],
+    )
+    return [(logs[s.log], s) for s in out]

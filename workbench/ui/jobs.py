@@ -1,0 +1,160 @@
+"""The Retrain job: stage 2 (and stage 1 when needed) in a background thread, with progress, ETA and Cancel."""
+
+from __future__ import annotations
+
+import threading
+import time
+import traceback
+from dataclasses import dataclass, field, replace
+
+from sessions import WorkbenchError
+from training.config import TrainConfig
+from training.progress import Cancelled, Progress
+
+from ..cycle import train_classifier, train_predictor
+from .state import SharedState
+
+PREDICTOR_CONFIG = TrainConfig(max_epochs=30, patience=5)
+CLASSIFIER_CONFIG = TrainConfig(max_epochs=100, patience=20)
+
+
+@dataclass(frozen=True)
+class JobStatus:
+    """What a view shows of the job: ``state`` is idle, running, done, cancelled or failed."""
+
+    state: str = "idle"
+    stages: tuple[str, ...] = ()
+    stage: str = ""
+    fraction: float = 0.0
+    loss: float | None = None
+    val_loss: float | None = None
+    eta_s: float | None = None
+    message: str = ""
+    losses: tuple[float, ...] = field(default=())
+
+
+def needs_predictor(state: SharedState) -> bool:
+    """Stage 1 must (re)train: none yet, or logs were added since it trained."""
+    version = state.session.active_model("predictor")
+    if version is None:
+        return True
+    seen = version.config.get("logs")
+    if seen is None:  # saved before versions recorded their logs
+        return False
+    from ..cycle import model_logs
+
+    return bool({x.id for x in model_logs(state.session)} - set(seen))
+
+
+class TrainJob:
+    """At most one training run at a time for the whole server; every view watches the same status."""
+
+    def __init__(
+        self,
+        state: SharedState,
+        *,
+        hidden: int = 200,
+        predictor_config: TrainConfig = PREDICTOR_CONFIG,
+        classifier_config: TrainConfig = CLASSIFIER_CONFIG,
+    ) -> None:
+        self.state = state
+        self.hidden = hidden
+        self.predictor_config, self.classifier_config = predictor_config, classifier_config
+        self.status = JobStatus()
+        self._cancel = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._lock = threading.Lock()
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def start(self, *, predictor: bool = False) -> str:
+        """Start a retrain; returns what it will do, or raises when one runs or labels are missing."""
+        with self._lock:
+            if self.running:
+                raise WorkbenchError("a training run is already going; cancel it first")
+            stages = ("predictor", "classifier") if predictor or needs_predictor(self.state) else ("classifier",)
+            terrains = {s.terrain for s in self.state.session.segments()}
+            if len(terrains) < 2 and stages == ("classifier",):
+                raise WorkbenchError("label segments of at least two terrains before training the classifier")
+            self._cancel.clear()
+            self.status = JobStatus("running", stages, stages[0], message="starting")
+            self._thread = threading.Thread(target=self._run, args=(stages, len(terrains) >= 2), daemon=True)
+            self._thread.start()
+        self.state.notify("job")
+        return " + ".join(stages)
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    def _progress(self, stages: tuple[str, ...], started: float):
+        last = [0.0]
+
+        def report(p: Progress) -> None:
+            done = stages.index(p.stage) if p.stage in stages else 0
+            fraction = (done + p.fraction) / len(stages)
+            elapsed = time.monotonic() - started
+            eta = elapsed / fraction * (1 - fraction) if fraction > 0.02 else None
+            losses = self.status.losses
+            if p.step == p.steps:  # one point per epoch on the live loss plot
+                losses = (*losses[-199:], p.train_loss)
+            self.status = replace(
+                self.status,
+                stage=p.stage,
+                fraction=fraction,
+                loss=p.train_loss,
+                val_loss=p.val_loss,
+                eta_s=eta,
+                losses=losses,
+                message=f"{p.stage}: fold {max(p.fold, 1)}/{p.folds}, epoch {p.epoch}",
+            )
+            now = time.monotonic()
+            if now - last[0] > 0.5:  # views redraw at most twice a second
+                last[0] = now
+                self.state.notify("job")
+
+        return report
+
+    def _run(self, stages: tuple[str, ...], can_classify: bool) -> None:
+        started = time.monotonic()
+        progress = self._progress(stages, started)
+        try:
+            if "predictor" in stages:
+                train_predictor(
+                    self.state.session,
+                    config=self.predictor_config,
+                    hidden=self.hidden,
+                    progress=progress,
+                    cancel=self._cancel.is_set,
+                )
+                self.state.notify("models")
+            if can_classify:
+                p = self.state.session.active_model("predictor")
+                hidden = int(p.config.get("hidden", self.hidden)) if p is not None else self.hidden
+                train_classifier(
+                    self.state.session,
+                    config=self.classifier_config,
+                    hidden=hidden,
+                    progress=progress,
+                    cancel=self._cancel.is_set,
+                )
+            took = time.monotonic() - started
+            self.status = replace(
+                self.status,
+                state="done",
+                fraction=1.0,
+                eta_s=0.0,
+                message=f"done in {took:.0f} s; refreshing highlights",
+            )
+        except Cancelled:
+            self.status = replace(self.status, state="cancelled", message="cancelled; nothing was saved")
+        except WorkbenchError as exc:
+            self.status = replace(self.status, state="failed", message=str(exc))
+        except Exception as exc:
+            traceback.print_exc()
+            self.status = replace(self.status, state="failed", message=f"{type(exc).__name__}: {exc}")
+        self.state.notify("models")
+        self.state.notify("job")
+        if self.status.state == "done":
+            self.state.refresh(scores=True)

@@ -1,0 +1,212 @@
+"""The Label tab: mark a range (hotkeys or a two-handle slider), pick a terrain, save; snap proposal; the log's
+segments (jump, relabel, delete); undo."""
+
+from __future__ import annotations
+
+import html
+from typing import TYPE_CHECKING
+
+from sessions import WorkbenchError
+
+if TYPE_CHECKING:
+    from .view import ClientView
+
+KEYS_HELP = (
+    "<div style='font-size:0.78em;color:#555;line-height:1.5'>"
+    "<b>B</b>/<b>E</b> range start/end at cursor · <b>1–9</b> terrain · <b>Enter</b> save · <b>P</b> take snap · "
+    "<b>Esc</b> clear · <b>U</b> or Ctrl+Z undo · <b>←/→</b> cursor · <b>↑/↓</b> zoom · <b>N</b> next suggestion · "
+    "<b>A</b> accept guess · <b>X</b> skip · <b>R</b> retrain · <b>Space</b> play</div>"
+)
+
+
+class LabelPanel:
+    def __init__(self, view: ClientView) -> None:
+        self.view = view
+        gui = view.client.gui
+        terrains = [t.name for t in view.state.terrains()]
+        gui.add_html(KEYS_HELP)
+        self.range = gui.add_multi_slider(
+            "Range (s)",
+            0.0,
+            1.0,
+            0.01,
+            (0.0, 0.0),
+            min_range=0.0,
+            hint="Drag both handles, or press B and E at the cursor",
+        )
+        self.range.on_update(lambda _: view._guard(self._range_moved))
+        self.terrain = gui.add_dropdown("Terrain", terrains or ("(no terrains)",), hint="Keys 1–9")
+        self.save_button = gui.add_button("Save label (Enter)", icon="device-floppy", color="green")
+        self.save_button.on_click(lambda _: view._guard(self.save))
+        self.snap_html = gui.add_html("")
+        self.snap_button = gui.add_button("Take snap (P)", icon="magnet", visible=False)
+        self.snap_button.on_click(lambda _: view._guard(self.take_snap))
+        self._snap: tuple[int, int] | None = None
+        with gui.add_folder("Segments of this log"):
+            self.segments = gui.add_dropdown("Segment", ("(none)",))
+            self.go_button = gui.add_button("Go to", icon="player-play")
+            self.go_button.on_click(lambda _: view._guard(self.go_to))
+            self.relabel_button = gui.add_button("Relabel as chosen terrain", icon="pencil")
+            self.relabel_button.on_click(lambda _: view._guard(self.relabel))
+            self.delete_button = gui.add_button("Delete", icon="trash", color="red")
+            self.delete_button.on_click(lambda _: view._guard(self.delete))
+            self.undo_button = gui.add_button("Undo my last change (U)", icon="arrow-back-up")
+            self.undo_button.on_click(lambda _: view._guard(self.undo))
+        self.summary = gui.add_html("")
+        self.refresh()
+
+    # -------------------------------------------------------------------------------------------- range
+    def _set_range(self, start: int, stop: int) -> None:
+        view = self.view
+        log = view.log
+        if log is None:
+            return
+        start, stop = max(0, min(start, log.n_samples)), max(0, min(stop, log.n_samples))
+        view.selection = (min(start, stop), max(start, stop)) if start != stop else None
+        view._updating = True
+        try:
+            self.range.max = round(log.duration_s, 2)
+            lo, hi = view.selection or (start, start)
+            self.range.value = (round(lo / log.rate_hz, 2), round(hi / log.rate_hz, 2))
+        finally:
+            view._updating = False
+        self._propose_snap()
+        view.redraw()
+
+    def _range_moved(self) -> None:
+        log = self.view.log
+        if log is None:
+            return
+        lo, hi = self.range.value
+        self._set_range(log.sample_at(lo), log.sample_at(hi))
+
+    def mark_start(self) -> None:
+        log = self.view.log
+        if log is None:
+            return
+        a = log.sample_at(self.view.cursor_s)
+        b = self.view.selection[1] if self.view.selection and self.view.selection[1] > a else a + round(log.rate_hz)
+        self._set_range(a, b)
+
+    def mark_end(self) -> None:
+        log = self.view.log
+        if log is None:
+            return
+        b = log.sample_at(self.view.cursor_s)
+        a = self.view.selection[0] if self.view.selection and self.view.selection[0] < b else b - round(log.rate_hz)
+        self._set_range(a, b)
+
+    def select(self, start: int, stop: int, terrain: str | None = None) -> None:
+        """Select a range of the current log (a suggestion, a segment) and optionally a terrain."""
+        if terrain is not None:
+            self.view.set_widget(self.terrain, terrain)
+        self._set_range(start, stop)
+
+    def clear(self) -> None:
+        self.view.selection = None
+        self._snap = None
+        self.snap_html.content = ""
+        self.snap_button.visible = False
+        self.view.redraw()
+
+    def pick_terrain(self, index: int) -> None:
+        terrains = [t.name for t in self.view.state.terrains()]
+        if index < len(terrains):
+            self.view.set_widget(self.terrain, terrains[index])
+
+    def _propose_snap(self) -> None:
+        view, sel, log = self.view, self.view.selection, self.view.log
+        self._snap = None
+        if sel is None or log is None:
+            self.snap_html.content, self.snap_button.visible = "", False
+            return
+        snap = view.state.snap(log.id, *sel)
+        if not (snap.moved_start or snap.moved_stop) or (snap.start, snap.stop) == sel:
+            self.snap_html.content = "<small style='color:#777'>No change point near the edges.</small>"
+            self.snap_button.visible = False
+            return
+        self._snap = (snap.start, snap.stop)
+        moves = []
+        if snap.moved_start:
+            moves.append(f"start {(snap.start - sel[0]) / log.rate_hz:+.2f} s")
+        if snap.moved_stop:
+            moves.append(f"end {(snap.stop - sel[1]) / log.rate_hz:+.2f} s")
+        self.snap_html.content = (
+            f"<small>Snap proposal: <b>{snap.start / log.rate_hz:.2f}–{snap.stop / log.rate_hz:.2f} s</b> "
+            f"({', '.join(moves)}): the signal changes there.</small>"
+        )
+        self.snap_button.visible = True
+
+    def take_snap(self) -> None:
+        if self._snap is not None:
+            self._set_range(*self._snap)
+
+    # -------------------------------------------------------------------------------------------- saving
+    def save(self, *, terrain: str | None = None, source: str = "manual") -> None:
+        view, log, sel = self.view, self.view.log, self.view.selection
+        if log is None or sel is None:
+            raise WorkbenchError("mark a range first: B and E at the cursor, or drag the range handles")
+        terrain = terrain or self.terrain.value
+        seg = view.state.add_label(log.id, sel[0], sel[1], terrain, author=view.author, source=source)
+        view.notify("Saved", f"{(sel[1] - sel[0]) / log.rate_hz:.1f} s of {terrain} on {log.name} (segment {seg.id})")
+        self.clear()
+
+    def undo(self) -> None:
+        kind = self.view.state.undo(author=self.view.author)
+        self.view.notify("Undone", f"your last {kind}", color="blue")
+
+    def _chosen_segment(self):
+        value = self.segments.value
+        if not value.startswith("#"):
+            raise WorkbenchError("no segment chosen")
+        return self.view.state.session.segment(int(value[1:].split()[0]))
+
+    def go_to(self) -> None:
+        seg = self._chosen_segment()
+        log = self.view.state.log(seg.log_id)
+        self.view.show(log, start_s=seg.start / log.rate_hz, stop_s=seg.stop / log.rate_hz)
+        self.select(seg.start, seg.stop, seg.terrain)
+
+    def relabel(self) -> None:
+        seg = self._chosen_segment()
+        self.view.state.change_label(seg.id, author=self.view.author, terrain=self.terrain.value)
+
+    def delete(self) -> None:
+        seg = self._chosen_segment()
+        self.view.state.delete_label(seg.id, author=self.view.author)
+        self.view.notify("Deleted", f"segment {seg.id} ({seg.terrain}); U undoes", color="blue")
+
+    def refresh(self) -> None:
+        view, log = self.view, self.view.log
+        state = view.state
+        terrains = [t.name for t in state.terrains()]
+        if terrains and tuple(terrains) != tuple(self.terrain.options):
+            self.terrain.options = terrains
+        segs = state.session.segments(log.id) if log is not None else []
+        opts = (
+            tuple(f"#{s.id} {s.start / log.rate_hz:.1f}–{s.stop / log.rate_hz:.1f} s {s.terrain}" for s in segs)
+            if log is not None
+            else ()
+        )
+        view._updating = True
+        try:
+            current = self.segments.value
+            self.segments.options = opts or ("(none)",)
+            if current in opts:
+                self.segments.value = current
+        finally:
+            view._updating = False
+        all_segs = state.session.segments()
+        per = {}
+        for s in all_segs:
+            per[s.terrain] = per.get(s.terrain, 0) + s.length
+        rate = log.rate_hz if log is not None else 100.0
+        rows = "".join(
+            f"<tr><td><span style='color:{t.color}'>■</span> {html.escape(t.name)}</td>"
+            f"<td style='text-align:right'>{per.get(t.name, 0) / rate:.1f} s</td></tr>"
+            for t in state.terrains()
+        )
+        self.summary.content = (
+            f"<div style='font-size:0.8em'><b>{len(all_segs)}</b> segments labelled in the session"
+            f"<table style='width:100%'>{rows}</table></div>"
+        )

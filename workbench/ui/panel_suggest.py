@@ -1,0 +1,126 @@
+"""The Suggest tab: the shared queue of segments to label next, with reasons and the model's guess; next, accept,
+skip (skips are this browser's own)."""
+
+from __future__ import annotations
+
+import html
+from typing import TYPE_CHECKING
+
+from sessions import WorkbenchError
+
+if TYPE_CHECKING:
+    from .state import Queued
+    from .view import ClientView
+
+
+class SuggestPanel:
+    def __init__(self, view: ClientView) -> None:
+        self.view = view
+        gui = view.client.gui
+        self.current: Queued | None = None
+        self._skipped: set[tuple[int, int, int]] = set()
+        self.info = gui.add_html("")
+        self.next_button = gui.add_button("Next suggestion (N)", icon="arrow-right", color="teal")
+        self.next_button.on_click(lambda _: view._guard(self.next))
+        self.accept_button = gui.add_button("Accept guess (A)", icon="check", color="green", disabled=True)
+        self.accept_button.on_click(lambda _: view._guard(self.accept))
+        self.skip_button = gui.add_button("Skip (X)", icon="player-skip-forward", disabled=True)
+        self.skip_button.on_click(lambda _: view._guard(self.skip))
+        self.table = gui.add_html("")
+        self.refresh()
+
+    def visible_queue(self) -> list[Queued]:
+        return [q for q in self.view.state.queue if q.key not in self._skipped]
+
+    def next(self) -> None:
+        queue = self.visible_queue()
+        if not queue:
+            raise WorkbenchError(self._empty_reason())
+        keys = [q.key for q in queue]
+        i = (keys.index(self.current.key) + 1) % len(queue) if self.current and self.current.key in keys else 0
+        self._show(queue[i])
+
+    def _show(self, q: Queued) -> None:
+        self.current = q
+        a, b = q.seconds
+        self.view.show(q.log, start_s=a, stop_s=b)
+        self.view.label_panel.select(q.start, q.stop, q.guess)
+        self.refresh()
+
+    def accept(self) -> None:
+        q = self.current
+        if q is None:
+            raise WorkbenchError("no suggestion on screen: press N first")
+        if q.guess is None:
+            raise WorkbenchError("no guess yet (no classifier): choose the terrain (1–9) and press Enter")
+        self.view.label_panel.select(q.start, q.stop)
+        if self.view.log is None or self.view.log.id != q.log.id:
+            self.view.show(q.log)
+            self.view.label_panel.select(q.start, q.stop)
+        self.view.label_panel.save(terrain=q.guess, source="suggestion")
+        self._advance(q)
+
+    def skip(self) -> None:
+        q = self.current
+        if q is None:
+            raise WorkbenchError("no suggestion on screen: press N first")
+        self._skipped.add(q.key)
+        self._advance(q)
+
+    def _advance(self, done: Queued) -> None:
+        rest = [q for q in self.visible_queue() if q.key != done.key]
+        self.current = None
+        if rest:
+            self._show(rest[0])
+        else:
+            self.refresh()
+
+    def _empty_reason(self) -> str:
+        state = self.view.state
+        if state.busy or not state.scored:
+            return f"suggestions are being computed ({state.busy or 'starting'}); they appear here in a moment"
+        if state.scores.predictor is None:
+            return "no suggestions before a predictor exists: press Retrain (R) to train it on all logs"
+        return "no suggestions left (everything worth labelling is labelled, or all were skipped)"
+
+    def refresh(self) -> None:
+        queue = self.visible_queue()
+        if self.current is not None and self.current.key not in {q.key for q in queue}:
+            # the queue was recomputed: keep showing the same stretch if it is still suggested
+            self.current = None
+        has = self.current is not None
+        self.accept_button.disabled = not (has and self.current.guess is not None)
+        self.skip_button.disabled = not has
+        if has:
+            q = self.current
+            a, b = q.seconds
+            guess = f"model's guess: <b>{html.escape(q.guess)}</b>" if q.guess else "no guess yet"
+            self.info.content = (
+                f"<div style='font-size:0.85em;padding:4px;border-left:3px solid #00897b'>"
+                f"<b>{html.escape(q.log.name)}</b> {a:.1f}–{b:.1f} s<br>{html.escape(q.reason)}<br>{guess}</div>"
+            )
+        else:
+            self.info.content = f"<small style='color:#666'>{html.escape(self._hint(queue))}</small>"
+        rows = []
+        for rank, q in enumerate(queue[:12]):
+            a, b = q.seconds
+            mark = "background:#e0f2f1;" if self.current is not None and q.key == self.current.key else ""
+            rows.append(
+                f"<tr style='{mark}'><td>{rank + 1}</td><td>{html.escape(q.log.name)}</td>"
+                f"<td style='text-align:right'>{a:.1f}–{b:.1f}</td><td>{html.escape(q.reason)}</td>"
+                f"<td>{html.escape(q.guess or '–')}</td></tr>"
+            )
+        self.table.content = (
+            "<table style='width:100%;font-size:0.75em;border-collapse:collapse'><tr style='color:#666'>"
+            "<th>#</th><th>log</th><th>s</th><th>why</th><th>guess</th></tr>" + "".join(rows) + "</table>"
+            if rows
+            else ""
+        )
+
+    def _hint(self, queue: list[Queued]) -> str:
+        if queue:
+            return f"{len(queue)} segments suggested. Press N to see the first."
+        try:
+            return self._empty_reason()
+        except Exception:
+            return ""

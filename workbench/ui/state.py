@@ -1,0 +1,200 @@
+"""State every browser shares: the session, the active models' scores, change points, the suggestion queue and the
+training job. Views subscribe to its events and redraw; nothing here knows about viser.
+"""
+
+from __future__ import annotations
+
+import threading
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+import labeling
+from sessions import LogInfo, Segment, Session, Terrain, WorkbenchError
+
+from ..live_scores import SessionScores, compute_scores, log_change_points, suggest_for_session
+
+Event = str  # "labels" | "scores" | "suggestions" | "job" | "models" | "logs"
+Listener = Callable[[Event], None]
+
+
+@dataclass(frozen=True)
+class Queued:
+    """One suggestion of the shared queue, located by log id and seconds."""
+
+    key: tuple[int, int, int]  # (log id, start, stop): stable across recomputations
+    log: LogInfo
+    start: int
+    stop: int
+    reason: str
+    guess: str | None
+    score: float
+
+    @property
+    def seconds(self) -> tuple[float, float]:
+        return self.start / self.log.rate_hz, self.stop / self.log.rate_hz
+
+
+class SharedState:
+    """The session and what is derived from it, safe to use from viser's callback threads and the job thread."""
+
+    def __init__(self, session: Session, *, on_error: Callable[[str], None] | None = None) -> None:
+        self.session = session
+        self._lock = threading.RLock()
+        self._listeners: list[Listener] = []
+        self._logs: list[LogInfo] = session.logs()
+        self._terrains: list[Terrain] = session.terrains()
+        self.scores = SessionScores()
+        self.scored = False  # the first scoring has finished
+        self._change_points: dict[tuple[int, int | None], np.ndarray] = {}
+        self.queue: list[Queued] = []
+        self._dirty = threading.Event()
+        self._scores_wanted = True
+        self._stop = threading.Event()
+        self._on_error = on_error or (lambda msg: print(msg, flush=True))
+        self.busy = ""  # what the worker is doing, for the status line
+        self._worker = threading.Thread(target=self._work, name="workbench-refresh", daemon=True)
+        self._dirty.set()
+        self._worker.start()
+
+    # --------------------------------------------------------------------------------------------- events
+    def subscribe(self, fn: Listener) -> Callable[[], None]:
+        with self._lock:
+            self._listeners.append(fn)
+
+        def unsubscribe() -> None:
+            with self._lock:
+                if fn in self._listeners:
+                    self._listeners.remove(fn)
+
+        return unsubscribe
+
+    def notify(self, event: Event) -> None:
+        with self._lock:
+            listeners = list(self._listeners)
+        for fn in listeners:
+            try:
+                fn(event)
+            except Exception:  # one broken view must not stop the others
+                self._on_error(f"view update failed on {event!r}:\n{traceback.format_exc()}")
+
+    def stop(self, *, timeout: float = 30.0) -> None:
+        """Stop the refresh worker, waiting for a scoring in progress so the session can close under it."""
+        self._stop.set()
+        self._dirty.set()
+        if self._worker is not threading.current_thread():
+            self._worker.join(timeout)
+
+    # ----------------------------------------------------------------------------------------------- data
+    def logs(self) -> list[LogInfo]:
+        with self._lock:
+            return list(self._logs)
+
+    def log(self, log_id: int) -> LogInfo:
+        for x in self.logs():
+            if x.id == log_id:
+                return x
+        raise WorkbenchError(f"no log {log_id} in {self.session.path}")
+
+    def terrains(self) -> list[Terrain]:
+        with self._lock:
+            return list(self._terrains)
+
+    def logs_changed(self) -> None:
+        """Logs were added (upload, CLI ingest): reload the catalog and rescore."""
+        with self._lock:
+            self._logs = self.session.logs()
+            self._terrains = self.session.terrains()
+        self.notify("logs")
+        self.refresh(scores=True)
+
+    # --------------------------------------------------------------------------------------------- labels
+    def add_label(self, log_id: int, start: int, stop: int, terrain: str, *, author: str, source: str) -> Segment:
+        """Commit a label (it is saved when this returns); every view hears of it."""
+        seg = self.session.add_segment(log_id, start, stop, terrain, author=author, source=source)
+        self._labels_changed()
+        return seg
+
+    def change_label(self, segment_id: int, *, author: str, **changes: object) -> Segment:
+        seg = self.session.change_segment(segment_id, author=author, **changes)  # type: ignore[arg-type]
+        self._labels_changed()
+        return seg
+
+    def delete_label(self, segment_id: int, *, author: str) -> Segment:
+        seg = self.session.delete_segment(segment_id, author=author)
+        self._labels_changed()
+        return seg
+
+    def undo(self, *, author: str) -> str:
+        entry = self.session.undo(author=author)
+        self._labels_changed()
+        return entry.kind
+
+    def _labels_changed(self) -> None:
+        self.notify("labels")
+        self.refresh(scores=False)
+
+    # ------------------------------------------------------------------------------------ derived, refreshed
+    def refresh(self, *, scores: bool) -> None:
+        """Recompute the suggestion queue (and the scores first when ``scores``) in the background."""
+        if scores:
+            self._scores_wanted = True
+        self._dirty.set()
+
+    def change_points(self, log_id: int) -> np.ndarray:
+        """Change points of a log (computed once per log and predictor version)."""
+        key = (log_id, self.scores.predictor)
+        with self._lock:
+            cps = self._change_points.get(key)
+        if cps is None:
+            log = self.log(log_id)
+            s = self.scores.scores.get(log_id)
+            cps = log_change_points(self.session.array(log_id), None if s is None else s.surprise, rate_hz=log.rate_hz)
+            with self._lock:
+                self._change_points[key] = cps
+        return cps
+
+    def snap(self, log_id: int, start: int, stop: int) -> labeling.Snap:
+        """Edges of a rough range moved to change points within 1 s (a proposal, not applied)."""
+        log = self.log(log_id)
+        return labeling.snap_range(start, stop, self.change_points(log_id), radius=round(1.0 * log.rate_hz))
+
+    def _work(self) -> None:
+        while not self._stop.is_set():
+            self._dirty.wait()
+            if self._stop.is_set():
+                return
+            self._dirty.clear()
+            try:
+                if self._scores_wanted:
+                    self._scores_wanted = False
+                    self.busy = "scoring logs"
+                    self.notify("job")
+                    self.scores = compute_scores(self.session)
+                    self.scored = True
+                    self.notify("scores")
+                self.busy = "updating suggestions"
+                queue = self._compute_queue()
+                with self._lock:
+                    self.queue = queue
+                self.notify("suggestions")
+            except Exception as exc:
+                self._on_error(f"refresh failed: {type(exc).__name__}: {exc}\n{traceback.format_exc()}")
+            finally:
+                self.scored = True
+                self.busy = ""
+                self.notify("job")
+
+    def _compute_queue(self) -> list[Queued]:
+        scores = self.scores
+        if scores.predictor is None:
+            return []
+        logs = [x for x in self.logs() if x.id in scores.scores]
+        cps = {x.id: self.change_points(x.id) for x in logs}
+        out = []
+        for log, s in suggest_for_session(self.session, scores, cps, logs=logs):
+            guess = None if s.guess is None or s.guess >= len(scores.classes) else scores.classes[s.guess]
+            out.append(Queued((log.id, s.start, s.stop), log, s.start, s.stop, s.reason, guess, s.score))
+        return out

@@ -1,0 +1,399 @@
+"""One browser's view: its own log, window, cursor and selection over the shared state; hotkeys; the traces panel.
+
+Panels (label, suggestions, training, data, robot) live in their own modules and read and move this view.
+"""
+
+from __future__ import annotations
+
+import threading
+import traceback
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from sessions import LogInfo, WorkbenchError
+
+from . import charts
+from .decimate import decimate
+
+if TYPE_CHECKING:
+    import viser
+
+    from .jobs import TrainJob
+    from .state import SharedState
+
+WIDTHS_S = (2.0, 5.0, 10.0, 20.0, 30.0, 60.0, 120.0, 300.0, 600.0, 1800.0, 3600.0)
+PIXELS = 1100  # chart width the server decimates for; about a laptop screen's traces panel
+
+
+class ClientView:
+    """Everything one browser sees; built when it connects, dropped when it leaves."""
+
+    def __init__(self, client: viser.ClientHandle, state: SharedState, job: TrainJob) -> None:
+        from .panel_data import DataPanel
+        from .panel_label import LabelPanel
+        from .panel_suggest import SuggestPanel
+        from .panel_train import TrainPanel
+        from .robot import RobotView
+
+        self.client, self.state, self.job = client, state, job
+        self.author = f"browser-{client.client_id}"
+        self._lock = threading.RLock()
+        logs = state.logs()
+        self.log: LogInfo | None = logs[0] if logs else None
+        self.width_s = 30.0
+        self.start_s = 0.0
+        self.cursor_s = 0.0
+        self.selection: tuple[int, int] | None = None  # samples [start, stop) of the current log
+        self.threshold = 0.95
+        self.forces_by = "foot"
+        self._charts: list = []
+        self._chart_key: tuple = ()
+        self._updating = False  # set while the server moves widgets, so their callbacks do not echo
+
+        gui = client.gui
+        gui.configure_theme(
+            titlebar_content=None,
+            control_width="large",
+            show_logo=False,
+            show_share_button=False,
+            brand_color=(46, 125, 50),
+        )
+        gui.main_panel.dock_right()
+        gui.main_panel.set_width(420)
+        self.traces_panel = gui.add_panel()
+        self.traces_panel.dock_left()
+        self.traces_panel.set_width(960)
+        self._traces_tab = self.traces_panel.add_tab("Traces", icon="chart-line")
+        with self._traces_tab:
+            self._build_traces()
+        tabs = gui.add_tab_group()
+        with tabs.add_tab("Label", icon="tag"):
+            self.label_panel = LabelPanel(self)
+        with tabs.add_tab("Suggest", icon="bulb"):
+            self.suggest_panel = SuggestPanel(self)
+        with tabs.add_tab("Train", icon="brain"):
+            self.train_panel = TrainPanel(self)
+        with tabs.add_tab("Data", icon="database"):
+            self.data_panel = DataPanel(self)
+        self.robot = RobotView(self)
+        self._hotkeys()
+        self._unsubscribe = state.subscribe(self._on_event)
+        self.redraw()
+
+    # ------------------------------------------------------------------------------------------- building
+    def _build_traces(self) -> None:
+        gui = self.client.gui
+        logs = self.state.logs()
+        self.log_dropdown = gui.add_dropdown(
+            "Log", self._log_options(logs) or ("(no logs yet)",), hint="The log on screen"
+        )
+        self.log_dropdown.on_update(lambda _: self._guard(self._pick_log))
+        self.cursor_slider = gui.add_slider(
+            "Cursor (s)", 0.0, 1.0, 0.01, 0.0, hint="←/→ move the cursor; Shift+←/→ a whole window"
+        )
+        self.cursor_slider.on_update(lambda _: self._guard(lambda: self.move_cursor(self.cursor_slider.value)))
+        self.zoom = gui.add_dropdown(
+            "Window", [_fmt_width(w) for w in WIDTHS_S], initial_value=_fmt_width(30.0), hint="↑ zoom in, ↓ zoom out"
+        )
+        self.zoom.on_update(lambda _: self._guard(lambda: self.set_width(WIDTHS_S[self._zoom_index()])))
+        self.legend = gui.add_html("")
+        self.tracks_chart = None
+        self._chart_area_order = 100.0
+        with gui.add_folder("Display", expand_by_default=False, order=10_000):
+            self.threshold_slider = gui.add_slider(
+                "Highlight above",
+                0.5,
+                0.99,
+                0.01,
+                self.threshold,
+                hint="Rank of the score in the session: 0.9 = top 10 % of time",
+            )
+            self.threshold_slider.on_update(lambda _: self._guard(self._set_threshold))
+            self.forces = gui.add_dropdown("Foot forces", ("by foot", "by axis"))
+            self.forces.on_update(lambda _: self._guard(self._set_forces))
+
+    def _log_options(self, logs: list[LogInfo]) -> tuple[str, ...]:
+        return tuple(f"{x.id}: {x.name}" for x in logs)
+
+    def _guard(self, fn: Callable[[], None]) -> None:
+        """Run a widget callback unless the server itself moved the widget; report errors in the page."""
+        if self._updating:
+            return
+        try:
+            with self._lock:
+                fn()
+        except WorkbenchError as exc:
+            self.notify("Not done", str(exc), color="red")
+        except Exception as exc:
+            traceback.print_exc()
+            self.notify("Something went wrong", f"{type(exc).__name__}: {exc}", color="red")
+
+    def notify(self, title: str, body: str, *, color: str = "green", seconds: float = 4.0) -> None:
+        self.client.add_notification(title, body, auto_close_seconds=seconds, color=color)  # type: ignore[arg-type]
+
+    def set_widget(self, handle, value) -> None:
+        """Move a widget from the server without triggering its callback."""
+        self._updating = True
+        try:
+            handle.value = value
+        finally:
+            self._updating = False
+
+    def _hotkeys(self) -> None:
+        gui = self.client.gui
+
+        def bind(label: str, key: str, fn: Callable[[], None], *, modifier: str | None = None, desc: str = "") -> None:
+            cmd = gui.add_command(label, description=desc or None, hotkey=key, modifier=modifier)  # type: ignore[arg-type]
+            cmd.on_trigger(lambda _: self._guard(fn))
+
+        bind("Cursor left", "arrowleft", lambda: self.step(-0.05))
+        bind("Cursor right", "arrowright", lambda: self.step(0.05))
+        bind("Window left", "arrowleft", lambda: self.step(-1.0), modifier="shift")
+        bind("Window right", "arrowright", lambda: self.step(1.0), modifier="shift")
+        bind("Zoom in", "arrowup", lambda: self.zoom_by(-1))
+        bind("Zoom out", "arrowdown", lambda: self.zoom_by(1))
+        bind("Mark start at cursor", "B", self.label_panel.mark_start, desc="B: begin the range at the cursor")
+        bind("Mark end at cursor", "E", self.label_panel.mark_end, desc="E: end the range at the cursor")
+        bind("Save label", "enter", self.label_panel.save, desc="Enter: label the range with the chosen terrain")
+        bind("Take snap", "P", self.label_panel.take_snap, desc="P: move the range edges to the change points")
+        bind("Undo", "Z", self.label_panel.undo, modifier="cmd/ctrl", desc="Undo your last label action")
+        bind("Undo (U)", "U", self.label_panel.undo)
+        bind("Clear range", "escape", self.label_panel.clear)
+        for k in range(1, 10):
+            bind(f"Terrain {k}", str(k), lambda k=k: self.label_panel.pick_terrain(k - 1))
+        bind("Next suggestion", "N", self.suggest_panel.next, desc="N: show the next suggested segment")
+        bind("Accept guess", "A", self.suggest_panel.accept, desc="A: label the suggestion with the model's guess")
+        bind("Skip suggestion", "X", self.suggest_panel.skip)
+        bind("Retrain", "R", self.train_panel.retrain, desc="R: retrain the classifier in the background")
+        bind("Play / pause", "space", self.robot.toggle_play)
+
+    # ------------------------------------------------------------------------------------------- moving
+    def _pick_log(self) -> None:
+        value = self.log_dropdown.value
+        if ":" not in value:
+            return
+        self.show(self.state.log(int(value.split(":")[0])))
+
+    def show(self, log: LogInfo, *, start_s: float | None = None, stop_s: float | None = None) -> None:
+        """Show a log; with a range, zoom so the range fills the middle of the window and put the cursor on it."""
+        changed = self.log is None or log.id != self.log.id
+        self.log = log
+        if changed:
+            self.selection = None
+            self.set_widget(self.log_dropdown, f"{log.id}: {log.name}")
+        if start_s is not None and stop_s is not None:
+            span = stop_s - start_s
+            self.width_s = next((w for w in WIDTHS_S if w >= 2.5 * span), WIDTHS_S[-1])
+            self.set_widget(self.zoom, _fmt_width(self.width_s))
+            self.start_s = start_s + span / 2 - self.width_s / 2
+            self.cursor_s = start_s
+        elif changed:
+            self.start_s, self.cursor_s = 0.0, 0.0
+        self.redraw()
+
+    def _zoom_index(self) -> int:
+        return [_fmt_width(w) for w in WIDTHS_S].index(self.zoom.value)
+
+    def set_width(self, width_s: float) -> None:
+        centre = self.cursor_s
+        self.width_s = width_s
+        self.start_s = centre - width_s / 2
+        self.redraw()
+
+    def zoom_by(self, steps: int) -> None:
+        i = int(np.clip(self._zoom_index() + steps, 0, len(WIDTHS_S) - 1))
+        self.set_widget(self.zoom, _fmt_width(WIDTHS_S[i]))
+        self.set_width(WIDTHS_S[i])
+
+    def move_cursor(self, seconds: float) -> None:
+        if self.log is None:
+            return
+        self.cursor_s = float(np.clip(seconds, 0.0, self.log.duration_s))
+        # the window follows the cursor when it leaves it
+        if self.cursor_s < self.start_s or self.cursor_s > self.start_s + self.width_s:
+            self.start_s = self.cursor_s - self.width_s / 2
+        self.redraw()
+
+    def step(self, windows: float) -> None:
+        if windows in (-1.0, 1.0):
+            self.start_s += windows * self.width_s
+            self.cursor_s += windows * self.width_s
+            self.cursor_s = float(np.clip(self.cursor_s, 0.0, self.log.duration_s if self.log else 0.0))
+            self.redraw()
+        else:
+            self.move_cursor(self.cursor_s + windows * self.width_s)
+
+    def _set_threshold(self) -> None:
+        self.threshold = float(self.threshold_slider.value)
+        self.redraw()
+
+    def _set_forces(self) -> None:
+        self.forces_by = "axis" if self.forces.value == "by axis" else "foot"
+        self._chart_key = ()
+        self.redraw()
+
+    @property
+    def window(self) -> tuple[int, int]:
+        """Visible samples ``[a, b)`` of the current log."""
+        log = self.log
+        assert log is not None
+        width = min(self.width_s, log.duration_s)
+        self.start_s = float(np.clip(self.start_s, 0.0, max(0.0, log.duration_s - width)))
+        return log.sample_at(self.start_s), log.sample_at(self.start_s + width)
+
+    # ------------------------------------------------------------------------------------------- drawing
+    def _on_event(self, event: str) -> None:
+        with self._lock:
+            if event == "logs":
+                logs = self.state.logs()
+                opts = self._log_options(logs)
+                self._updating = True
+                try:
+                    self.log_dropdown.options = opts or ("(no logs yet)",)
+                finally:
+                    self._updating = False
+                if self.log is None and logs:
+                    self.show(logs[0])
+                self.data_panel.refresh()
+            if event in ("labels", "scores", "suggestions"):
+                self.redraw()
+            if event == "labels":
+                self.label_panel.refresh()
+            if event in ("suggestions", "scores", "labels"):
+                self.suggest_panel.refresh()
+            if event in ("job", "models", "scores"):
+                self.train_panel.refresh(event)
+            if event in ("labels", "models"):
+                self.data_panel.refresh()
+
+    def redraw(self) -> None:
+        """Draw the window: traces decimated per pixel, tracks, cursor; the robot at the cursor."""
+        with self._lock:
+            log = self.log
+            if log is None:
+                self.legend.content = "<p>No logs yet: upload MCAP or CSV files in the Data tab.</p>"
+                return
+            a, b = self.window
+            self._updating = True
+            try:
+                self.cursor_slider.max = round(log.duration_s, 2)
+                self.cursor_slider.value = round(min(self.cursor_s, log.duration_s), 2)
+            finally:
+                self._updating = False
+            dec = decimate(self.state.session.array(log.id)[a:b], a, rate_hz=log.rate_hz, pixels=PIXELS)
+            groups = charts.channel_groups(log.channel_names, forces_by=self.forces_by)
+            specs = [
+                charts.trace_chart(dec, g, cursor_s=self.cursor_s, show_x=(i == len(groups) - 1))
+                for i, g in enumerate(groups)
+            ]
+            tracks = charts.tracks_chart(
+                self._track_inputs(log, dec.t, a, b), self._terrain_colors(), cursor_s=self.cursor_s
+            )
+            key = (log.channel_names, self.forces_by, len(tracks["series"]))
+            with self.client.atomic():
+                if key != self._chart_key:
+                    self._rebuild_charts(tracks, specs)
+                    self._chart_key = key
+                else:
+                    for handle, spec in zip([self.tracks_chart, *self._charts], [tracks, *specs], strict=True):
+                        if handle.series != spec["series"]:  # a new series list rebuilds the chart: only if needed
+                            handle.series = spec["series"]
+                        handle.data = spec["data"]
+                self.legend.content = self._legend_html(log, a, b)
+            self.robot.update()
+
+    def _rebuild_charts(self, tracks: dict, specs: list[dict]) -> None:
+        for h in [self.tracks_chart, *self._charts]:
+            if h is not None:
+                h.remove()
+        with self.traces_panel_tab():
+            self.tracks_chart = self.client.gui.add_uplot(**tracks, order=self._chart_area_order)
+            self._charts = [
+                self.client.gui.add_uplot(**s, order=self._chart_area_order + 1 + i) for i, s in enumerate(specs)
+            ]
+
+    def traces_panel_tab(self):
+        """Context in which widgets land in the traces panel (below the controls)."""
+        return self._traces_tab
+
+    def _terrain_colors(self) -> list[tuple[str, str]]:
+        return [(t.name, t.color) for t in self.state.terrains()]
+
+    def _track_inputs(self, log: LogInfo, t: np.ndarray, a: int, b: int) -> charts.TrackInputs:
+        terrains = [x.name for x in self.state.terrains()]
+        segs = [
+            (s.start, s.stop, terrains.index(s.terrain))
+            for s in self.state.session.segments(log.id)
+            if s.terrain in terrains
+        ]
+        idx = np.clip(np.round(t * log.rate_hz).astype(np.int64), 0, max(0, log.n_samples - 1))
+        labels = charts.per_sample_labels(log.n_samples, segs)[idx]
+        scores = self.state.scores
+        tracks = scores.tracks.get(log.id)
+        predicted = surprise = unsure = highlight = None
+        if tracks is not None:
+            surprise = _bucket_max(tracks["surprise"], idx)
+            kinds = [k for k in ("entropy", "margin") if k in tracks]
+            if kinds:
+                unsure = _bucket_max(np.maximum.reduce([tracks[k] for k in kinds]), idx)
+            high = np.zeros(log.n_samples, bool)
+            for k in ("surprise", *kinds, "disagreement"):
+                if k in tracks:
+                    high |= tracks[k] >= self.threshold
+            highlight = high[idx]
+            pred = scores.predicted(log.id)
+            if pred is not None:
+                order = [terrains.index(c) if c in terrains else -1 for c in scores.classes]
+                predicted = np.asarray(order)[pred[idx]]
+        suggested = np.zeros(len(idx), bool)
+        current = np.zeros(len(idx), bool)
+        cur = self.suggest_panel.current
+        for q in self.suggest_panel.visible_queue():
+            if q.log.id == log.id:
+                inside = (idx >= q.start) & (idx < q.stop)
+                suggested |= inside
+                if cur is not None and q.key == cur.key:
+                    current |= inside
+        selection = np.zeros(len(idx), bool)
+        if self.selection is not None:
+            selection = (idx >= self.selection[0]) & (idx < self.selection[1])
+        return charts.TrackInputs(t, labels, predicted, surprise, unsure, highlight, suggested, current, selection)
+
+    def _legend_html(self, log: LogInfo, a: int, b: int) -> str:
+        chips = "".join(
+            f"<span style='display:inline-block;padding:0 6px;margin:1px 2px;border-radius:8px;"
+            f"background:{t.color}33;border:1px solid {t.color}'>{i + 1} {t.name}</span>"
+            for i, t in enumerate(self.state.terrains()[:9])
+        )
+        sel = ""
+        if self.selection is not None:
+            s0, s1 = (x / log.rate_hz for x in self.selection)
+            sel = f" · range <b>{s0:.2f}–{s1:.2f} s</b>"
+        busy = f" · <i>{self.state.busy}…</i>" if self.state.busy else ""
+        return (
+            "<div style='font-size:0.8em;line-height:1.6'>"
+            f"<b>{log.name}</b> · {a / log.rate_hz:.1f}–{b / log.rate_hz:.1f} s of {log.duration_s:.0f} s · "
+            f"cursor {self.cursor_s:.2f} s{sel}{busy}<br>{chips}"
+            f"<span style='color:{charts.SURPRISE}'> ━ surprise</span>"
+            f"<span style='color:{charts.UNSURE}'> ━ uncertainty</span>"
+            "<span style='background:#ffb30040'> highlighted </span></div>"
+        )
+
+    def close(self) -> None:
+        self._unsubscribe()
+        self.robot.close()
+
+
+def _bucket_max(track: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """A ``(T,)`` track at the decimated sample indices ``idx`` (``(P,)``), keeping each span's peak."""
+    if len(idx) < 2:
+        return track[idx].astype(np.float64)
+    edges = np.append(idx, idx[-1] + 1)
+    hi = np.maximum.reduceat(track, np.clip(edges[:-1], 0, len(track) - 1))
+    return np.where(np.diff(edges) > 0, hi, track[idx]).astype(np.float64)
+
+
+def _fmt_width(seconds: float) -> str:
+    return f"{seconds:g} s" if seconds < 60 else f"{seconds / 60:g} min"
