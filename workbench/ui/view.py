@@ -69,9 +69,11 @@ class ClientView:
         with self._traces_tab:
             self._build_traces()
         tabs = gui.add_tab_group()
+        # suggestions first: the page opens on "what to label next"
+        suggest_tab = tabs.add_tab("Suggest", icon="bulb")
         with tabs.add_tab("Label", icon="tag"):
             self.label_panel = LabelPanel(self)
-        with tabs.add_tab("Suggest", icon="bulb"):
+        with suggest_tab:
             self.suggest_panel = SuggestPanel(self)
         with tabs.add_tab("Train", icon="brain"):
             self.train_panel = TrainPanel(self)
