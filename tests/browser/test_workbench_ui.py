@@ -152,6 +152,7 @@ def test_a_second_browser_sees_the_first_ones_label(session_path: Path, serve, b
         pages.append(ctx.new_page())
         open_workbench(pages[-1], server.url)
     first, second = pages
+    second.get_by_role("tab", name="Label").click()
     n = len(rows(session_path))
     second.get_by_text(f"{n} segments labelled").wait_for(timeout=10_000)
     t = free_seconds(session_path, 1, 2.5)
