@@ -168,3 +168,27 @@ def test_a_second_browser_sees_the_first_ones_label(session_path: Path, serve, b
     assert "cursor 0.00 s" in second.inner_text("body")
     for p in pages:
         p.context.close()
+
+
+def test_upload_ingests_a_log_and_refuses_a_broken_file(session_path: Path, serve, page, tmp_path: Path) -> None:
+    from workbench.demo import generate_demo_logs
+
+    extra = generate_demo_logs(tmp_path / "more", n_logs=1, minutes=0.3, seed=9)[0]
+    good = tmp_path / "field_run.mcap"
+    shutil.copy(extra, good)
+    bad = tmp_path / "broken.mcap"
+    bad.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 100)
+    server = serve(session_path, *TINY)
+    open_workbench(page, server.url)
+    page.get_by_role("tab", name="Data").click()
+    upload = page.locator("input[type=file]").first
+    upload.set_input_files(str(bad))
+    page.get_by_text("Not done").first.wait_for(timeout=30_000)
+    error = page.get_by_text("Not done").first.locator("xpath=ancestor::div[contains(@class,'Notification-root')]")
+    assert "broken.mcap" in error.inner_text()  # one clear line naming the file and the reason
+    assert len(Session.open(session_path).logs()) == 2
+    assert not (session_path / "uploads" / "broken.mcap").exists()
+    upload.set_input_files(str(good))
+    page.get_by_text("Ingested").first.wait_for(timeout=60_000)
+    page.get_by_text("3 logs").wait_for(timeout=10_000)
+    assert [x.name for x in Session.open(session_path).logs()][-1] == "field_run"
