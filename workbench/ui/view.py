@@ -310,15 +310,11 @@ class ClientView:
         for h in [self.tracks_chart, *self._charts]:
             if h is not None:
                 h.remove()
-        with self.traces_panel_tab():
+        with self._traces_tab:
             self.tracks_chart = self.client.gui.add_uplot(**tracks, order=self._chart_area_order)
             self._charts = [
                 self.client.gui.add_uplot(**s, order=self._chart_area_order + 1 + i) for i, s in enumerate(specs)
             ]
-
-    def traces_panel_tab(self):
-        """Context in which widgets land in the traces panel (below the controls)."""
-        return self._traces_tab
 
     def _terrain_colors(self) -> list[tuple[str, str]]:
         return [(t.name, t.color) for t in self.state.terrains()]
@@ -331,24 +327,28 @@ class ClientView:
             if s.terrain in terrains
         ]
         idx = np.clip(np.round(t * log.rate_hz).astype(np.int64), 0, max(0, log.n_samples - 1))
-        labels = charts.per_sample_labels(log.n_samples, segs)[idx]
+        # everything below works on the visible stretch only: a pan must not cost the whole log
+        lo, hi = (int(idx.min()), int(idx.max()) + 1) if len(idx) else (0, 0)
+        rel = idx - lo
+        labels = charts.per_sample_labels(hi - lo, [(x - lo, y - lo, k) for x, y, k in segs if y > lo and x < hi])[rel]
         scores = self.state.scores
         tracks = scores.tracks.get(log.id)
         predicted = surprise = unsure = highlight = None
         if tracks is not None:
-            surprise = _bucket_max(tracks["surprise"], idx)
-            kinds = [k for k in ("entropy", "margin") if k in tracks]
+            win = {k: v[lo:hi] for k, v in tracks.items()}
+            surprise = _bucket_max(win["surprise"], rel)
+            kinds = [k for k in ("entropy", "margin") if k in win]
             if kinds:
-                unsure = _bucket_max(np.maximum.reduce([tracks[k] for k in kinds]), idx)
-            high = np.zeros(log.n_samples, bool)
+                unsure = _bucket_max(np.maximum.reduce([win[k] for k in kinds]), rel)
+            high = np.zeros(hi - lo, bool)
             for k in ("surprise", *kinds, "disagreement"):
-                if k in tracks:
-                    high |= tracks[k] >= self.threshold
-            highlight = high[idx]
-            pred = scores.predicted(log.id)
-            if pred is not None:
+                if k in win:
+                    high |= win[k] >= self.threshold
+            highlight = high[rel]
+            probs = scores.scores[log.id].probs if log.id in scores.scores else None
+            if probs is not None:
                 order = [terrains.index(c) if c in terrains else -1 for c in scores.classes]
-                predicted = np.asarray(order)[pred[idx]]
+                predicted = np.asarray(order)[probs[idx].argmax(axis=1)]
         suggested = np.zeros(len(idx), bool)
         current = np.zeros(len(idx), bool)
         cur = self.suggest_panel.current
