@@ -37,11 +37,6 @@ class SessionScores:
     tracks: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
     embeddings: dict[int, np.ndarray] = field(default_factory=dict)
 
-    def predicted(self, log_id: int) -> np.ndarray | None:
-        """``(T,)`` most probable class index of a log, or ``None`` before a classifier."""
-        s = self.scores.get(log_id)
-        return None if s is None or s.probs is None else s.probs.argmax(axis=1)
-
 
 def compute_scores(session: Session, *, window: int = 25) -> SessionScores:
     """Score every log with the active predictor (and the active classifier when it was trained on it)."""

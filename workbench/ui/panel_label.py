@@ -63,13 +63,10 @@ class LabelPanel:
             return
         start, stop = max(0, min(start, log.n_samples)), max(0, min(stop, log.n_samples))
         view.selection = (min(start, stop), max(start, stop)) if start != stop else None
-        view._updating = True
-        try:
+        with view.quiet():
             self.range.max = round(log.duration_s, 2)
             lo, hi = view.selection or (start, start)
             self.range.value = (round(lo / log.rate_hz, 2), round(hi / log.rate_hz, 2))
-        finally:
-            view._updating = False
         self._propose_snap()
         view.redraw()
 
@@ -188,14 +185,11 @@ class LabelPanel:
             if log is not None
             else ()
         )
-        view._updating = True
-        try:
+        with view.quiet():
             current = self.segments.value
             self.segments.options = opts or ("(none)",)
             if current in opts:
                 self.segments.value = current
-        finally:
-            view._updating = False
         all_segs = state.session.segments()
         per = {}
         for s in all_segs:

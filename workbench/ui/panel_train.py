@@ -129,11 +129,8 @@ class TrainPanel:
             else "<small>No models yet. Press Retrain.</small>"
         )
         opts = tuple(f"v{v.id} {v.stage}" + (" (active)" if v.active else "") for v in reversed(versions))
-        self.view._updating = True
-        try:
+        with self.view.quiet():
             self.version_pick.options = opts or ("(none)",)
-        finally:
-            self.view._updating = False
         active = next((v for v in versions if v.active and v.stage == "classifier"), None)
         if active is not None and active.metrics.get("confusion"):
             m = active.metrics

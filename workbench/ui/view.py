@@ -5,9 +5,10 @@ Panels (label, suggestions, training, data, robot) live in their own modules and
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -135,13 +136,19 @@ class ClientView:
     def notify(self, title: str, body: str, *, color: str = "green", seconds: float = 4.0) -> None:
         self.client.add_notification(title, body, auto_close_seconds=seconds, color=color)  # type: ignore[arg-type]
 
-    def set_widget(self, handle, value) -> None:
-        """Move a widget from the server without triggering its callback."""
+    @contextlib.contextmanager
+    def quiet(self) -> Iterator[None]:
+        """Widgets changed inside this block are moved by the server: their callbacks do not echo."""
         self._updating = True
         try:
-            handle.value = value
+            yield
         finally:
             self._updating = False
+
+    def set_widget(self, handle, value) -> None:
+        """Move a widget from the server without triggering its callback."""
+        with self.quiet():
+            handle.value = value
 
     def _hotkeys(self) -> None:
         gui = self.client.gui
@@ -251,11 +258,8 @@ class ClientView:
             if event == "logs":
                 logs = self.state.logs()
                 opts = self._log_options(logs)
-                self._updating = True
-                try:
+                with self.quiet():
                     self.log_dropdown.options = opts or ("(no logs yet)",)
-                finally:
-                    self._updating = False
                 if self.log is None and logs:
                     self.show(logs[0])
                 self.data_panel.refresh()
@@ -278,12 +282,9 @@ class ClientView:
                 self.legend.content = "<p>No logs yet: upload MCAP or CSV files in the Data tab.</p>"
                 return
             a, b = self.window
-            self._updating = True
-            try:
+            with self.quiet():
                 self.cursor_slider.max = round(log.duration_s, 2)
                 self.cursor_slider.value = round(min(self.cursor_s, log.duration_s), 2)
-            finally:
-                self._updating = False
             dec = decimate(self.state.session.array(log.id)[a:b], a, rate_hz=log.rate_hz, pixels=PIXELS)
             groups = charts.channel_groups(log.channel_names, forces_by=self.forces_by)
             specs = [
