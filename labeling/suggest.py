@@ -141,8 +141,8 @@ def suggest(
         window: Smoothing of the tracks, samples.
         embeddings: Per log, ``(T, D)`` features (e.g. stage 1's hidden state). ``combined`` then clusters the
             candidates' mean feature vectors and takes the most typical member of each cluster first, holding back
-            segments like labelled ones: before a classifier exists this covers the kinds of terrain, after it
-            keeps the queue diverse.
+            segments like labelled ones: before a classifier exists this alone ranks (covering the kinds of
+            terrain), after it the clusters keep the uncertain picks diverse.
         seed: Seed of ``random`` (other strategies are deterministic; ties break by log then start).
 
     Returns:
@@ -169,11 +169,14 @@ def suggest(
         emb, novelty = _novelty(cands, labelled, embeddings)
         # informative, but not like what is labelled, and representative of many candidates (Zhdanov 2019:
         # k-means weighted by informativeness over the top candidates, the member nearest each centre first)
-        weight = (NOVELTY_FLOOR + base) * novelty
+        # Before a classifier exists, typicality alone (TypiClust, Hacohen et al. 2022: with a tiny budget the
+        # typical member of each cluster beats informative outliers; surprise-weighted picks lost to random on
+        # BorealTC's first rounds)
+        weight = (NOVELTY_FLOOR + base) * novelty if mean_probs is not None else novelty
         cluster, typical = _clusters(emb, weight, n, prefilter=mean_probs is not None, seed=seed)
         base = weight * typical
         if mean_probs is None:
-            why = ["novel"] * len(cands)
+            why = ["typical"] * len(cands)
 
     chosen: list[int] = []
     alive = np.ones(len(cands), bool)
@@ -304,7 +307,7 @@ def _reason(driver: str, probs: np.ndarray | None, classes: Sequence[str], rarit
         "entropy": "classifier unsure",
         "margin": "classifier unsure",
         "unsure": "classifier unsure",
-        "novel": "unlike anything labelled yet",
+        "typical": "typical of many unlabelled stretches",
     }[driver]
     if probs is not None and driver in ("entropy", "margin", "unsure") and second:
         text = f"classifier unsure between {first} and {second}"

@@ -108,7 +108,7 @@ def test_oracle_splits_at_terrain_changes_and_skips_unknown() -> None:
 
 
 def test_combined_with_embeddings_covers_distinct_regimes_first() -> None:
-    # three regimes of feature space in one log; surprise is flat, so only novelty can spread the picks
+    # three regimes of feature space in one log; surprise is flat, so only the clusters can spread the picks
     n = 3000
     emb = np.zeros((n, 2))
     emb[1000:2000] = [5.0, 0.0]
@@ -118,7 +118,7 @@ def test_combined_with_embeddings_covers_distinct_regimes_first() -> None:
     got = suggest(scores, strategy="combined", n=3, max_len=200, min_len=50, embeddings=[emb],
                   change_points=[np.array([1000, 2000])])  # fmt: skip
     assert sorted(s.start // 1000 for s in got) == [0, 1, 2]
-    assert all(s.reason == "unlike anything labelled yet" for s in got)
+    assert all(s.reason == "typical of many unlabelled stretches" for s in got)
     # with the first regime labelled, the first pick is in another
     again = suggest(scores, strategy="combined", n=1, max_len=200, min_len=50, embeddings=[emb],
                     labelled=[(0, 0, 300)], change_points=[np.array([1000, 2000])])  # fmt: skip
