@@ -57,6 +57,20 @@ def test_a_saved_label_is_committed_before_views_hear_of_it_and_the_queue_follow
     assert len(state.session.segments()) == n
 
 
+def test_the_strategy_reranks_the_shared_queue(state: SharedState) -> None:
+    heard: list[str] = []
+    state.subscribe(heard.append)
+    combined = [q.key for q in state.queue]
+    state.set_strategy("random")
+    wait_for(lambda: "suggestions" in heard and not state.busy)
+    assert state.strategy == "random"
+    assert [q.key for q in state.queue] != combined
+    assert all(q.reason == "random pick" for q in state.queue)
+    with pytest.raises(WorkbenchError, match="unknown strategy 'best'"):
+        state.set_strategy("best")
+    assert state.strategy == "random"
+
+
 def test_one_broken_view_does_not_stop_the_others(trained: Session) -> None:  # noqa: F811
     errors: list[str] = []
     st = SharedState(trained, on_error=errors.append)

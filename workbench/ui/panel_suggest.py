@@ -6,6 +6,7 @@ from __future__ import annotations
 import html
 from typing import TYPE_CHECKING
 
+import labeling
 from sessions import WorkbenchError
 
 if TYPE_CHECKING:
@@ -27,6 +28,14 @@ class SuggestPanel:
         self.skip_button = gui.add_button("Skip (X)", icon="player-skip-forward", disabled=True)
         self.skip_button.on_click(lambda _: view._guard(self.skip))
         self.table = gui.add_html("")
+        self.strategy = gui.add_dropdown(
+            "Rank by",
+            labeling.STRATEGIES,
+            initial_value=view.state.strategy,
+            hint="How the shared queue is ranked (for everyone): combined mixes uncertainty, disagreement, surprise "
+            "and diversity; the others use one score alone; random is the baseline",
+        )
+        self.strategy.on_update(lambda _: view._guard(lambda: view.state.set_strategy(self.strategy.value)))
         self.refresh()
 
     def visible_queue(self) -> list[Queued]:
@@ -84,6 +93,8 @@ class SuggestPanel:
         return "no suggestions left (everything worth labelling is labelled, or all were skipped)"
 
     def refresh(self) -> None:
+        if self.strategy.value != self.view.state.strategy:  # another browser changed it
+            self.view.set_widget(self.strategy, self.view.state.strategy)
         queue = self.visible_queue()
         if self.current is not None and self.current.key not in {q.key for q in queue}:
             # the queue was recomputed: keep showing the same stretch if it is still suggested

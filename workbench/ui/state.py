@@ -50,6 +50,7 @@ class SharedState:
         self.scored = False  # the first scoring has finished
         self._change_points: dict[tuple[int, int | None], np.ndarray] = {}
         self.queue: list[Queued] = []
+        self.strategy: labeling.Strategy = "combined"  # shared: everyone works from one queue
         self._dirty = threading.Event()
         self._scores_wanted = True
         self._stop = threading.Event()
@@ -143,6 +144,14 @@ class SharedState:
             self._scores_wanted = True
         self._dirty.set()
 
+    def set_strategy(self, strategy: str) -> None:
+        """Rank the shared queue with another strategy (``labeling.STRATEGIES``); every view hears of it."""
+        if strategy not in labeling.STRATEGIES:
+            raise WorkbenchError(f"unknown strategy {strategy!r}; choose from {', '.join(labeling.STRATEGIES)}")
+        with self._lock:
+            self.strategy = strategy  # type: ignore[assignment]
+        self.refresh(scores=False)
+
     def change_points(self, log_id: int) -> np.ndarray:
         """Change points of a log (computed once per log and predictor version)."""
         key = (log_id, self.scores.predictor)
@@ -194,7 +203,7 @@ class SharedState:
         logs = [x for x in self.logs() if x.id in scores.scores]
         cps = {x.id: self.change_points(x.id) for x in logs}
         out = []
-        for log, s in suggest_for_session(self.session, scores, cps, logs=logs):
+        for log, s in suggest_for_session(self.session, scores, cps, logs=logs, strategy=self.strategy):
             guess = None if s.guess is None or s.guess >= len(scores.classes) else scores.classes[s.guess]
             out.append(Queued((log.id, s.start, s.stop), log, s.start, s.stop, s.reason, guess, s.score))
         return out
