@@ -160,6 +160,7 @@ def demo(
     seed: int = 0,
     seed_labels: float = 0.02,
     epochs: int = 15,
+    hidden: int = 64,
     serve_ui: Annotated[bool, tyro.conf.arg(name="serve")] = True,
 ) -> None:
     """Generate demo robot logs, ingest them, label a few segments, train both stages, serve the UI.
@@ -175,6 +176,9 @@ def demo(
         seed: Seed of the generator.
         seed_labels: Fraction of the time labelled from the demo's ground truth (0: a blank start, no training).
         epochs: Most epochs of stage 1: a quick start; `workbench train` does the full run.
+        hidden: LSTM width of both stages. Smaller than the paper's 200 so that training, scoring and a retrain
+            from the page take seconds to minutes on a laptop's CPU; `workbench train --hidden 200` gives the
+            paper's model.
         serve_ui: Serve the UI when ready (--no-serve: prepare the session and exit).
     """
     from .demo import generate_demo_logs
@@ -194,14 +198,14 @@ def demo(
             added = add_seed_labels(s, seed_labels, seed=seed)
             print(f"labelled {len(added)} segment(s) from the demo's ground truth ({seed_labels:.0%} of the time)")
         if added:
-            cli_model.train(session, stage="predictor", max_epochs=epochs, patience=max(3, epochs // 4))
+            cli_model.train(session, stage="predictor", max_epochs=epochs, patience=max(3, epochs // 4), hidden=hidden)
             if len({seg.terrain for seg in added}) >= 2:
                 # stage 2 on a few seconds of labels is cheap: let early stopping end it, not the quick-start cap
-                cli_model.train(session, stage="classifier", max_epochs=100, patience=20)
+                cli_model.train(session, stage="classifier", max_epochs=100, patience=20, hidden=hidden)
             else:
                 print("classifier: skipped (the seed labels cover fewer than two terrains)")
     if serve_ui:
-        serve(session, host=host, port=port)
+        serve(session, host=host, port=port, hidden=hidden)
 
 
 def labels() -> None:
