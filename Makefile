@@ -43,8 +43,11 @@ format: install
 stress: install browser
 	$(PY) -m pytest -m slow
 
+# every figure beside a reference measured in the same run; the table goes to benchmarks/results/bench-$(DEVICE).md
+DEVICE ?= cpu
 bench: install
-	@ls benchmarks/*.py >/dev/null 2>&1 && for f in benchmarks/bench_*.py; do $(PY) $$f || exit 1; done || echo "no benchmarks yet"
+	for f in benchmarks/bench_*.py; do $(PY) $$f --device $(DEVICE) || exit 1; done
+	$(PY) benchmarks/report.py $(DEVICE)
 
 # paper-scale evaluation runs (about an hour each on 2 cores); reports in benchmarks/results/
 paper: install

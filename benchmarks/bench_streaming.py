@@ -1,0 +1,108 @@
+"""Streaming: latency per sample of both stages for one robot, and throughput for 64 robots batched, on one core.
+
+Reference beside each: the naive runtime that calls ``nn.LSTM`` (and the heads) once per sample, as a first port of
+the offline model would. The paper's sizes: hidden 200 in both stages, a 5-member ensemble, 22 channels, 6 terrains.
+Correctness beside the timing: the streamed probabilities against the offline pass over the same log.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from common import Row, fmt_s, parse_args, record, timed
+
+from training import (
+    Classifier,
+    ClassifierConfig,
+    ModelBundle,
+    Normalizer,
+    Predictor,
+    PredictorConfig,
+    StreamingClassifier,
+    run_classifiers,
+    run_predictor,
+)
+
+C, K, HIDDEN, MEMBERS, RATE_HZ = 22, 6, 200, 5, 500.0
+
+
+def make_bundle(seed: int = 0) -> ModelBundle:
+    torch.manual_seed(seed)
+    predictor = Predictor(PredictorConfig(C, HIDDEN)).eval()
+    members = [Classifier(ClassifierConfig(HIDDEN, K, HIDDEN)).eval() for _ in range(MEMBERS)]
+    norm = Normalizer(np.zeros(C, np.float32), np.ones(C, np.float32))
+    return ModelBundle(predictor, norm, tuple(f"ch{i}" for i in range(C)), 100.0, members, tuple("abcdef"))
+
+
+class NaiveStream:
+    """Per sample: the predictor's ``nn.LSTM`` and head, then each member's ``nn.LSTM`` and head, as offline."""
+
+    def __init__(self, bundle: ModelBundle, streams: int) -> None:
+        self.b = bundle
+        self.state1 = None
+        self.state2 = [None] * len(bundle.classifiers)
+        self.streams = streams
+
+    @torch.inference_mode()
+    def step(self, x: np.ndarray) -> np.ndarray:
+        xt = torch.as_tensor(np.asarray(x, np.float32).reshape(self.streams, 1, -1))  # (B, 1, C)
+        z = (xt - torch.from_numpy(self.b.normalizer.mean)) / torch.from_numpy(self.b.normalizer.std)
+        _, hidden, self.state1 = self.b.predictor(z, self.state1)  # (B, 1, H)
+        probs = []
+        for m, member in enumerate(self.b.classifiers):
+            logits, self.state2[m] = member(hidden, self.state2[m])  # (B, 1, K)
+            probs.append(torch.softmax(logits, -1))
+        return torch.stack(probs).mean(0)[:, 0].numpy()  # (B, K)
+
+
+def step_times(runtime: StreamingClassifier | NaiveStream, samples: np.ndarray) -> np.ndarray:
+    """Seconds per ``step`` over ``samples (N, B, C)``, one sample per call, the first 10 untimed."""
+    it = iter(samples)
+    return timed(lambda: runtime.step(next(it)), repeat=len(samples) - 10, warmup=10)
+
+
+def main() -> None:
+    args = parse_args(__doc__)
+    if args.device != "cpu":
+        print("streaming runs on the robot's CPU: measured on cpu only")
+        return
+    torch.set_num_threads(1)  # one core, as on the robot
+    bundle = make_bundle()
+    rng = np.random.default_rng(0)
+    steps = 300 if args.quick else 3000
+    log = rng.normal(size=(steps, C)).astype(np.float32)
+
+    # correctness: streamed probabilities equal the offline pass over the whole log
+    stream = StreamingClassifier(bundle)
+    streamed = stream.run(log[:500])
+    feats = run_predictor(bundle.predictor, bundle.normalizer, [log[:500]])[0].features("hidden")
+    offline = run_classifiers(bundle.classifiers, [feats])[0].mean(0)  # (T, K)
+    max_diff = float(np.abs(streamed - offline).max())
+    agree = float((streamed.argmax(1) == offline.argmax(1)).mean())
+
+    rows = []
+    for streams in (1, 64):
+        fast = StreamingClassifier(bundle, streams=streams)
+        naive = NaiveStream(bundle, streams)
+        batch = rng.normal(size=(steps, streams, C)).astype(np.float32)
+        t_fast, t_naive = step_times(fast, batch), step_times(naive, batch)
+        med_f, p99_f, med_n = np.median(t_fast), np.percentile(t_fast, 99), np.median(t_naive)
+        if streams == 1:
+            rows.append(Row("streaming latency per sample, 1 stream, both stages (median / p99)",
+                            f"{fmt_s(med_f)} / {fmt_s(p99_f)}",
+                            f"nn.LSTM per sample: {fmt_s(med_n)} / {fmt_s(np.percentile(t_naive, 99))}",
+                            f"{med_n / med_f:.1f}× faster", "≤ 50 µs median, p99 ≤ 200 µs",
+                            bool(med_f <= 50e-6 and p99_f <= 200e-6),
+                            f"argmax = offline pass on {agree:.2%} of samples, max |Δp| {max_diff:.1e}"))  # fmt: skip
+        else:
+            hz = 1.0 / med_f  # steps per second of all streams at once
+            rows.append(Row(f"streaming throughput, {streams} robots batched, 1 core",
+                            f"{hz:.0f} Hz per robot ({streams} × {hz:.0f} samples/s)",
+                            f"nn.LSTM per sample: {1.0 / med_n:.0f} Hz per robot",
+                            f"{med_n / med_f:.1f}× faster", f"≥ {RATE_HZ:.0f} Hz per robot",
+                            bool(hz >= RATE_HZ), "same module as the 1-stream row"))  # fmt: skip
+    record("streaming", rows, device=args.device)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,34 @@
+"""Gather the rows every benchmark recorded into one Markdown table per device (``results/bench-<device>.md``)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+from common import RESULTS, Row, table
+
+
+def main(device: str = "cpu") -> int:
+    folder = RESULTS / device
+    files = sorted(folder.glob("*.json")) if folder.is_dir() else []
+    if not files:
+        print(f"no benchmark results in {folder}")
+        return 1
+    rows, meta = [], {}
+    for f in files:
+        data = json.loads(f.read_text())
+        rows += [Row(**r) for r in data["rows"]]
+        meta = data.get("meta", meta)
+    head = f"# Benchmarks on {device} ({meta.get('cpus', '?')} CPUs), {time.strftime('%Y-%m-%d')}\n\n"
+    text = head + table(rows) + "\n"
+    (RESULTS / f"bench-{device}.md").write_text(text)
+    print(text)
+    missed = [r.figure for r in rows if r.met is False]
+    if missed:
+        print("targets missed:\n" + "\n".join(f"- {m}" for m in missed))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(*sys.argv[1:2]))
