@@ -167,11 +167,10 @@ def suggest(
     cluster = np.full(len(cands), -1)
     if strategy == "combined" and embeddings is not None:
         emb, novelty = _novelty(cands, labelled, embeddings)
-        # informative, but not like what is labelled, and representative of many candidates (Zhdanov 2019:
-        # k-means weighted by informativeness over the top candidates, the member nearest each centre first)
-        # Before a classifier exists, typicality alone (TypiClust, Hacohen et al. 2022: with a tiny budget the
-        # typical member of each cluster beats informative outliers; surprise-weighted picks lost to random on
-        # BorealTC's first rounds)
+        # With a classifier: informative, unlike what is labelled, and representative of many candidates (Zhdanov
+        # 2019: k-means weighted by informativeness over the top candidates, the member nearest each centre first).
+        # Before one: typicality alone (TypiClust, Hacohen et al. 2022: with a tiny budget the typical member of each
+        # cluster beats informative outliers; surprise-weighted picks lost to random on BorealTC's first rounds).
         weight = (NOVELTY_FLOOR + base) * novelty if mean_probs is not None else novelty
         cluster, typical = _clusters(emb, weight, n, prefilter=mean_probs is not None, seed=seed)
         base = weight * typical
