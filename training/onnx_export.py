@@ -70,6 +70,6 @@ def run_onnx(path: str | Path, bundle: ModelBundle, samples: np.ndarray) -> np.n
 
 
 def check_onnx(path: str | Path, bundle: ModelBundle, samples: np.ndarray) -> float:
-    """Largest absolute difference between ONNX Runtime and the PyTorch streaming runtime over ``samples``."""
+    """Largest absolute difference between ONNX Runtime and the streaming runtime over ``samples``."""
     ours = StreamingClassifier(bundle).run(samples)
     return float(np.abs(run_onnx(path, bundle, samples) - ours).max())

@@ -1,7 +1,9 @@
 """Both stages one sample at a time, for the robot: the same numbers as the offline pass over a whole log.
 
-:class:`StepModel` is the one-step computation (stage-1 LSTM cell, features, every ensemble member's LSTM cell,
-mean probabilities). The streaming runtime runs it in PyTorch; the ONNX export is the same module, traced.
+:class:`StepModel` is the one-step computation in PyTorch (stage-1 LSTM cell, features, every ensemble member's LSTM
+cell, mean probabilities); the ONNX export is that module, traced. :class:`StreamingClassifier`, the runtime, computes
+the same step with fused weights in NumPy (:mod:`training.fused_step`), which is what a robot's loop wants: no
+operator dispatch per sample, no allocation.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ import torch
 from torch import nn
 
 from .bundle import ModelBundle
+from .fused_step import Bf16Step, FusedStep
 
 
 def _cell(x: torch.Tensor, h: torch.Tensor, c: torch.Tensor, w_ih, w_hh, b) -> tuple[torch.Tensor, torch.Tensor]:
@@ -75,37 +78,37 @@ class StepModel(nn.Module):
 class StreamingClassifier:
     """Class probabilities one sample at a time for ``streams`` independent streams (robots), state carried.
 
+    Runs :class:`~training.fused_step.FusedStep` (NumPy, fused weights): the same numbers as :class:`StepModel`
+    and the offline pass, several times faster per sample than stepping PyTorch modules.
+
     Example:
         >>> clf = StreamingClassifier(load_bundle("bundle"))
         >>> for sample in imu_and_force_samples:      # (C,) raw values in bundle.channels order
         ...     probs = clf.step(sample)             # (K,) in bundle.classes order
     """
 
-    def __init__(self, bundle: ModelBundle, *, streams: int = 1) -> None:
+    def __init__(self, bundle: ModelBundle, *, streams: int = 1, precision: str = "float32") -> None:
+        """
+        Args:
+            bundle: A bundle with a trained classifier.
+            streams: Independent streams stepped together (one row each).
+            precision: ``float32`` (the offline pass's numbers) or ``bfloat16`` products, about twice the
+                throughput for many streams at once on CPUs with AVX-512 BF16 (probabilities within ~1e-3).
+        """
+        if precision not in ("float32", "bfloat16"):
+            raise ValueError(f"precision must be float32 or bfloat16, not {precision!r}")
         self.bundle = bundle
-        self.model = StepModel(bundle).eval()
         self.streams = streams
-        self.reset()
+        self._step = FusedStep(bundle, streams=streams) if precision == "float32" else Bf16Step(bundle, streams=streams)
 
     def reset(self) -> None:
         """Forget every stream's past (a new log, a robot restarted)."""
-        b, m = self.streams, len(self.bundle.classifiers)
-        h1 = self.bundle.predictor.config.hidden
-        h2 = self.bundle.classifiers[0].config.hidden
-        c = len(self.bundle.channels)
-        self._state = [torch.zeros(b, h1), torch.zeros(b, h1), torch.zeros(m, b, h2), torch.zeros(m, b, h2),
-                       torch.zeros(b, c)]  # fmt: skip
-        self._started = torch.zeros(b, 1)
+        self._step.reset()
 
-    @torch.inference_mode()
     def step(self, x: np.ndarray) -> np.ndarray:
         """One raw sample per stream: ``(C,)`` -> ``(K,)`` or ``(B, C)`` -> ``(B, K)``."""
         single = np.ndim(x) == 1
-        xt = torch.as_tensor(np.asarray(x, np.float32).reshape(self.streams, -1))
-        probs, *state = self.model(xt, *self._state, self._started)
-        self._state = state
-        self._started = torch.ones_like(self._started)
-        out = probs.numpy()
+        out = self._step(np.asarray(x, np.float32).reshape(self.streams, -1)).copy()
         return out[0] if single else out
 
     def run(self, samples: np.ndarray) -> np.ndarray:

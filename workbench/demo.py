@@ -24,6 +24,7 @@ IMU_HZ = 100.0
 FOOT_HZ = 50.0
 MASS_KG = 12.0
 G = 9.81
+PATCH_SPREAD = 0.08  # lognormal spread of a patch's parameters around its terrain's: how much terrains overlap
 
 
 @dataclass(frozen=True)
@@ -40,12 +41,12 @@ class TerrainParams:
 
 
 TERRAIN_PARAMS: dict[str, TerrainParams] = {
-    "concrete": TerrainParams(0.010, 0.45, 0.00, 0.03, 32.0, 0.55, 0.020),
-    "grass": TerrainParams(0.030, 0.18, 0.20, 0.06, 14.0, 0.30, 0.032),
-    "gravel": TerrainParams(0.014, 0.32, 0.10, 0.11, 26.0, 0.95, 0.045),
-    "mulch": TerrainParams(0.040, 0.12, 0.35, 0.08, 9.0, 0.25, 0.042),
-    "dirt": TerrainParams(0.022, 0.26, 0.15, 0.05, 19.0, 0.42, 0.030),
-    "sand": TerrainParams(0.050, 0.06, 0.50, 0.13, 6.0, 0.18, 0.055),
+    "concrete": TerrainParams(0.008, 0.50, 0.00, 0.02, 34.0, 0.80, 0.015),
+    "grass": TerrainParams(0.030, 0.20, 0.25, 0.05, 14.0, 0.25, 0.030),
+    "gravel": TerrainParams(0.012, 0.35, 0.10, 0.14, 24.0, 1.40, 0.050),
+    "mulch": TerrainParams(0.045, 0.10, 0.40, 0.09, 8.0, 0.15, 0.045),
+    "dirt": TerrainParams(0.020, 0.28, 0.15, 0.035, 19.0, 0.45, 0.025),
+    "sand": TerrainParams(0.060, 0.04, 0.60, 0.18, 5.0, 0.10, 0.065),
 }
 
 
@@ -120,7 +121,7 @@ def generate_walk(seed: int, duration_s: float, *, t0: float = 1.7e9) -> Walk:
         patch_of[sl] = p
         base = TERRAIN_PARAMS[terrain]
         for k in fields:
-            par[k][sl] = getattr(base, k) * float(np.exp(rng.normal(0, 0.22)))
+            par[k][sl] = getattr(base, k) * float(np.exp(rng.normal(0, PATCH_SPREAD)))
     blend = int(0.4 * fs)  # terrain transitions take a stride or so
     par = {k: _smooth(v, blend) for k, v in par.items()}
 

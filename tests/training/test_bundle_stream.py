@@ -81,6 +81,18 @@ def test_streaming_equals_the_offline_pass(mode: str) -> None:
     np.testing.assert_allclose(out[:, 1], expected[1][:n], atol=1e-5)
 
 
+@pytest.mark.parametrize("mode", ["hidden", "hidden+error"])
+def test_bfloat16_streaming_stays_close_to_the_offline_pass(mode: str) -> None:
+    bundle, logs = tiny_bundle(mode)
+    expected = offline(bundle, logs)[0]
+    got = StreamingClassifier(bundle, precision="bfloat16").run(logs[0])
+    assert got.shape == expected.shape
+    assert np.abs(got - expected).max() < 2e-3  # bfloat16 keeps 8 bits of mantissa; measured ~1e-4
+    assert (got.argmax(1) == expected.argmax(1)).mean() > 0.95
+    with pytest.raises(ValueError, match="precision"):
+        StreamingClassifier(bundle, precision="int4")
+
+
 def test_onnx_matches_pytorch(tmp_path: Path) -> None:
     pytest.importorskip("onnxruntime")
     from training.onnx_export import check_onnx, export_onnx, run_onnx

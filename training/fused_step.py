@@ -1,0 +1,204 @@
+"""Both stages one sample at a time in NumPy, with the weights fused so a step is a handful of BLAS calls.
+
+The streaming runtime's hot loop. A per-sample step of PyTorch modules spends most of its time dispatching small
+operators (measured in ``benchmarks/bench_streaming.py``); here every step is two matrix products per stage into
+preallocated buffers and a few in-place ufuncs, with no allocation. The numbers are :class:`StepModel`'s (the ONNX
+export) to float32 rounding.
+
+Fusions, each exact up to rounding:
+- stage 1 reads ``[z, h1]`` from one buffer against ``[W_ih; W_hh]``, so input and recurrence are one product;
+- the ``g`` gate's rows are doubled, so one logistic over all gates gives ``tanh(g) = 2·σ(2g) − 1``;
+- every ensemble member's input weights sit side by side: the members' input gates are one product.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import expit
+
+from .bundle import ModelBundle
+
+
+def _np(t) -> np.ndarray:
+    return t.detach().cpu().numpy().astype(np.float32)
+
+
+def _double_g(w: np.ndarray, hidden: int) -> np.ndarray:
+    """Rows (or the last axis) of gates in PyTorch's order (i, f, g, o), with ``g`` doubled."""
+    w = w.copy()
+    w[..., 2 * hidden : 3 * hidden] *= 2.0
+    return w
+
+
+class FusedStep:
+    """One step of both stages for ``streams`` streams; the state lives inside.
+
+    Example:
+        >>> step = FusedStep(bundle, streams=1)
+        >>> probs = step(sample[None])   # (1, C) raw -> (1, K), a view valid until the next call
+    """
+
+    def __init__(self, bundle: ModelBundle, *, streams: int = 1) -> None:
+        if not bundle.classifiers:
+            raise ValueError("the bundle has no classifier: train stage 2 first")
+        p, cs = bundle.predictor, bundle.classifiers
+        self.mode = bundle.feature_mode
+        c, h1 = p.config.n_channels, p.config.hidden
+        m, h2, k = len(cs), cs[0].config.hidden, cs[0].config.n_classes
+        self.c, self.h1, self.m, self.h2, self.k, self.b = c, h1, m, h2, k, streams
+        self.mean = bundle.normalizer.mean.astype(np.float32)
+        self.inv_std = (1.0 / bundle.normalizer.std).astype(np.float32)
+        w_ih, w_hh = _np(p.lstm.weight_ih_l0), _np(p.lstm.weight_hh_l0)  # (4H1, C), (4H1, H1)
+        self.w1 = _double_g(np.concatenate([w_ih, w_hh], axis=1).T, h1).copy()  # (C + H1, 4H1)
+        self.b1 = _double_g(_np(p.lstm.bias_ih_l0 + p.lstm.bias_hh_l0), h1)  # (4H1,)
+        self.head_w, self.head_b = _np(p.head.weight).T.copy(), _np(p.head.bias)  # (H1, C), (C,)
+        # members side by side: column block j of w2 is member j's input weights
+        self.w2 = np.concatenate([_double_g(_np(x.lstm.weight_ih_l0).T, h2) for x in cs], axis=1)  # (F, M·4H2)
+        self.u2 = np.stack([_double_g(_np(x.lstm.weight_hh_l0).T, h2) for x in cs])  # (M, H2, 4H2)
+        self.b2 = np.stack([_double_g(_np(x.lstm.bias_ih_l0 + x.lstm.bias_hh_l0), h2) for x in cs])  # (M, 4H2)
+        self.out_w = np.stack([_np(x.head.weight).T for x in cs])  # (M, H2, K)
+        self.out_b = np.stack([_np(x.head.bias) for x in cs])[:, None, :]  # (M, 1, K)
+        self._buffers()
+        self.reset()
+
+    def _buffers(self) -> None:
+        b, c, h1, m, h2, k = self.b, self.c, self.h1, self.m, self.h2, self.k
+        self.u1 = np.zeros((b, c + h1), np.float32)  # [z, h1]: h1 is written in place for the next step
+        self.z, self.h = self.u1[:, :c], self.u1[:, c:]
+        self.c1 = np.zeros((b, h1), np.float32)
+        self.g1 = np.empty((b, 4 * h1), np.float32)
+        self.t1 = np.empty((b, h1), np.float32)
+        self.prev = np.zeros((b, c), np.float32)  # stage 1's estimate of this sample, from the step before
+        self.est = np.empty((b, c), np.float32)
+        self.err = np.empty((b, c), np.float32)
+        self.started = False
+        self.g2in = np.empty((b, m * 4 * h2), np.float32)
+        self.g2 = np.empty((m, b, 4 * h2), np.float32)
+        self.hh2 = np.zeros((m, b, h2), np.float32)
+        self.c2 = np.zeros((m, b, h2), np.float32)
+        self.t2 = np.empty((m, b, h2), np.float32)
+        self.logits = np.empty((m, b, k), np.float32)
+        self.probs = np.empty((b, k), np.float32)
+
+    def reset(self) -> None:
+        """Forget every stream's past."""
+        for a in (self.u1, self.c1, self.prev, self.hh2, self.c2):
+            a[...] = 0.0
+        self.started = False
+
+    @staticmethod
+    def _cell(g: np.ndarray, c: np.ndarray, h: np.ndarray, tmp: np.ndarray, hidden: int) -> None:
+        """In place: gates ``g (..., 4H)`` (``g`` rows doubled) -> new ``c`` and ``h`` ``(..., H)``."""
+        expit(g, out=g)
+        i, f = g[..., :hidden], g[..., hidden : 2 * hidden]
+        gg, o = g[..., 2 * hidden : 3 * hidden], g[..., 3 * hidden :]
+        gg *= 2.0
+        gg -= 1.0  # tanh of the undoubled gate
+        c *= f
+        np.multiply(i, gg, out=tmp)
+        c += tmp
+        np.tanh(c, out=tmp)
+        np.multiply(o, tmp, out=h)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """``(B, C)`` raw samples -> ``(B, K)`` ensemble-mean probabilities (a buffer overwritten by the next call)."""
+        np.subtract(x, self.mean, out=self.z)
+        self.z *= self.inv_std
+        np.matmul(self.u1, self.w1, out=self.g1)  # (B, 4H1): input and recurrence at once
+        self.g1 += self.b1
+        self._cell(self.g1, self.c1, self.h, self.t1, self.h1)
+        if self.mode == "hidden":
+            feats = self.h
+        else:
+            np.matmul(self.h, self.head_w, out=self.est)
+            self.est += self.head_b  # (B, C): estimate of the next sample
+            if self.started:
+                np.subtract(self.z, self.prev, out=self.err)
+            else:
+                self.err[...] = 0.0  # no estimate yet at a stream's first sample, as offline
+            self.prev[...] = self.est
+            feats = {"estimate": self.est, "error": self.err}.get(self.mode)
+            if feats is None:
+                feats = np.concatenate([self.h, self.err], axis=1)
+        self.started = True
+        np.matmul(feats, self.w2, out=self.g2in)  # (B, M·4H2): every member's input gates
+        np.matmul(self.hh2, self.u2, out=self.g2)  # (M, B, 4H2)
+        self.g2 += self.g2in.reshape(self.b, self.m, -1).transpose(1, 0, 2)
+        self.g2 += self.b2[:, None, :]
+        self._cell(self.g2, self.c2, self.hh2, self.t2, self.h2)
+        np.matmul(self.hh2, self.out_w, out=self.logits)  # (M, B, K)
+        self.logits += self.out_b
+        self.logits -= self.logits.max(axis=-1, keepdims=True)
+        np.exp(self.logits, out=self.logits)
+        self.logits /= self.logits.sum(axis=-1, keepdims=True)
+        np.mean(self.logits, axis=0, out=self.probs)
+        return self.probs
+
+
+class Bf16Step:
+    """:class:`FusedStep`'s computation in PyTorch with bfloat16 weights, for many streams at once.
+
+    With tens of robots a step is bound by arithmetic, not dispatch: 64 streams at the paper's sizes are ~230 MFLOP
+    per step, and 64 × 500 Hz needs ~115 GFLOP/s, above one core's float32 peak on the CPUs here. bfloat16 products
+    (AVX-512 BF16 through oneDNN) run at about twice float32's rate; the cell's state and nonlinearities stay float32.
+    Probabilities differ from float32 by ~1e-3 (reported beside the timing in ``benchmarks/bench_streaming.py``).
+    """
+
+    def __init__(self, bundle: ModelBundle, *, streams: int = 1) -> None:
+        import torch
+
+        self.torch = torch
+        f = FusedStep(bundle, streams=streams)  # the fused float32 weights, reused
+        self.f = f
+        bf = torch.bfloat16
+
+        def t(a: np.ndarray, dtype=torch.float32):
+            return torch.from_numpy(np.ascontiguousarray(a)).to(dtype)
+
+        self.mean, self.inv_std = t(f.mean), t(f.inv_std)
+        self.w1, self.b1 = t(f.w1, bf), t(f.b1)
+        self.head_w, self.head_b = t(f.head_w), t(f.head_b)
+        self.w2, self.u2, self.b2 = t(f.w2, bf), t(f.u2, bf), t(f.b2)[:, None, :]
+        self.out_w, self.out_b = t(f.out_w), t(f.out_b)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every stream's past."""
+        torch, f = self.torch, self.f
+        self.h1 = torch.zeros(f.b, f.h1)
+        self.c1 = torch.zeros(f.b, f.h1)
+        self.h2 = torch.zeros(f.m, f.b, f.h2)
+        self.c2 = torch.zeros(f.m, f.b, f.h2)
+        self.prev = torch.zeros(f.b, f.c)
+        self.started = False
+
+    @staticmethod
+    def _cell(g, c, hidden: int):
+        s = g.sigmoid()
+        i, f, gg, o = s.split(hidden, dim=-1)
+        c = f * c + i * (2.0 * gg - 1.0)
+        return o * c.tanh(), c
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """``(B, C)`` raw samples -> ``(B, K)`` ensemble-mean probabilities."""
+        torch, f = self.torch, self.f
+        bf = torch.bfloat16
+        with torch.inference_mode():
+            z = (torch.from_numpy(np.asarray(x, np.float32)) - self.mean) * self.inv_std  # (B, C)
+            g1 = (torch.cat([z, self.h1], dim=1).to(bf) @ self.w1).float() + self.b1  # (B, 4H1)
+            self.h1, self.c1 = self._cell(g1, self.c1, f.h1)
+            if f.mode == "hidden":
+                feats = self.h1
+            else:
+                est = self.h1 @ self.head_w + self.head_b  # (B, C)
+                err = z - self.prev if self.started else torch.zeros_like(z)
+                self.prev = est
+                feats = {"estimate": est, "error": err}.get(f.mode)
+                if feats is None:
+                    feats = torch.cat([self.h1, err], dim=1)
+            self.started = True
+            g2 = (feats.to(bf) @ self.w2).float().view(f.b, f.m, -1).transpose(0, 1)  # (M, B, 4H2)
+            g2 = g2 + torch.bmm(self.h2.to(bf), self.u2).float() + self.b2
+            self.h2, self.c2 = self._cell(g2, self.c2, f.h2)
+            logits = torch.bmm(self.h2, self.out_w) + self.out_b  # (M, B, K)
+            return logits.softmax(-1).mean(0).numpy()
