@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-from threadpoolctl import threadpool_limits
 from common import Row, fmt_s, parse_args, record, timed
+from threadpoolctl import threadpool_limits
 
 from training import (
     Classifier,
