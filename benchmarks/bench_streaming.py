@@ -23,6 +23,7 @@ from training import (
     run_classifiers,
     run_predictor,
 )
+from training.fused_step import FusedStep
 
 C, K, HIDDEN, MEMBERS, RATE_HZ = 22, 6, 200, 5, 500.0
 
@@ -103,7 +104,27 @@ def main() -> None:
                             f"nn.LSTM per sample: {1.0 / med_n:.0f} Hz per robot",
                             f"{med_n / med_f:.1f}× faster", f"≥ {RATE_HZ:.0f} Hz per robot",
                             bool(hz >= RATE_HZ), agreement(precision)))  # fmt: skip
+    rows.append(products_alone(bundle, rng))
     record("streaming", rows, device=args.device)
+
+
+def products_alone(bundle: ModelBundle, rng: np.random.Generator) -> Row:
+    """The profile of a 1-stream float32 step: its three matrix products alone, against the whole step."""
+    step = FusedStep(bundle, streams=1)
+    x = rng.normal(size=(1, C)).astype(np.float32)
+    weights = sum(a.nbytes for a in (step.w1, step.w2, step.u2, step.out_w))
+
+    def products() -> None:
+        np.matmul(step.u1, step.w1, out=step.g1)
+        np.matmul(step.h, step.w2, out=step.g2in)
+        np.matmul(step.hh2, step.u2, out=step.g2)
+
+    with threadpool_limits(1):
+        t_prod = np.median(timed(products, repeat=2000, warmup=50))
+        t_step = np.median(timed(lambda: step(x), repeat=2000, warmup=50))
+    return Row("profile: a 1-stream float32 step's three matrix products alone (median)", fmt_s(t_prod),
+               f"the whole step: {fmt_s(t_step)}", f"{t_prod / t_step:.0%} of the step",
+               f"{weights / 1e6:.1f} MB of weights read per step: {weights / t_prod / 1e9:.0f} GB/s", None)  # fmt: skip
 
 
 if __name__ == "__main__":

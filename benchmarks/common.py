@@ -54,6 +54,20 @@ def parse_args(doc: str | None) -> argparse.Namespace:
     return p.parse_args()
 
 
+def qcat_like(n_seq: int, seed: int = 0) -> list[np.ndarray]:
+    """The issues' reference workload: ``n_seq`` sequences of 100–660 samples × 22 channels (forces, gyro, accel,
+    quaternion), sliced from one demo walk (2,880 of them ≈ 1 M timesteps, QCAT's scale)."""
+    from workbench.demo import generate_walk
+
+    rng = np.random.default_rng(seed)
+    lengths = rng.integers(100, 661, n_seq)
+    walk = generate_walk(seed, float(lengths.sum()) / 100.0 + 10.0)
+    x = np.concatenate([walk.forces.reshape(len(walk.times), -1), walk.gyro, walk.accel, walk.quat], 1)
+    x = x.astype(np.float32)
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    return [x[a : a + n] for a, n in zip(starts, lengths, strict=True)]
+
+
 def timed(fn: Callable[[], object], *, repeat: int, warmup: int = 3) -> np.ndarray:
     """Seconds per call of ``fn`` over ``repeat`` calls after ``warmup`` untimed ones: ``(repeat,)``."""
     for _ in range(warmup):

@@ -139,7 +139,8 @@ def fit_predictor(
                 report(epoch, step, total / max(count, 1))
         model.eval()
         with torch.inference_mode():
-            vs = [_run_batch(model, *batch, config.chunk, optimizer=None, config=config) for batch in val_batches]
+            # no backward pass: one call over the whole length carries the state as the chunks would, faster
+            vs = [_run_batch(model, *batch, length, optimizer=None, config=config) for batch in val_batches]
         val_loss = sum(s for s, _ in vs) / max(sum(n for _, n in vs), 1)
         history.append({"epoch": epoch, "train_loss": total / max(count, 1), "val_loss": val_loss})
         if val_loss < best - 1e-6:
