@@ -140,8 +140,9 @@ class Bf16Step:
 
     With tens of robots a step is bound by arithmetic, not dispatch: 64 streams at the paper's sizes are ~230 MFLOP
     per step, and 64 × 500 Hz needs ~115 GFLOP/s, above one core's float32 peak on the CPUs here. bfloat16 products
-    (AVX-512 BF16 through oneDNN) run at about twice float32's rate; the cell's state and nonlinearities stay float32.
-    Probabilities differ from float32 by ~1e-3 (reported beside the timing in ``benchmarks/bench_streaming.py``).
+    (AVX-512 BF16 through oneDNN) measured 1.7× float32's throughput for 64 streams; the cell's state and
+    nonlinearities stay float32. Probabilities moved by up to ~1e-4 in the tests and the benchmark (reported beside
+    the timing in ``benchmarks/bench_streaming.py``).
     """
 
     def __init__(self, bundle: ModelBundle, *, streams: int = 1) -> None:
