@@ -13,6 +13,8 @@ Fusions, each exact up to rounding:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.special import expit
 
@@ -30,6 +32,57 @@ def _double_g(w: np.ndarray, hidden: int) -> np.ndarray:
     return w
 
 
+@dataclass(frozen=True)
+class FusedWeights:
+    """Both stages' weights laid out for a fused step (float32; ``g`` gate rows doubled)."""
+
+    mode: str
+    c: int
+    h1: int
+    m: int
+    h2: int
+    k: int
+    mean: np.ndarray  # (C,)
+    inv_std: np.ndarray  # (C,)
+    w1: np.ndarray  # (C + H1, 4H1): [W_ih; W_hh] of stage 1, transposed
+    b1: np.ndarray  # (4H1,)
+    head_w: np.ndarray  # (H1, C)
+    head_b: np.ndarray  # (C,)
+    w2: np.ndarray  # (F, M·4H2): column block j is member j's input weights
+    u2: np.ndarray  # (M, H2, 4H2)
+    b2: np.ndarray  # (M, 4H2)
+    out_w: np.ndarray  # (M, H2, K)
+    out_b: np.ndarray  # (M, 1, K)
+
+
+def fuse_weights(bundle: ModelBundle) -> FusedWeights:
+    """The bundle's weights in the fused layout (raises ``ValueError`` without a classifier)."""
+    if not bundle.classifiers:
+        raise ValueError("the bundle has no classifier: train stage 2 first")
+    p, cs = bundle.predictor, bundle.classifiers
+    h1, h2 = p.config.hidden, cs[0].config.hidden
+    w_ih, w_hh = _np(p.lstm.weight_ih_l0), _np(p.lstm.weight_hh_l0)  # (4H1, C), (4H1, H1)
+    return FusedWeights(
+        mode=bundle.feature_mode,
+        c=p.config.n_channels,
+        h1=h1,
+        m=len(cs),
+        h2=h2,
+        k=cs[0].config.n_classes,
+        mean=bundle.normalizer.mean.astype(np.float32),
+        inv_std=(1.0 / bundle.normalizer.std).astype(np.float32),
+        w1=_double_g(np.concatenate([w_ih, w_hh], axis=1).T, h1).copy(),
+        b1=_double_g(_np(p.lstm.bias_ih_l0 + p.lstm.bias_hh_l0), h1),
+        head_w=_np(p.head.weight).T.copy(),
+        head_b=_np(p.head.bias),
+        w2=np.concatenate([_double_g(_np(x.lstm.weight_ih_l0).T, h2) for x in cs], axis=1),
+        u2=np.stack([_double_g(_np(x.lstm.weight_hh_l0).T, h2) for x in cs]),
+        b2=np.stack([_double_g(_np(x.lstm.bias_ih_l0 + x.lstm.bias_hh_l0), h2) for x in cs]),
+        out_w=np.stack([_np(x.head.weight).T for x in cs]),
+        out_b=np.stack([_np(x.head.bias) for x in cs])[:, None, :],
+    )
+
+
 class FusedStep:
     """One step of both stages for ``streams`` streams; the state lives inside.
 
@@ -39,25 +92,12 @@ class FusedStep:
     """
 
     def __init__(self, bundle: ModelBundle, *, streams: int = 1) -> None:
-        if not bundle.classifiers:
-            raise ValueError("the bundle has no classifier: train stage 2 first")
-        p, cs = bundle.predictor, bundle.classifiers
-        self.mode = bundle.feature_mode
-        c, h1 = p.config.n_channels, p.config.hidden
-        m, h2, k = len(cs), cs[0].config.hidden, cs[0].config.n_classes
-        self.c, self.h1, self.m, self.h2, self.k, self.b = c, h1, m, h2, k, streams
-        self.mean = bundle.normalizer.mean.astype(np.float32)
-        self.inv_std = (1.0 / bundle.normalizer.std).astype(np.float32)
-        w_ih, w_hh = _np(p.lstm.weight_ih_l0), _np(p.lstm.weight_hh_l0)  # (4H1, C), (4H1, H1)
-        self.w1 = _double_g(np.concatenate([w_ih, w_hh], axis=1).T, h1).copy()  # (C + H1, 4H1)
-        self.b1 = _double_g(_np(p.lstm.bias_ih_l0 + p.lstm.bias_hh_l0), h1)  # (4H1,)
-        self.head_w, self.head_b = _np(p.head.weight).T.copy(), _np(p.head.bias)  # (H1, C), (C,)
-        # members side by side: column block j of w2 is member j's input weights
-        self.w2 = np.concatenate([_double_g(_np(x.lstm.weight_ih_l0).T, h2) for x in cs], axis=1)  # (F, M·4H2)
-        self.u2 = np.stack([_double_g(_np(x.lstm.weight_hh_l0).T, h2) for x in cs])  # (M, H2, 4H2)
-        self.b2 = np.stack([_double_g(_np(x.lstm.bias_ih_l0 + x.lstm.bias_hh_l0), h2) for x in cs])  # (M, 4H2)
-        self.out_w = np.stack([_np(x.head.weight).T for x in cs])  # (M, H2, K)
-        self.out_b = np.stack([_np(x.head.bias) for x in cs])[:, None, :]  # (M, 1, K)
+        w = fuse_weights(bundle)
+        self.w = w  # fields copied onto self below: the hot path reads them once per step without an indirection
+        self.mode, self.c, self.h1, self.m, self.h2, self.k, self.b = w.mode, w.c, w.h1, w.m, w.h2, w.k, streams
+        self.mean, self.inv_std, self.w1, self.b1 = w.mean, w.inv_std, w.w1, w.b1
+        self.head_w, self.head_b = w.head_w, w.head_b
+        self.w2, self.u2, self.b2, self.out_w, self.out_b = w.w2, w.u2, w.b2, w.out_w, w.out_b
         self._buffers()
         self.reset()
 
@@ -149,8 +189,8 @@ class Bf16Step:
         import torch
 
         self.torch = torch
-        f = FusedStep(bundle, streams=streams)  # the fused float32 weights, reused
-        self.f = f
+        self.streams = streams
+        f = self.f = fuse_weights(bundle)
         bf = torch.bfloat16
 
         def t(a: np.ndarray, dtype=torch.float32):
@@ -165,12 +205,12 @@ class Bf16Step:
 
     def reset(self) -> None:
         """Forget every stream's past."""
-        torch, f = self.torch, self.f
-        self.h1 = torch.zeros(f.b, f.h1)
-        self.c1 = torch.zeros(f.b, f.h1)
-        self.h2 = torch.zeros(f.m, f.b, f.h2)
-        self.c2 = torch.zeros(f.m, f.b, f.h2)
-        self.prev = torch.zeros(f.b, f.c)
+        torch, f, b = self.torch, self.f, self.streams
+        self.h1 = torch.zeros(b, f.h1)
+        self.c1 = torch.zeros(b, f.h1)
+        self.h2 = torch.zeros(f.m, b, f.h2)
+        self.c2 = torch.zeros(f.m, b, f.h2)
+        self.prev = torch.zeros(b, f.c)
         self.started = False
 
     @staticmethod
@@ -198,7 +238,7 @@ class Bf16Step:
                 if feats is None:
                     feats = torch.cat([self.h1, err], dim=1)
             self.started = True
-            g2 = (feats.to(bf) @ self.w2).float().view(f.b, f.m, -1).transpose(0, 1)  # (M, B, 4H2)
+            g2 = (feats.to(bf) @ self.w2).float().view(self.streams, f.m, -1).transpose(0, 1)  # (M, B, 4H2)
             g2 = g2 + torch.bmm(self.h2.to(bf), self.u2).float() + self.b2
             self.h2, self.c2 = self._cell(g2, self.c2, f.h2)
             logits = torch.bmm(self.h2, self.out_w) + self.out_b  # (M, B, K)
