@@ -122,7 +122,11 @@ def load_bundle(directory: str | Path) -> ModelBundle:
             for i in range(int(cfg["n_folds"])):
                 model = Classifier(ClassifierConfig(**cfg["classifier"]))
                 prefix = f"fold{i}."
-                model.load_state_dict({k[len(prefix) :]: v for k, v in weights.items() if k.startswith(prefix)})
+                state = {k[len(prefix) :]: v for k, v in weights.items() if k.startswith(prefix)}
+                for key, value in model.state_dict().items():
+                    if key.startswith("in_"):  # bundles from before the input standardisation: identity
+                        state.setdefault(key, value)
+                model.load_state_dict(state)
                 classifiers.append(model.eval())
     except (OSError, KeyError, TypeError, RuntimeError, ValueError, SafetensorError) as exc:
         raise BundleError(f"{directory}: damaged model bundle ({type(exc).__name__}: {exc})") from None

@@ -11,8 +11,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Literal
 
-FeatureMode = Literal["hidden", "estimate", "error", "hidden+error"]
-FEATURE_MODES: tuple[FeatureMode, ...] = ("hidden", "estimate", "error", "hidden+error")
+FeatureMode = Literal["hidden", "estimate", "error", "hidden+error", "surprise", "hidden+surprise"]
+FEATURE_MODES: tuple[FeatureMode, ...] = ("hidden", "estimate", "error", "hidden+error", "surprise", "hidden+surprise")
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ from .config import ClassifierConfig, TrainConfig
 from .data import Piece, labelled_pieces, stage2_batch
 from .losses import classifier_loss, masked_cross_entropy
 from .metrics import classification_metrics
-from .models import Classifier
+from .models import Classifier, feature_moments
 from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
 
 Segment = tuple[int, int, int, int]  # (log index, start, stop, class index)
@@ -108,7 +108,8 @@ def fit_classifier(
     """Train the k fold models on labelled segments of frozen stage-1 features.
 
     Args:
-        features: Per log, ``(T, F)`` stage-1 features (from the cache).
+        features: Per log, ``(T, F)`` stage-1 features (from the cache). The classifier standardises its inputs
+            with their moments over all of these, labelled or not.
         segments: Labelled stretches ``(log index, start, stop, class index)``.
         classes: The ``K`` class names.
         config: Training settings; ``k_folds`` folds over segments.
@@ -130,6 +131,7 @@ def fit_classifier(
     dev = config.device
     cfg = ClassifierConfig(features[0].shape[1], len(classes), hidden, dropout)
     folds = fold_indices([s[3] for s in segments], config.k_folds, config.seed)
+    moments = feature_moments(features)  # over every log given, labelled or not: no labels needed
     models, histories, oof_true, oof_pred = [], [], [], []
     t0 = time.monotonic()
     for f_i, (train_idx, val_idx) in enumerate(folds, start=1):
@@ -142,6 +144,7 @@ def fit_classifier(
         model = Classifier(cfg)
         if init is not None and len(init) >= f_i and init[f_i - 1].config == cfg:
             model.load_state_dict(init[f_i - 1].state_dict())
+        model.set_standardisation(*moments)
         model.to(dev)
         optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
         n_pieces = len(random_crops(train_segments, config, rng))

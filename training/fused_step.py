@@ -62,6 +62,7 @@ def fuse_weights(bundle: ModelBundle) -> FusedWeights:
     p, cs = bundle.predictor, bundle.classifiers
     h1, h2 = p.config.hidden, cs[0].config.hidden
     w_ih, w_hh = _np(p.lstm.weight_ih_l0), _np(p.lstm.weight_hh_l0)  # (4H1, C), (4H1, H1)
+    folded = [x.folded_input() for x in cs]  # stage 2's input standardisation in its weights
     return FusedWeights(
         mode=bundle.feature_mode,
         c=p.config.n_channels,
@@ -75,9 +76,9 @@ def fuse_weights(bundle: ModelBundle) -> FusedWeights:
         b1=_double_g(_np(p.lstm.bias_ih_l0 + p.lstm.bias_hh_l0), h1),
         head_w=_np(p.head.weight).T.copy(),
         head_b=_np(p.head.bias),
-        w2=np.concatenate([_double_g(_np(x.lstm.weight_ih_l0).T, h2) for x in cs], axis=1),
+        w2=np.concatenate([_double_g(_np(w).T, h2) for w, _ in folded], axis=1),
         u2=np.stack([_double_g(_np(x.lstm.weight_hh_l0).T, h2) for x in cs]),
-        b2=np.stack([_double_g(_np(x.lstm.bias_ih_l0 + x.lstm.bias_hh_l0), h2) for x in cs]),
+        b2=np.stack([_double_g(_np(b), h2) for _, b in folded]),
         out_w=np.stack([_np(x.head.weight).T for x in cs]),
         out_b=np.stack([_np(x.head.bias) for x in cs])[:, None, :],
     )
@@ -157,7 +158,9 @@ class FusedStep:
             else:
                 self.err[...] = 0.0  # no estimate yet at a stream's first sample, as offline
             self.prev[...] = self.est
-            feats = {"estimate": self.est, "error": self.err}.get(self.mode)
+            if self.mode.endswith("surprise"):
+                np.abs(self.err, out=self.err)
+            feats = {"estimate": self.est, "error": self.err, "surprise": self.err}.get(self.mode)
             if feats is None:
                 feats = np.concatenate([self.h, self.err], axis=1)
         self.started = True
@@ -234,7 +237,9 @@ class Bf16Step:
                 est = self.h1 @ self.head_w + self.head_b  # (B, C)
                 err = z - self.prev if self.started else torch.zeros_like(z)
                 self.prev = est
-                feats = {"estimate": est, "error": err}.get(f.mode)
+                if f.mode.endswith("surprise"):
+                    err = err.abs()
+                feats = {"estimate": est, "error": err, "surprise": err}.get(f.mode)
                 if feats is None:
                     feats = torch.cat([self.h1, err], dim=1)
             self.started = True

@@ -46,9 +46,10 @@ class StepModel(nn.Module):
         self.register_buffer("head_w", p.head.weight.detach().clone())
         self.register_buffer("head_b", p.head.bias.detach().clone())
         cs = bundle.classifiers
-        self.register_buffer("w2_ih", torch.stack([m.lstm.weight_ih_l0.detach() for m in cs]))  # (M, 4H, F)
+        folded = [m.folded_input() for m in cs]  # input standardisation folded into the weights
+        self.register_buffer("w2_ih", torch.stack([w for w, _ in folded]))  # (M, 4H, F)
         self.register_buffer("w2_hh", torch.stack([m.lstm.weight_hh_l0.detach() for m in cs]))  # (M, 4H, H)
-        self.register_buffer("b2", torch.stack([(m.lstm.bias_ih_l0 + m.lstm.bias_hh_l0).detach() for m in cs]))
+        self.register_buffer("b2", torch.stack([b for _, b in folded]))  # (M, 4H)
         self.register_buffer("out_w", torch.stack([m.head.weight.detach() for m in cs]))  # (M, K, H)
         self.register_buffer("out_b", torch.stack([m.head.bias.detach() for m in cs]))  # (M, K)
 
@@ -63,6 +64,10 @@ class StepModel(nn.Module):
             feats = estimate
         elif self.mode == "error":
             feats = error
+        elif self.mode == "surprise":
+            feats = error.abs()
+        elif self.mode == "hidden+surprise":
+            feats = torch.cat([h1, error.abs()], dim=-1)
         else:
             feats = torch.cat([h1, error], dim=-1)
         gates = torch.einsum("bf,mgf->mbg", feats, self.w2_ih) + torch.einsum("mbh,mgh->mbg", h2, self.w2_hh)

@@ -45,7 +45,7 @@ def train(
     device: Literal["cpu", "cuda"] = "cpu",
     max_epochs: int = 300,
     patience: int = 20,
-    feature_mode: FeatureMode = "hidden",
+    feature_mode: FeatureMode = "hidden+surprise",
     hidden: int = 200,
 ) -> None:
     """Train the predictor (stage 1, all logs, no labels) and/or the classifier (stage 2, labelled segments).
@@ -164,6 +164,7 @@ def evaluate(
     seeds: int = 3,
     rounds: int = 8,
     batch: int = 4,
+    feature_mode: FeatureMode = "hidden+surprise",
 ) -> None:
     """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
 
@@ -189,11 +190,13 @@ def evaluate(
         seeds: Seeds per strategy (BorealTC: seed s uses outer fold s + 1).
         rounds: Rounds of labelling, each followed by a retrain.
         batch: Suggestions labelled per round.
+        feature_mode: With --simulate: what stage 1 hands stage 2.
     """
     from . import evaluate as ev
 
     if simulate:
-        print(ev.simulate(dataset, folder, strategies=strategies, seeds=seeds, rounds=rounds, batch=batch, out=out))
+        print(ev.simulate(dataset, folder, strategies=strategies, seeds=seeds, rounds=rounds, batch=batch, out=out,
+                          feature_mode=feature_mode))  # fmt: skip
         return
 
     if dataset == "borealtc":

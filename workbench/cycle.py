@@ -123,7 +123,7 @@ def train_classifier(
     session: Session,
     *,
     config: TrainConfig | None = None,
-    feature_mode: FeatureMode = "hidden",
+    feature_mode: FeatureMode = "hidden+surprise",
     hidden: int = 200,
     warm_start: bool = True,
     progress: ProgressFn | None = None,

@@ -12,7 +12,7 @@ import numpy as np
 
 from sessions import IngestError, IngestOptions, WorkbenchError
 from sessions.ingest import align, plan_sources, read_source
-from training.config import FEATURE_MODES, TrainConfig
+from training.config import FEATURE_MODES, FeatureMode, TrainConfig
 from training.evaluate import FoldResult, borealtc_protocol
 
 BOREALTC_PUBLISHED = {"CNN (spectrograms)": 93.96, "Mamba": 93.51, "LSTM": 82.47, "SVM": 78.04}
@@ -214,6 +214,7 @@ def simulate(
     rounds: int,
     batch: int,
     out: Path | None,
+    feature_mode: FeatureMode = "hidden+surprise",
 ) -> str:
     """The label-efficiency simulation on ``folder`` (see :mod:`workbench.simulate`)."""
     from labeling import STRATEGIES
@@ -223,7 +224,9 @@ def simulate(
     unknown = [s for s in strategies if s not in STRATEGIES]
     if unknown:
         raise WorkbenchError(f"unknown strategy {', '.join(unknown)}; choose from {', '.join(STRATEGIES)}")
-    settings = SimSettings(strategies=tuple(strategies), seeds=seeds, rounds=rounds, batch=batch)
+    settings = SimSettings(
+        strategies=tuple(strategies), seeds=seeds, rounds=rounds, batch=batch, feature_mode=feature_mode
+    )
     recs, notes = load_recordings(folder)
     for n in notes:
         print(n)

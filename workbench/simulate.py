@@ -15,7 +15,7 @@ import numpy as np
 from sklearn.model_selection import StratifiedKFold
 
 import labeling
-from training.config import TrainConfig
+from training.config import FeatureMode, TrainConfig
 from training.evaluate import partitions, windows
 from training.fit_classifier import fit_classifier
 from training.fit_predictor import fit_predictor
@@ -35,6 +35,7 @@ class SimSettings:
     stage1_epochs: int = 20
     stage2_epochs: int = 40
     folds: int = 3  # ensemble members (disagreement needs more than one)
+    feature_mode: FeatureMode = "hidden+surprise"  # what stage 1 hands stage 2 (and the suggestions' embeddings)
 
 
 class FeatureLearner:
@@ -122,9 +123,9 @@ def simulate_logs(
     """Demo-style logs with per-sample truth: a third of the logs held out, suggestions of 1–5 s on the rest."""
     cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0)
     pfit = fit_predictor(list(logs), config=cfg1, hidden=settings.hidden)
-    log(f"stage 1 on {len(logs)} logs (no labels): {len(pfit.history)} epochs")
+    log(f"stage 1 on {len(logs)} logs (no labels): {len(pfit.history)} epochs; stage 2 on {settings.feature_mode}")
     outs = run_predictor(pfit.model, pfit.normalizer, list(logs))
-    feats = [o.features("hidden") for o in outs]
+    feats = [o.features(settings.feature_mode) for o in outs]
     errors = [np.square(o.error).mean(1) for o in outs]
     order = np.random.default_rng(0).permutation(len(logs))
     test = np.sort(order[: max(1, len(logs) // 3)])
@@ -170,9 +171,12 @@ def simulate_partitions(
     parts, y, _ = partitions(runs, labels, size)
     cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, piece=size)
     pfit = fit_predictor(parts, config=cfg1, hidden=settings.hidden)
-    log(f"stage 1 on all {len(parts)} partitions (no labels): {len(pfit.history)} epochs")
+    log(
+        f"stage 1 on all {len(parts)} partitions (no labels): {len(pfit.history)} epochs; "
+        f"stage 2 on {settings.feature_mode}"
+    )
     outs = run_predictor(pfit.model, pfit.normalizer, parts, batch=512)
-    feats = [o.features("hidden") for o in outs]
+    feats = [o.features(settings.feature_mode) for o in outs]
     errors = [np.square(o.error).mean(1) for o in outs]
     folds = list(StratifiedKFold(5, shuffle=True, random_state=0).split(np.zeros(len(y)), y))
     cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=8, k_folds=settings.folds, context=0,
@@ -183,7 +187,7 @@ def simulate_partitions(
         # zero-state windows, as the test windows are classified (see training.evaluate)
         if i not in window_cache:
             w, _ = windows([parts[i]], win, round(0.5 * rate_hz))
-            window_cache[i] = [o.features("hidden") for o in run_predictor(pfit.model, pfit.normalizer, w)]
+            window_cache[i] = [o.features(settings.feature_mode) for o in run_predictor(pfit.model, pfit.normalizer, w)]
         return window_cache[i]
 
     test_cache: dict[int, tuple[list[np.ndarray], np.ndarray]] = {}
@@ -193,7 +197,7 @@ def simulate_partitions(
         if fold not in test_cache:
             test_w, owner = windows([parts[i] for i in folds[fold][1]], win, round(0.5 * rate_hz))
             outs_w = run_predictor(pfit.model, pfit.normalizer, test_w, batch=512)
-            test_cache[fold] = [o.features("hidden") for o in outs_w], y[folds[fold][1]][owner]
+            test_cache[fold] = [o.features(settings.feature_mode) for o in outs_w], y[folds[fold][1]][owner]
         return test_cache[fold]
 
     def learner(seed: int) -> FeatureLearner:

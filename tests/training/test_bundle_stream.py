@@ -22,8 +22,10 @@ def tiny_bundle(mode: str = "hidden", seed: int = 0) -> tuple[ModelBundle, list[
     rng = np.random.default_rng(seed)
     logs = [rng.normal(5.0, 2.0, size=(n, 3)).astype(np.float32) for n in (120, 77)]
     pred = Predictor(PredictorConfig(3, 8)).eval()
-    n_feat = {"hidden": 8, "estimate": 3, "error": 3, "hidden+error": 11}[mode]
+    n_feat = {"hidden": 8, "estimate": 3, "error": 3, "hidden+error": 11, "surprise": 3, "hidden+surprise": 11}[mode]
     clfs = [Classifier(ClassifierConfig(n_feat, 4, 6, 0.2)).eval() for _ in range(3)]
+    for c in clfs:  # a standardisation that is not the identity, so every path must apply it
+        c.set_standardisation(rng.normal(0.0, 0.5, n_feat), rng.uniform(0.2, 3.0, n_feat))
     bundle = ModelBundle(pred, Normalizer.fit(logs), ("a", "b", "c"), 100.0, clfs, ("w", "x", "y", "z"), mode,
                          {"accuracy": 0.5}, {"note": "tiny"})  # fmt: skip
     return bundle, logs
@@ -50,6 +52,20 @@ def test_bundle_round_trip_is_exact_and_pickle_free(tmp_path: Path) -> None:
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".tmp")]
 
 
+def test_bundles_from_before_the_input_standardisation_load_as_identity(tmp_path: Path) -> None:
+    from safetensors.torch import load_file, save_file
+
+    bundle, logs = tiny_bundle()
+    for c in bundle.classifiers:
+        c.set_standardisation(np.zeros(8), np.ones(8))
+    path = save_bundle(bundle, tmp_path / "old")
+    weights = load_file(path / "classifier.safetensors")
+    save_file({k: v for k, v in weights.items() if ".in_" not in k}, path / "classifier.safetensors")
+    again = load_bundle(path)
+    for a, b in zip(offline(bundle, logs), offline(again, logs), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_damaged_or_newer_bundles_are_refused(tmp_path: Path) -> None:
     bundle, _ = tiny_bundle()
     path = save_bundle(bundle, tmp_path / "v1")
@@ -66,7 +82,7 @@ def test_damaged_or_newer_bundles_are_refused(tmp_path: Path) -> None:
         load_bundle(tmp_path)
 
 
-@pytest.mark.parametrize("mode", ["hidden", "estimate", "error", "hidden+error"])
+@pytest.mark.parametrize("mode", ["hidden", "estimate", "error", "hidden+error", "surprise", "hidden+surprise"])
 def test_streaming_equals_the_offline_pass(mode: str) -> None:
     bundle, logs = tiny_bundle(mode)
     expected = offline(bundle, logs)
@@ -81,7 +97,7 @@ def test_streaming_equals_the_offline_pass(mode: str) -> None:
     np.testing.assert_allclose(out[:, 1], expected[1][:n], atol=1e-5)
 
 
-@pytest.mark.parametrize("mode", ["hidden", "hidden+error"])
+@pytest.mark.parametrize("mode", ["hidden", "hidden+error", "surprise", "hidden+surprise"])
 def test_bfloat16_streaming_stays_close_to_the_offline_pass(mode: str) -> None:
     bundle, logs = tiny_bundle(mode)
     expected = offline(bundle, logs)[0]
@@ -97,7 +113,7 @@ def test_onnx_matches_pytorch(tmp_path: Path) -> None:
     pytest.importorskip("onnxruntime")
     from training.onnx_export import check_onnx, export_onnx, run_onnx
 
-    bundle, logs = tiny_bundle("hidden+error")
+    bundle, logs = tiny_bundle("surprise")
     path = export_onnx(bundle, tmp_path / "classifier.onnx")
     assert check_onnx(path, bundle, logs[0]) < 1e-4
     np.testing.assert_allclose(run_onnx(path, bundle, logs[1]), offline(bundle, [logs[1]])[0], atol=1e-4)
