@@ -4,6 +4,7 @@ stage-1 features for diversity, and change points for snapping. Composes ``sessi
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,7 +28,8 @@ class SessionScores:
         scores: Per log, ``labeling.LogScores`` (``(T,)`` surprise; ``(T, K)`` probs and ``(T,)`` disagreement
             once a classifier exists).
         tracks: Per log, the session-normalised, smoothed tracks in ``[0, 1]`` by kind.
-        embeddings: Per log, ``(T, H)`` stage-1 hidden state (float16), for diverse suggestions.
+        embeddings: Per log, ``(T, H + C)`` stage-1 hidden state and surprise ``|x_t − x̂_t|`` (float16), for
+            typical and diverse suggestions: what the label-efficiency simulation measured them with.
     """
 
     predictor: int | None = None
@@ -38,13 +40,22 @@ class SessionScores:
     embeddings: dict[int, np.ndarray] = field(default_factory=dict)
 
 
-def compute_scores(session: Session, *, window: int = 25) -> SessionScores:
-    """Score every log with the active predictor (and the active classifier when it was trained on it)."""
+def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[int] | None = None) -> SessionScores:
+    """Score every log with the active predictor (and the active classifier when it was trained on it).
+
+    Args:
+        session: The session.
+        window: Smoothing of the tracks, in samples.
+        log_ids: Only these logs (the ones on screen, refreshed first after a retrain); their tracks are then ranked
+            among themselves until the whole session is scored.
+    """
     p_version = session.active_model("predictor")
     if p_version is None:
         return SessionScores()
     bundle = load_bundle(session.path / p_version.path)
     logs = model_logs(session, bundle.channels)
+    if log_ids is not None:
+        logs = [x for x in logs if x.id in log_ids]
     outs = stage1_outputs(session, p_version, bundle, logs)
     c_version = session.active_model("classifier")
     if c_version is not None and c_version.config.get("predictor") != p_version.id:
@@ -70,7 +81,7 @@ def compute_scores(session: Session, *, window: int = 25) -> SessionScores:
         classes,
         scores,
         dict(zip(ids, tracks, strict=True)),
-        {x.id: outs[x.id].hidden.astype(np.float16) for x in logs},
+        {x.id: outs[x.id].features("hidden+surprise").astype(np.float16) for x in logs},
     )
 
 

@@ -111,6 +111,28 @@ def test_retrain_job_runs_in_the_background_and_reports(state: SharedState) -> N
     wait_for(lambda: state.scores.classifier == state.session.active_model("classifier").id)
 
 
+def test_after_a_retrain_the_logs_on_screen_are_rescored_first(state: SharedState) -> None:
+    logs = state.logs()
+    assert len(logs) >= 2
+    shown = logs[-1].id
+    state.set_viewed("browser-1", shown)
+    job = TrainJob(state, hidden=8, predictor_config=TINY, classifier_config=TINY)
+    seen: list[tuple[int | None, tuple[int, ...]]] = []
+    state.subscribe(
+        lambda e: seen.append((state.scores.classifier, tuple(state.scores.scores))) if e == "scores" else None
+    )
+    job.start()
+    wait_for(lambda: not job.running, timeout=120)
+    new = state.session.active_model("classifier").id
+    everything = {x.id for x in logs}
+    wait_for(lambda: any(v == new and set(k) == everything for v, k in seen))
+    fresh = [keys for version, keys in seen if version == new]
+    assert fresh[0] == (shown,), "the log on screen is scored before the others"
+    assert set(fresh[-1]) == everything, "then the whole session"
+    state.set_viewed("browser-1", None)
+    assert state.viewed_logs() == set()
+
+
 def test_retrain_can_be_cancelled_and_saves_nothing(state: SharedState) -> None:
     slow = TINY.__class__(**{**TINY.__dict__, "max_epochs": 500, "patience": 500})
     job = TrainJob(state, hidden=8, predictor_config=slow, classifier_config=slow)

@@ -157,4 +157,4 @@ class TrainJob:
         self.state.notify("models")
         self.state.notify("job")
         if self.status.state == "done":
-            self.state.refresh(scores=True)
+            self.state.refresh(scores=True, first=self.state.viewed_logs())

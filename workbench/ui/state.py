@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import threading
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +53,8 @@ class SharedState:
         self.strategy: labeling.Strategy = "combined"  # shared: everyone works from one queue
         self._dirty = threading.Event()
         self._scores_wanted = True
+        self._first: set[int] = set()  # logs to score before the rest (on screen when a retrain finished)
+        self._viewed: dict[str, int] = {}  # view -> the log it shows
         self._stop = threading.Event()
         self._on_error = on_error or (lambda msg: print(msg, flush=True))
         self.busy = ""  # what the worker is doing, for the status line
@@ -138,11 +140,31 @@ class SharedState:
         self.refresh(scores=False)
 
     # ------------------------------------------------------------------------------------ derived, refreshed
-    def refresh(self, *, scores: bool) -> None:
-        """Recompute the suggestion queue (and the scores first when ``scores``) in the background."""
+    def refresh(self, *, scores: bool, first: Collection[int] = ()) -> None:
+        """Recompute the suggestion queue (and the scores first when ``scores``) in the background.
+
+        Args:
+            scores: Rescore the logs (new models) before the queue.
+            first: Logs to rescore and show before the others: the ones on screen, so their highlights refresh
+                in a fraction of a full rescore.
+        """
         if scores:
+            with self._lock:
+                self._first |= set(first)
             self._scores_wanted = True
         self._dirty.set()
+
+    def set_viewed(self, view: str, log_id: int | None) -> None:
+        """Which log a view shows (``None``: it left); those logs are rescored first after a retrain."""
+        with self._lock:
+            if log_id is None:
+                self._viewed.pop(view, None)
+            else:
+                self._viewed[view] = log_id
+
+    def viewed_logs(self) -> set[int]:
+        with self._lock:
+            return set(self._viewed.values())
 
     def set_strategy(self, strategy: str) -> None:
         """Rank the shared queue with another strategy (``labeling.STRATEGIES``); every view hears of it."""
@@ -179,8 +201,13 @@ class SharedState:
             try:
                 if self._scores_wanted:
                     self._scores_wanted = False
+                    with self._lock:
+                        first, self._first = self._first, set()
                     self.busy = "scoring logs"
                     self.notify("job")
+                    if first and len(first) < len(self._logs):
+                        self.scores = compute_scores(self.session, log_ids=first)
+                        self.notify("scores")
                     self.scores = compute_scores(self.session)
                     self.scored = True
                     self.notify("scores")

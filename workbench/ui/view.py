@@ -43,12 +43,15 @@ class ClientView:
         self._lock = threading.RLock()
         logs = state.logs()
         self.log: LogInfo | None = logs[0] if logs else None
+        if self.log is not None:
+            state.set_viewed(self.author, self.log.id)
         self.width_s = 30.0
         self.start_s = 0.0
         self.cursor_s = 0.0
         self.selection: tuple[int, int] | None = None  # samples [start, stop) of the current log
         self.threshold = 0.95
         self.forces_by = "foot"
+        self.pixels = PIXELS  # the benchmark raises it to send raw windows as its reference
         self._charts: list = []
         self._chart_key: tuple = ()
         self._updating = False  # set while the server moves widgets, so their callbacks do not echo
@@ -189,6 +192,7 @@ class ClientView:
         """Show a log; with a range, zoom so the range fills the middle of the window and put the cursor on it."""
         changed = self.log is None or log.id != self.log.id
         self.log = log
+        self.state.set_viewed(self.author, log.id)
         if changed:
             self.selection = None
             self.set_widget(self.log_dropdown, f"{log.id}: {log.name}")
@@ -285,7 +289,7 @@ class ClientView:
             with self.quiet():
                 self.cursor_slider.max = round(log.duration_s, 2)
                 self.cursor_slider.value = round(min(self.cursor_s, log.duration_s), 2)
-            dec = decimate(self.state.session.array(log.id)[a:b], a, rate_hz=log.rate_hz, pixels=PIXELS)
+            dec = decimate(self.state.session.array(log.id)[a:b], a, rate_hz=log.rate_hz, pixels=self.pixels)
             groups = charts.channel_groups(log.channel_names, forces_by=self.forces_by)
             specs = [
                 charts.trace_chart(dec, g, cursor_s=self.cursor_s, show_x=(i == len(groups) - 1))
@@ -385,6 +389,7 @@ class ClientView:
         )
 
     def close(self) -> None:
+        self.state.set_viewed(self.author, None)
         self._unsubscribe()
         self.robot.close()
 

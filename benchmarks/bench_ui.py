@@ -1,0 +1,148 @@
+"""UI: open a 1-hour, 22-channel, 100 Hz log and draw its first window; pan and zoom.
+
+Timed end to end on a real server and a real browser: ``WorkbenchApp`` in this process, headless Chromium connected
+to it. Each action is called on the browser's view on the server (what the log dropdown, Shift+→ and ↓ call); the
+time runs from the call to the last websocket frame of the redraw arriving in the page (stamped in the page with
+the wall clock, which both share), so it covers reading the memory-mapped log, decimating, building the charts,
+viser's serialisation and the socket. The reference beside it is the same action with decimation off: every sample
+of the window sent raw.
+"""
+
+from __future__ import annotations
+
+import socket
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from common import Row, fmt_s, parse_args, record
+
+from sessions import Session
+from workbench.demo import generate_walk, write_walk
+
+CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                  "--disable-component-update", "--disable-sync", "--no-first-run"]  # fmt: skip
+# every frame's arrival (wall clock, ms) and size, recorded from before viser's client opens its socket
+HOOK = """
+window.__frames = [];
+const Native = window.WebSocket;
+window.WebSocket = function (...args) {
+  const ws = new Native(...args);
+  ws.addEventListener("message", (e) => {
+    window.__frames.push([performance.timeOrigin + performance.now(), e.data.byteLength || e.data.size || 0]);
+  });
+  return ws;
+};
+window.WebSocket.prototype = Native.prototype;
+Object.assign(window.WebSocket, Native);
+"""
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class Probe:
+    """Times server-side actions until their frames have arrived in the page."""
+
+    def __init__(self, page, view) -> None:
+        self.page, self.view = page, view
+
+    def settle(self, quiet_s: float = 0.4, limit_s: float = 60.0) -> list:
+        """Wait until no frame has arrived for ``quiet_s``; the frames since the last call."""
+        deadline = time.monotonic() + limit_s
+        seen, last_change = -1, time.monotonic()
+        while time.monotonic() < deadline:
+            n = self.page.evaluate("window.__frames.length")
+            if n != seen:
+                seen, last_change = n, time.monotonic()
+            elif time.monotonic() - last_change >= quiet_s:
+                break
+            self.page.wait_for_timeout(25)
+        return self.page.evaluate("window.__frames.splice(0)")
+
+    def __call__(self, action: Callable[[], None]) -> tuple[float, float, int]:
+        """Seconds from the call to the last frame, seconds on the server, bytes received."""
+        self.settle()
+        t0 = time.time()
+        with self.view._lock:
+            action()
+        server = time.time() - t0
+        frames = [f for f in self.settle() if f[0] / 1000.0 >= t0]
+        if not frames:
+            return server, server, 0
+        return max(f[0] for f in frames) / 1000.0 - t0, server, int(sum(f[1] for f in frames))
+
+
+def run_actions(probe: Probe, view, big, small, *, opens: int, pans: int) -> dict[str, list]:
+    out: dict[str, list] = {"open": [], "pan": [], "zoom": []}
+    for _ in range(opens):
+        probe(lambda: view.show(small))
+        out["open"].append(probe(lambda: view.show(big)))
+    view.set_width(600.0)
+    for _ in range(pans):
+        out["pan"].append(probe(lambda: view.step(1.0)))
+    for steps in (1, 1, 1, 1, -1, -1, -1, -1):  # 10 min -> 1 h and back
+        out["zoom"].append(probe(lambda s=steps: view.zoom_by(s)))
+    return out
+
+
+def main() -> None:
+    args = parse_args(__doc__)
+    from playwright.sync_api import sync_playwright
+
+    from workbench.app import WorkbenchApp
+
+    minutes = 10.0 if args.quick else 60.0
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        small_path = write_walk(generate_walk(1, 20.0), folder / "a_short.mcap")
+        big_path = write_walk(generate_walk(0, minutes * 60.0), folder / "b_hour.mcap")
+        session = Session.create(folder / "session")
+        small, big = session.ingest([small_path, big_path])
+        assert big.n_samples >= minutes * 60 * 100 - 1 and len(big.channel_names) == 22, big
+        app = WorkbenchApp(session, port=free_port())
+        try:
+            with sync_playwright() as pw:
+                browser = pw.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
+                page = browser.new_page(viewport={"width": 1500, "height": 950})
+                page.add_init_script(HOOK)
+                page.goto(app.url)
+                deadline = time.monotonic() + 60
+                while not app.views and time.monotonic() < deadline:
+                    page.wait_for_timeout(100)
+                (view,) = app.views.values()
+                probe = Probe(page, view)
+                probe.settle(quiet_s=1.0)
+                ours = run_actions(probe, view, big, small, opens=5, pans=10)
+                view.pixels = 10**9  # the reference: every sample of the window, raw
+                raw = run_actions(probe, view, big, small, opens=3, pans=3)
+                view.pixels = 1100
+                shown = page.evaluate("document.body.innerText")
+                browser.close()
+        finally:
+            app.stop()
+    ok = "b_hour" in shown
+    rows = []
+    for name, label, target, limit in (
+        ("open", f"UI: open a {minutes:.0f}-min 22-channel 100 Hz log, first 30 s window in the browser", "≤ 1 s", 1.0),
+        ("pan", "UI: pan one 10-min window (Shift+→)", "≤ 150 ms", 0.15),
+        ("zoom", "UI: zoom 10 min ↔ 1 h, one step (↑/↓)", "≤ 150 ms", 0.15),
+    ):
+        a, r = np.array(ours[name]), np.array(raw[name])
+        p50, worst = np.median(a[:, 0]), a[:, 0].max()
+        check = f"server part {fmt_s(np.median(a[:, 1]))}; page shows the log: {'yes' if ok else '**no**'}"
+        rows.append(Row(f"{label} (median / worst of {len(a)})", f"{fmt_s(p50)} / {fmt_s(worst)}",
+                        f"raw window sent: {fmt_s(np.median(r[:, 0]))} ({np.median(r[:, 2]) / 1e6:.1f} MB)",
+                        f"{np.median(r[:, 0]) / p50:.1f}× faster; {np.median(a[:, 2]) / 1e3:.0f} kB sent",
+                        target, bool(worst <= limit),
+                        check))  # fmt: skip
+    record("ui", rows, device=args.device)
+
+
+if __name__ == "__main__":
+    main()
