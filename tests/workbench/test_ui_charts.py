@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from workbench.ui.charts import TrackInputs, channel_groups, per_sample_labels, trace_chart, tracks_chart, with_cursor
 from workbench.ui.decimate import decimate
@@ -35,6 +36,22 @@ def test_decimation_keeps_every_bucket_extreme_and_spikes() -> None:
         b = np.arange(0, 10_000, d.step)
         assert np.allclose(np.sort(d.values[:, c].reshape(-1, 2), axis=1)[:, 0], np.minimum.reduceat(x[:, c], b))
         assert np.allclose(np.sort(d.values[:, c].reshape(-1, 2), axis=1)[:, 1], np.maximum.reduceat(x[:, c], b))
+
+
+@pytest.mark.parametrize("n", [10_001, 10_037, 9_999])
+def test_a_short_last_bucket_keeps_its_own_extremes_in_order(n: int) -> None:
+    rng = np.random.default_rng(n)
+    x = rng.normal(size=(n, 2)).astype(np.float32)
+    x[-1, 0] = 9.0  # the very last sample is its bucket's maximum
+    d = decimate(x, 0, rate_hz=100.0, pixels=200)
+    edges = np.arange(0, n, d.step)
+    for c in range(2):
+        for k, a in enumerate(edges):
+            seg = x[a : a + d.step, c]
+            i_lo, i_hi = int(seg.argmin()), int(seg.argmax())
+            expect = [seg[i_lo], seg[i_hi]] if i_lo <= i_hi else [seg[i_hi], seg[i_lo]]
+            assert list(d.values[2 * k : 2 * k + 2, c]) == expect
+    assert d.values[-1, 0] == 9.0 and d.t[-2] == edges[-1] / 100.0
 
 
 def test_decimation_orders_each_pair_as_it_happened() -> None:
