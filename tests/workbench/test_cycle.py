@@ -63,6 +63,16 @@ def test_a_retrain_reuses_cached_stage1_and_warm_starts(trained: Session, monkey
     assert trained.active_model("classifier").id != v2.id
 
 
+def test_a_warm_retrain_is_a_short_fine_tune_and_a_cold_one_is_not(trained: Session) -> None:
+    long = TrainConfig(**{**TINY.__dict__, "max_epochs": 6, "patience": 6})
+    warm = cycle.train_classifier(trained, config=long, hidden=8, warm_epochs=1)
+    bundle = load_bundle(trained.path / warm.path)
+    assert warm.config["warm_start"] is True and all(len(h) == 1 for h in bundle.info["history"])
+    cold = cycle.train_classifier(trained, config=long, hidden=8, warm_start=False, warm_epochs=1)
+    bundle = load_bundle(trained.path / cold.path)
+    assert cold.config["warm_start"] is False and all(len(h) == 6 for h in bundle.info["history"])
+
+
 def test_scores_have_the_documented_shapes(trained: Session) -> None:
     scores = cycle.score_session(trained)
     log = trained.logs()[0]

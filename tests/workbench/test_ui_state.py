@@ -135,7 +135,7 @@ def test_after_a_retrain_the_logs_on_screen_are_rescored_first(state: SharedStat
 
 def test_retrain_can_be_cancelled_and_saves_nothing(state: SharedState) -> None:
     slow = TINY.__class__(**{**TINY.__dict__, "max_epochs": 500, "patience": 500})
-    job = TrainJob(state, hidden=8, predictor_config=slow, classifier_config=slow)
+    job = TrainJob(state, hidden=8, predictor_config=slow, classifier_config=slow, warm_epochs=None)
     before = len(state.session.model_versions())
     job.start()
     wait_for(lambda: job.status.fraction > 0 or not job.running)

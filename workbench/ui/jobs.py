@@ -15,6 +15,10 @@ from ..cycle import train_classifier, train_predictor
 from .state import SharedState
 
 PREDICTOR_CONFIG = TrainConfig(max_epochs=30, patience=5)
+# A Retrain after a few more labels fine-tunes the active models for this many epochs: they fit all the older labels
+# already, and a person waits for this one (benchmarks/bench_retrain.py measures the cycle and its accuracy against
+# a full retrain from scratch).
+WARM_EPOCHS = 2
 CLASSIFIER_CONFIG = TrainConfig(max_epochs=100, patience=20)
 
 
@@ -56,10 +60,12 @@ class TrainJob:
         hidden: int = 200,
         predictor_config: TrainConfig = PREDICTOR_CONFIG,
         classifier_config: TrainConfig = CLASSIFIER_CONFIG,
+        warm_epochs: int | None = WARM_EPOCHS,
     ) -> None:
         self.state = state
         self.hidden = hidden
         self.predictor_config, self.classifier_config = predictor_config, classifier_config
+        self.warm_epochs = warm_epochs  # None: every retrain trains as long as a fresh one
         self.status = JobStatus()
         self._cancel = threading.Event()
         self._thread: threading.Thread | None = None
@@ -119,6 +125,7 @@ class TrainJob:
     def _run(self, stages: tuple[str, ...], can_classify: bool) -> None:
         started = time.monotonic()
         progress = self._progress(stages, started)
+        predictor_run = "predictor" in stages  # new features: the classifier starts afresh anyway
         try:
             if "predictor" in stages:
                 train_predictor(
@@ -135,6 +142,7 @@ class TrainJob:
                 train_classifier(
                     self.state.session,
                     config=self.classifier_config,
+                    warm_epochs=None if predictor_run else self.warm_epochs,
                     hidden=hidden,
                     progress=progress,
                     cancel=self._cancel.is_set,
