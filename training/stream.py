@@ -14,6 +14,7 @@ from torch import nn
 
 from .bundle import ModelBundle
 from .fused_step import Bf16Step, FusedStep
+from .models import stage1_features
 
 
 def _cell(x: torch.Tensor, h: torch.Tensor, c: torch.Tensor, w_ih, w_hh, b) -> tuple[torch.Tensor, torch.Tensor]:
@@ -58,18 +59,7 @@ class StepModel(nn.Module):
         h1, c1 = _cell(z, h1, c1, self.w1_ih, self.w1_hh, self.b1)
         estimate = h1 @ self.head_w.T + self.head_b  # (B, C): estimate of the next sample
         error = (z - prev) * started  # (B, C): zero at a stream's first sample, as offline
-        if self.mode == "hidden":
-            feats = h1
-        elif self.mode == "estimate":
-            feats = estimate
-        elif self.mode == "error":
-            feats = error
-        elif self.mode == "surprise":
-            feats = error.abs()
-        elif self.mode == "hidden+surprise":
-            feats = torch.cat([h1, error.abs()], dim=-1)
-        else:
-            feats = torch.cat([h1, error], dim=-1)
+        feats = stage1_features(self.mode, h1, estimate, error)  # (B, F): the offline pass's features, one step
         gates = torch.einsum("bf,mgf->mbg", feats, self.w2_ih) + torch.einsum("mbh,mgh->mbg", h2, self.w2_hh)
         gates = gates + self.b2[:, None, :]  # (M, B, 4H)
         i, f, g, o = gates.chunk(4, dim=-1)

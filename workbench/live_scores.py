@@ -16,6 +16,8 @@ from training.inference import run_classifiers
 
 from .cycle import model_logs, stage1_outputs
 
+EMBEDDING_MODE = "hidden+surprise"  # the suggestions' embeddings: what the label-efficiency simulation used
+
 
 @dataclass(frozen=True)
 class SessionScores:
@@ -57,6 +59,7 @@ def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[in
     if log_ids is not None:
         logs = [x for x in logs if x.id in log_ids]
     outs = stage1_outputs(session, p_version, bundle, logs)
+    embeddings = {x.id: outs[x.id].features(EMBEDDING_MODE) for x in logs}  # (T, H + C) each
     c_version = session.active_model("classifier")
     if c_version is not None and c_version.config.get("predictor") != p_version.id:
         c_version = None  # trained on another predictor's features: its probabilities would mean nothing
@@ -65,7 +68,11 @@ def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[in
     if c_version is not None:
         c_bundle = load_bundle(session.path / c_version.path)
         classes = tuple(c_bundle.classes)
-        members = run_classifiers(c_bundle.classifiers, [outs[x.id].features(c_bundle.feature_mode) for x in logs])
+        feats = [
+            embeddings[x.id] if c_bundle.feature_mode == EMBEDDING_MODE else outs[x.id].features(c_bundle.feature_mode)
+            for x in logs
+        ]
+        members = run_classifiers(c_bundle.classifiers, feats)
     scores: dict[int, labeling.LogScores] = {}
     for x, m in zip(logs, members, strict=True):
         surprise = np.square(outs[x.id].error).mean(axis=1)  # (T,)
@@ -81,7 +88,7 @@ def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[in
         classes,
         scores,
         dict(zip(ids, tracks, strict=True)),
-        {x.id: outs[x.id].features("hidden+surprise").astype(np.float16) for x in logs},
+        {i: e.astype(np.float16) for i, e in embeddings.items()},
     )
 
 
