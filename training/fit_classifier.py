@@ -67,16 +67,38 @@ def random_crops(segments: Sequence[Segment], config: TrainConfig, rng: np.rando
     return out
 
 
-def _ce(model: Classifier, features: Sequence[np.ndarray], pieces: list[Piece], batch: int, dev: str) -> float:
-    total, count = 0.0, 0
+def balanced_weights(segments: Sequence[Segment], n_classes: int) -> np.ndarray:
+    """``(K,)`` class weights inverse to each class's labelled steps, scaled so a labelled step weighs 1 on average.
+
+    A class with no labels gets weight 0 (it has no steps to weigh).
+    """
+    steps = np.zeros(n_classes)
+    for _, start, stop, label in segments:
+        steps[label] += stop - start
+    present = steps > 0
+    w = np.zeros(n_classes)
+    w[present] = steps[present].sum() / (present.sum() * steps[present])
+    return w
+
+
+def _ce(
+    model: Classifier,
+    features: Sequence[np.ndarray],
+    pieces: list[Piece],
+    batch: int,
+    dev: str,
+    weight: torch.Tensor | None,
+) -> float:
+    total, count = 0.0, 0.0
     with torch.inference_mode():
         for i in range(0, len(pieces), batch):
             f, labels, mask = (torch.from_numpy(a).to(dev) for a in stage2_batch(features, pieces[i : i + batch]))
             logits, _ = model(f)
-            n = int(mask.sum())
-            total += float(masked_cross_entropy(logits, labels, mask)) * n
+            m = mask.float() if weight is None else mask.float() * weight[labels.clamp_min(0)]
+            n = float(m.sum())
+            total += float(masked_cross_entropy(logits, labels, mask, weight)) * n
             count += n
-    return total / max(count, 1)
+    return total / max(count, 1e-12)
 
 
 def _predict_whole_logs(
@@ -132,6 +154,9 @@ def fit_classifier(
     cfg = ClassifierConfig(features[0].shape[1], len(classes), hidden, dropout)
     folds = fold_indices([s[3] for s in segments], config.k_folds, config.seed)
     moments = feature_moments(features)  # over every log given, labelled or not: no labels needed
+    weight = None
+    if config.class_balance:
+        weight = torch.as_tensor(balanced_weights(segments, len(classes)), dtype=torch.float32, device=dev)
     models, histories, oof_true, oof_pred = [], [], [], []
     t0 = time.monotonic()
     for f_i, (train_idx, val_idx) in enumerate(folds, start=1):
@@ -164,7 +189,7 @@ def fit_classifier(
                     break
                 f, labels, mask = (torch.from_numpy(a).to(dev) for a in stage2_batch(features, group))
                 logits, _ = model(f)  # (B, T, K)
-                loss = classifier_loss(logits, labels, mask, model.lstm, config.elastic)
+                loss = classifier_loss(logits, labels, mask, model.lstm, config.elastic, weight)
                 optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 torch.nn.utils.clip_grad_norm_(model.parameters(), config.clip)
@@ -189,7 +214,7 @@ def fit_classifier(
                         )
                     )
             model.eval()
-            val_loss = _ce(model, features, val, config.batch_size, dev)
+            val_loss = _ce(model, features, val, config.batch_size, dev, weight)
             history.append({"epoch": epoch, "train_loss": total / max(steps, 1), "val_loss": val_loss})
             if val_loss < best - 1e-6:
                 best, best_state, since = val_loss, copy.deepcopy(model.state_dict()), 0

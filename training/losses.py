@@ -32,17 +32,24 @@ def masked_mse(estimate: torch.Tensor, target: torch.Tensor, mask: torch.Tensor)
     return (err * mask).sum() / mask.sum().clamp_min(1)
 
 
-def masked_cross_entropy(logits: torch.Tensor, labels: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+def masked_cross_entropy(
+    logits: torch.Tensor, labels: torch.Tensor, mask: torch.Tensor, weight: torch.Tensor | None = None
+) -> torch.Tensor:
     """``−Σ y log ŷ`` averaged over the labelled timesteps (the paper prints it without the minus sign).
 
     Args:
         logits: ``(B, T, K)``.
         labels: ``(B, T)`` class indices (any value where ``mask`` is false).
         mask: ``(B, T)`` bool.
+        weight: ``(K,)`` per-class weights: a weighted mean, so each class counts by its weight, not its share of
+            the labelled steps. ``None``: every step counts the same.
     """
-    ce = nn.functional.cross_entropy(logits.flatten(0, 1), labels.flatten().clamp_min(0), reduction="none")  # (B*T,)
-    m = mask.flatten()
-    return (ce * m).sum() / m.sum().clamp_min(1)
+    y = labels.flatten().clamp_min(0)  # (B*T,)
+    ce = nn.functional.cross_entropy(logits.flatten(0, 1), y, reduction="none")  # (B*T,)
+    m = mask.flatten().to(ce.dtype)
+    if weight is not None:
+        m = m * weight.to(ce.dtype)[y]
+    return (ce * m).sum() / m.sum().clamp_min(1e-12)
 
 
 def predictor_loss(
@@ -53,7 +60,13 @@ def predictor_loss(
 
 
 def classifier_loss(
-    logits: torch.Tensor, labels: torch.Tensor, mask: torch.Tensor, lstm: nn.LSTM, penalty: ElasticNet
+    logits: torch.Tensor,
+    labels: torch.Tensor,
+    mask: torch.Tensor,
+    lstm: nn.LSTM,
+    penalty: ElasticNet,
+    weight: torch.Tensor | None = None,
 ) -> torch.Tensor:
-    """Eq. (2): cross-entropy plus the elastic net on the classifier's LSTM."""
-    return masked_cross_entropy(logits, labels, mask) + elastic_net(lstm_parameters(lstm), penalty)
+    """Eq. (2): cross-entropy (class-weighted when ``weight`` is given) plus the elastic net on the classifier's
+    LSTM."""
+    return masked_cross_entropy(logits, labels, mask, weight) + elastic_net(lstm_parameters(lstm), penalty)

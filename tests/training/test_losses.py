@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 import torch
 from torch import nn
@@ -61,3 +62,16 @@ def test_full_losses_add_the_penalty() -> None:
     logits, labels = torch.zeros(1, 2, 4), torch.zeros(1, 2, dtype=torch.long)
     expected = math.log(4) + elastic_net(lstm_parameters(lstm), pen).item()
     assert classifier_loss(logits, labels, mask, lstm, pen).item() == pytest.approx(expected)
+
+
+def test_class_weights_make_each_class_count_by_its_weight() -> None:
+    from training.fit_classifier import balanced_weights
+
+    # 3 steps of class 0 (p = 0.7 each), 1 step of class 2 (p = 0.1)
+    logits = torch.log(torch.tensor([[[0.7, 0.2, 0.1]] * 3 + [[0.2, 0.7, 0.1]]]))  # (1, 4, 3)
+    labels, mask = torch.tensor([[0, 0, 0, 2]]), torch.ones(1, 4, dtype=torch.bool)
+    w = balanced_weights([(0, 0, 3, 0), (0, 3, 4, 2)], 3)
+    np.testing.assert_allclose(w, [4 / 6, 0.0, 2.0])  # inverse to steps, mean 1 over labelled steps; absent: 0
+    got = float(masked_cross_entropy(logits, labels, mask, torch.as_tensor(w, dtype=torch.float32)))
+    assert got == pytest.approx((-math.log(0.7) - math.log(0.1)) / 2)  # both classes count the same
+    assert float(masked_cross_entropy(logits, labels, mask)) == pytest.approx((-3 * math.log(0.7) - math.log(0.1)) / 4)
