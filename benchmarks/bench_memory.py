@@ -4,9 +4,12 @@ Each step runs in a fresh process and reports its peak resident set (``ru_maxrss
 ROS 2 MCAP, 22 channels at 100 Hz; not counted), ingesting it into a session, and scoring it as the UI does
 (``compute_scores``: stage 1 into the feature cache, the 5-member ensemble, tracks and suggestion embeddings) with
 the paper's sizes (hidden 200; weights untrained, which does not change memory). The reference beside each figure is
-the size of the log's own float32 array. The target is for a 10-hour log. Ingest and scoring take about 55 s per
-hour of log here, so 10 hours would add some 10 minutes (and, today, about 11 GB) to ``make bench``; the benchmark
-measures 1 and 2 hours and reports how the peak grows per hour.
+the size of the log's own float32 array. The target is for a 10-hour log; ingest and scoring take about a minute
+per hour of log here, so the benchmark measures 1 and 2 hours and reports how the peak grows per hour (a bounded
+pass grows by what it must keep per sample: the stamps while aligning, the per-step scores and tracks).
+
+Peak RSS counts the pages of memory-mapped files a process has touched, so the passes measured here read and write
+the arrays by blocks (``sessions.FileRows``, ``sessions.NpyWriter``), not through maps.
 """
 
 from __future__ import annotations

@@ -83,13 +83,21 @@ def mutual_information(member_probs: np.ndarray) -> np.ndarray:
 def smooth(x: np.ndarray, window: int) -> np.ndarray:
     """Centred moving average over ``window`` samples, shrinking at the ends: ``(T,)`` -> ``(T,)``."""
     x = np.asarray(x, np.float64)
-    if window <= 1 or len(x) == 0:
+    n = len(x)
+    if window <= 1 or n == 0:
         return x.copy()
-    c = np.concatenate([[0.0], np.cumsum(x)])
-    t = np.arange(len(x))
-    lo = np.clip(t - window // 2, 0, len(x))
-    hi = np.clip(t - window // 2 + window, 0, len(x))
-    return (c[hi] - c[lo]) / (hi - lo)
+    c = np.concatenate([[0.0], np.cumsum(x)])  # (T + 1,)
+    half = window // 2
+    out = np.empty(n)
+    # the full windows by slicing (no (T,) index arrays: hours of log), then the shrinking ones at the ends
+    first, last = half, n - window + half  # steps whose window [t - half, t - half + window) fits
+    if last >= first:
+        out[first : last + 1] = (c[window : n + 1] - c[: n - window + 1]) / window
+    ends = np.r_[np.arange(0, min(first, n)), np.arange(max(last + 1, first, 0), n)]
+    lo = np.clip(ends - half, 0, n)
+    hi = np.clip(ends - half + window, 0, n)
+    out[ends] = (c[hi] - c[lo]) / (hi - lo)
+    return out
 
 
 def session_normaliser(tracks: Sequence[np.ndarray], *, max_reference: int = 200_000, seed: int = 0):
@@ -98,9 +106,19 @@ def session_normaliser(tracks: Sequence[np.ndarray], *, max_reference: int = 200
     Ranks make kinds on different scales (nats, squared error) comparable, and make a threshold mean "the top
     ``1 - threshold`` of this session's time". At most ``max_reference`` values (a seeded sample) are kept.
     """
-    ref = np.concatenate([np.asarray(t, np.float64).ravel() for t in tracks]) if tracks else np.zeros(1)
-    if len(ref) > max_reference:
-        ref = np.random.default_rng(seed).choice(ref, max_reference, replace=False)
+    total = sum(np.size(t) for t in tracks)
+    if total == 0:
+        ref = np.zeros(1)
+    elif total <= max_reference:
+        ref = np.concatenate([np.asarray(t, np.float64).ravel() for t in tracks])
+    else:
+        # a seeded sample drawn track by track, in proportion to length: hours of tracks are never concatenated
+        rng = np.random.default_rng(seed)
+        parts = []
+        for t in tracks:
+            flat = np.asarray(t).ravel()
+            parts.append(flat[rng.integers(0, len(flat), max(1, round(max_reference * len(flat) / total)))])
+        ref = np.concatenate(parts).astype(np.float64)
     ref = np.sort(ref)
 
     def normalise(x: np.ndarray) -> np.ndarray:
@@ -127,9 +145,11 @@ def normalised_tracks(
         if not present:
             continue
         norm = session_normaliser(present)
+        del present  # each smoothed track is dropped once normalised
         for i, t in enumerate(smoothed):
             if t is not None:
-                out[i][kind] = norm(t)
+                out[i][kind] = norm(t).astype(np.float32)  # ranks in [0, 1]: float32 is plenty, at half the memory
+                smoothed[i] = None
     return out
 
 

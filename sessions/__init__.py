@@ -7,6 +7,7 @@ from .errors import IngestError, LabelError, SessionError, WorkbenchError
 from .ingest import IngestOptions, Mapping, load_mapping
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .models import ModelVersion
+from .rowfiles import FileRows, NpyWriter
 from .schema import DEFAULT_TERRAINS, SCHEMA_VERSION
 from .store import Session
 
@@ -14,6 +15,7 @@ __all__ = [
     "DEFAULT_TERRAINS",
     "SCHEMA_VERSION",
     "Channel",
+    "FileRows",
     "Gap",
     "HistoryEntry",
     "IngestError",
@@ -22,6 +24,7 @@ __all__ = [
     "LogInfo",
     "Mapping",
     "ModelVersion",
+    "NpyWriter",
     "Segment",
     "Session",
     "SessionError",

@@ -3,49 +3,29 @@
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
-import os
 import shutil
 import sqlite3
 import threading
 import time
-import uuid
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from . import labels as _labels
-from .errors import IngestError, LabelError, SessionError
-from .ingest import AlignedLog, IngestOptions, align, plan_sources, read_source
+from .errors import LabelError, SessionError
+from .log_ingest import LOGS_DIR, LogIngest
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
-from .models import ModelRegistry
+from .models import CACHE_DIR, ModelRegistry
+from .rowfiles import FileRows
 from .schema import SCHEMA_VERSION, migrate
 
 DB_NAME = "session.sqlite"
-LOGS_DIR = "logs"
 _STALE_TMP_S = 600.0  # leftovers older than this are from a crashed ingest, not one in progress
 
 
-def _sha256(files: Sequence[str | Path]) -> str:
-    h = hashlib.sha256()
-    for f in files:
-        with open(f, "rb") as fh:
-            for block in iter(lambda fh=fh: fh.read(1 << 20), b""):
-                h.update(block)
-    return h.hexdigest()
-
-
-def _fsync_dir(path: Path) -> None:
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-class Session(ModelRegistry):
+class Session(LogIngest, ModelRegistry):
     """A session folder. Thread-safe: one SQLite connection guarded by a lock; every write is one transaction.
 
     Use :meth:`create` or :meth:`open`, not the constructor.
@@ -123,13 +103,18 @@ class Session(ModelRegistry):
     def _write(self) -> Iterator[sqlite3.Connection]:
         """One write transaction; committed when the block ends, rolled back on any error."""
         with self._lock:
-            self._conn.execute("BEGIN IMMEDIATE")
             try:
-                yield self._conn
-            except BaseException:
-                self._conn.execute("ROLLBACK")
-                raise
-            self._conn.execute("COMMIT")
+                self._conn.execute("BEGIN IMMEDIATE")
+                try:
+                    yield self._conn
+                    self._conn.execute("COMMIT")
+                except BaseException:
+                    if self._conn.in_transaction:  # SQLite rolls back by itself on some errors (a full disk)
+                        self._conn.execute("ROLLBACK")
+                    raise
+            except sqlite3.OperationalError as exc:
+                # disk full, read-only folder or file, I/O error, locked past the timeout: nothing was changed
+                raise SessionError(f"{self.path}: cannot save to the session ({exc}); nothing was changed") from None
 
     def _read(self, query: str, args: Sequence[object] = ()) -> list[tuple]:
         with self._lock:
@@ -150,6 +135,12 @@ class Session(ModelRegistry):
         for d in models.iterdir() if models.is_dir() else ():
             if f"models/{d.name}" not in registered and d.is_dir() and d.stat().st_mtime < cutoff:
                 shutil.rmtree(d, ignore_errors=True)
+        # Derived-data caches: a pass that died mid-write leaves its staged ".name.tag.npy" files.
+        cache = self.path / CACHE_DIR
+        for f in cache.glob("*/.*.npy") if cache.is_dir() else ():
+            if f.stat().st_mtime < cutoff:
+                with contextlib.suppress(OSError):
+                    f.unlink()
 
     # ------------------------------------------------------------------------------------------------- catalog
     def logs(self) -> list[LogInfo]:
@@ -204,6 +195,14 @@ class Session(ModelRegistry):
                 arr = self._arrays[log_id] = np.load(self.path / info.file, mmap_mode="r")
             return arr
 
+    def rows(self, log_id: int) -> FileRows:
+        """The ``(T, C)`` float32 array of a log as rows read on demand (``rows[a:b]``), without a memory map.
+
+        For passes over whole long logs: what a map has read stays in the process's resident memory, these reads do
+        not.
+        """
+        return FileRows.open_npy(self.path / self.log(log_id).file)
+
     def samples(self, log_id: int, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Samples ``[start, stop)`` of a log as a ``(stop - start, C)`` float32 array; reads only that slice."""
         return np.array(self.array(log_id)[start:stop])
@@ -216,144 +215,6 @@ class Session(ModelRegistry):
                 "SELECT start, stop, terrain FROM reference WHERE log_id = ? ORDER BY start", (log_id,)
             )
         ]
-
-    # -------------------------------------------------------------------------------------------------- ingest
-    def ingest(
-        self,
-        paths: Sequence[str | Path],
-        *,
-        options: IngestOptions | None = None,
-        on_error: Callable[[IngestError], None] | None = None,
-        progress: Callable[[int, int], None] | None = None,
-    ) -> list[LogInfo]:
-        """Ingest log files (or folders of them). Each source is all-or-nothing.
-
-        Args:
-            paths: MCAP / CSV files or folders holding them.
-            options: How to read and align.
-            on_error: Called with each refused file, and ingest goes on; without it the first error is raised.
-            progress: Called now and then with (bytes read, bytes in all sources), for a progress bar.
-
-        Returns:
-            The logs of the given paths: newly ingested ones, and ones already in the session (same content).
-        """
-        options = options or IngestOptions()
-        sources, errors = plan_sources(list(paths))
-
-        def fail(err: IngestError) -> None:
-            if on_error is None:
-                raise err
-            on_error(err)
-
-        for err in errors:
-            fail(err)
-        out: list[LogInfo] = []
-        total = sum(s.size for s in sources)
-        done = 0
-        for source in sources:
-            on_bytes = None if progress is None else (lambda n, base=done: progress(base + n, total))
-            try:
-                parsed, _ = read_source(source, options, on_bytes=on_bytes)
-                aligned = [align(p, options) for p in parsed]
-                out.extend(self._store(aligned, source.files))
-            except IngestError as err:
-                fail(err)
-            done += source.size
-            if progress is not None:
-                progress(done, total)
-        return out
-
-    def _store(self, aligned: list[AlignedLog], files: Sequence[Path]) -> list[LogInfo]:
-        try:
-            sha = _sha256(files)
-        except OSError as exc:
-            raise IngestError(files[0], f"cannot read: {exc.strerror or exc}") from None
-        try:
-            return self._write_logs(aligned, sha)
-        except OSError as exc:
-            # Not the file's fault (disk full, read-only folder): stop, the session is as it was.
-            raise SessionError(f"{self.path}: cannot write to the session: {exc.strerror or exc}") from None
-
-    def _write_logs(self, aligned: list[AlignedLog], sha: str) -> list[LogInfo]:
-        logs_dir = self.path / LOGS_DIR
-        # The same recording again keeps the copy we have: no array is written for it.
-        ids = {name: int(i) for name, i in self._read("SELECT name, id FROM logs WHERE source_sha256 = ?", (sha,))}
-        staged: list[tuple[AlignedLog, Path]] = []
-        placed: list[Path] = []
-        try:
-            for log in aligned:
-                if log.parsed.name in ids:
-                    continue
-                tmp = logs_dir / f".tmp-{uuid.uuid4().hex}.npy"
-                staged.append((log, tmp))  # before writing: a failed write is cleaned up too
-                with open(tmp, "wb") as f:
-                    np.save(f, log.data)
-                    f.flush()
-                    os.fsync(f.fileno())
-            with self._write() as conn:
-                for log, tmp in staged:
-                    row = conn.execute(  # another process may have ingested it meanwhile
-                        "SELECT id FROM logs WHERE source_sha256 = ? AND name = ?", (sha, log.parsed.name)
-                    ).fetchone()
-                    if row is not None:
-                        ids[log.parsed.name] = int(row[0])
-                        continue
-                    log_id = self._insert_log(conn, log, sha, tmp.name)
-                    final = logs_dir / f"{log_id:06d}.npy"
-                    conn.execute("UPDATE logs SET file = ? WHERE id = ?", (f"{LOGS_DIR}/{final.name}", log_id))
-                    os.replace(tmp, final)
-                    placed.append(final)
-                    ids[log.parsed.name] = log_id
-                _fsync_dir(logs_dir)
-        except BaseException:
-            for p in placed:
-                with contextlib.suppress(OSError):
-                    p.unlink()
-            raise
-        finally:
-            for _, tmp in staged:
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
-        return [self.log(ids[log.parsed.name]) for log in aligned]
-
-    @staticmethod
-    def _insert_log(conn: sqlite3.Connection, log: AlignedLog, sha: str, tmp_name: str) -> int:
-        p = log.parsed
-        info = {"files": list(p.files), "stream_rates_hz": log.stream_rates, "notes": list(p.notes)}
-        cur = conn.execute(
-            "INSERT INTO logs (name, source_path, source_sha256, format, file, n_samples, rate_hz, t0, "
-            "reference_terrain, info, ingested_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-            (
-                p.name,
-                p.source_path,
-                sha,
-                p.format,
-                tmp_name,
-                log.data.shape[0],
-                log.rate_hz,
-                log.t0,
-                p.reference_terrain,
-                json.dumps(info),
-                _labels.now(),
-            ),
-        )
-        log_id = int(cur.lastrowid)
-        conn.executemany(
-            "INSERT INTO channels (log_id, idx, name, unit, source) VALUES (?, ?, ?, ?, ?)",
-            [(log_id, i, c.name, c.unit, c.source) for i, c in enumerate(log.channels)],
-        )
-        conn.executemany(
-            "INSERT INTO gaps (log_id, start, stop, stream, reason) VALUES (?, ?, ?, ?, ?)",
-            [(log_id, g.start, g.stop, g.stream, g.reason) for g in log.gaps],
-        )
-        reference = list(log.reference)
-        if not reference and p.reference_terrain:
-            reference = [(0, log.data.shape[0], p.reference_terrain)]
-        conn.executemany(
-            "INSERT INTO reference (log_id, start, stop, terrain) VALUES (?, ?, ?, ?)",
-            [(log_id, a, b, t) for a, b, t in reference],
-        )
-        return log_id
 
     # ------------------------------------------------------------------------------------------------ terrains
     def terrains(self) -> list[Terrain]:

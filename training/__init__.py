@@ -8,7 +8,7 @@ from .config import FEATURE_MODES, ClassifierConfig, ElasticNet, FeatureMode, Pr
 from .data import Normalizer
 from .fit_classifier import ClassifierFit, fit_classifier
 from .fit_predictor import PredictorFit, fit_predictor
-from .inference import Stage1Outputs, run_classifiers, run_predictor
+from .inference import LazyFeatures, Stage1Outputs, ensemble_pass, predictor_pass, run_classifiers, run_predictor
 from .losses import classifier_loss, elastic_net, predictor_loss
 from .models import Classifier, Predictor
 from .progress import Cancelled, Progress
@@ -24,6 +24,7 @@ __all__ = [
     "ClassifierFit",
     "ElasticNet",
     "FeatureMode",
+    "LazyFeatures",
     "LogScores",
     "ModelBundle",
     "Normalizer",
@@ -36,11 +37,13 @@ __all__ = [
     "TrainConfig",
     "classifier_loss",
     "elastic_net",
+    "ensemble_pass",
     "entropy",
     "fit_classifier",
     "fit_predictor",
     "load_bundle",
     "predictor_loss",
+    "predictor_pass",
     "run_classifiers",
     "run_predictor",
     "save_bundle",

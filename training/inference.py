@@ -1,13 +1,15 @@
 """Offline passes over whole logs: stage-1 outputs (what the feature cache holds) and ensemble probabilities.
 
-Logs of different lengths are batched together and run in chunks with the LSTM state carried, so memory stays
-bounded for hour-long logs and the result equals one pass over each whole log.
+Logs of different lengths are batched together and run in chunks of time with the LSTM state carried, so the
+result equals one pass over each whole log while memory holds one chunk of each log in the batch, not the logs:
+the outputs are written chunk by chunk into arrays the caller gives, which may be memory-mapped files.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import torch
@@ -16,21 +18,72 @@ from .config import FeatureMode
 from .data import Normalizer
 from .models import Classifier, Predictor, stage1_features
 
+STEPS_PER_CALL = 1 << 17  # batch × chunk of one LSTM call: bounds its activations whatever the batch
+
+
+class Rows(Protocol):
+    """What the passes read a log from: a ``(T, F)`` array or anything sliced like one along its first axis
+    (a memory-mapped array, ``LazyFeatures``)."""
+
+    shape: tuple[int, ...]
+
+    def __len__(self) -> int: ...
+
+    def __getitem__(self, key: slice) -> np.ndarray: ...
+
 
 @dataclass(frozen=True)
 class Stage1Outputs:
-    """Per timestep of one log, all causal at ``t``."""
+    """Per timestep of one log, all causal at ``t``. The arrays may be memory-mapped (the feature cache)."""
 
-    hidden: np.ndarray  # (T, H) float32: state after x_t
+    hidden: np.ndarray  # (T, H) float32 or float16: state after x_t
     error: np.ndarray  # (T, C) float32: x_t − x̂_t in normalised units (0 at t = 0)
     estimate: np.ndarray  # (T, C) float32: x̂_{t+1}, normalised
 
-    def features(self, mode: FeatureMode) -> np.ndarray:
-        """``(T, F)`` features for stage 2 in ``mode``."""
-        out = stage1_features(
-            mode, torch.from_numpy(self.hidden), torch.from_numpy(self.estimate), torch.from_numpy(self.error)
-        )
-        return out.numpy()
+    def __len__(self) -> int:
+        return len(self.error)
+
+    def features(self, mode: FeatureMode, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """``(stop − start, F)`` float32 features for stage 2 in ``mode``, of steps ``[start, stop)``."""
+        part = slice(start, stop)
+
+        def tensor(a: np.ndarray) -> torch.Tensor:
+            return torch.from_numpy(np.asarray(a[part], np.float32))
+
+        return stage1_features(mode, tensor(self.hidden), tensor(self.estimate), tensor(self.error)).numpy()
+
+    def lazy(self, mode: FeatureMode) -> LazyFeatures:
+        """The ``mode`` features as an array-like that computes only the rows sliced from it."""
+        return LazyFeatures(self, mode)
+
+    def surprise(self, *, chunk: int = 1 << 16) -> np.ndarray:
+        """``(T,)`` float32 mean squared error over channels, read a chunk at a time."""
+        out = np.empty(len(self), np.float32)
+        for a in range(0, len(self), chunk):
+            out[a : a + chunk] = np.square(np.asarray(self.error[a : a + chunk], np.float32)).mean(axis=1)
+        return out
+
+
+class LazyFeatures:
+    """Stage-2 features of one log, computed from its stage-1 outputs only for the rows asked for.
+
+    The features of a 10-hour log are 3 GB; the cache they come from is memory-mapped, so slicing this reads and
+    computes just the slice. Supports ``len``, ``shape`` and ``[start:stop]`` (step 1) along the first axis.
+    """
+
+    def __init__(self, outputs: Stage1Outputs, mode: FeatureMode) -> None:
+        self.outputs, self.mode = outputs, mode
+        width = outputs.features(mode, 0, 1).shape[1]
+        self.shape = (len(outputs), width)
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, key: slice) -> np.ndarray:
+        if not isinstance(key, slice) or key.step not in (None, 1):
+            raise TypeError("LazyFeatures supports [start:stop] slices only")
+        start, stop, _ = key.indices(self.shape[0])
+        return self.outputs.features(self.mode, start, max(start, stop))
 
 
 def _batches(lengths: Sequence[int], batch: int) -> list[list[int]]:
@@ -38,45 +91,129 @@ def _batches(lengths: Sequence[int], batch: int) -> list[list[int]]:
     return [order[i : i + batch].tolist() for i in range(0, len(order), batch)]
 
 
+def _chunk_for(batch: int, chunk: int) -> int:
+    return min(chunk, max(256, STEPS_PER_CALL // max(batch, 1)))
+
+
 @torch.inference_mode()
+def predictor_pass(
+    predictor: Predictor,
+    normalizer: Normalizer,
+    arrays: Sequence[Rows],
+    sinks: Sequence[Stage1Outputs],
+    *,
+    chunk: int = 4096,
+    batch: int = 64,
+    device: str = "cpu",
+) -> None:
+    """Stage 1 over whole raw logs, written chunk by chunk into ``sinks`` (writable ``(T, ·)`` arrays per log).
+
+    Args:
+        predictor: Stage 1.
+        normalizer: Its input normalisation.
+        arrays: Per log, the raw ``(T, C)`` samples (memory-mapped is fine: one chunk is read at a time).
+        sinks: Per log, where its hidden states, errors and estimates go; each as long as its log.
+        chunk: Steps per LSTM call (fewer when the batch is wide, see ``STEPS_PER_CALL``).
+        batch: Logs per call.
+        device: Torch device.
+    """
+    predictor = predictor.to(device).eval()
+    for group in _batches([len(a) for a in arrays], batch):
+        lengths = [len(arrays[i]) for i in group]
+        n, c = max(lengths), arrays[group[0]].shape[1]
+        step = _chunk_for(len(group), chunk)
+        state, last = None, np.zeros((len(group), c), np.float32)  # last: estimate made at the previous step
+        for c0 in range(0, n, step):
+            size = min(step, n - c0)
+            x = np.zeros((len(group), size, c), np.float32)  # (B, L, C)
+            for j, i in enumerate(group):
+                if c0 < lengths[j]:
+                    x[j, : min(size, lengths[j] - c0)] = normalizer(arrays[i][c0 : c0 + size])
+            e, h, state = predictor(torch.from_numpy(x).to(device), state)  # (B, L, C), (B, L, H)
+            est, hid = e.cpu().numpy(), h.cpu().numpy()
+            err = np.empty_like(x)
+            err[:, 0] = x[:, 0] - last if c0 else 0.0  # the first step of a log has no estimate
+            err[:, 1:] = x[:, 1:] - est[:, :-1]
+            last = est[:, -1]
+            for j, i in enumerate(group):
+                k = min(size, lengths[j] - c0)
+                if k > 0:
+                    sinks[i].hidden[c0 : c0 + k] = hid[j, :k]
+                    sinks[i].estimate[c0 : c0 + k] = est[j, :k]
+                    sinks[i].error[c0 : c0 + k] = err[j, :k]
+
+
 def run_predictor(
     predictor: Predictor,
     normalizer: Normalizer,
-    arrays: Sequence[np.ndarray],
+    arrays: Sequence[Rows],
     *,
     chunk: int = 4096,
     batch: int = 64,
     device: str = "cpu",
 ) -> list[Stage1Outputs]:
-    """Stage 1 over whole raw logs."""
-    predictor = predictor.to(device).eval()
-    out: list[Stage1Outputs | None] = [None] * len(arrays)
-    for group in _batches([len(a) for a in arrays], batch):
-        n = max(len(arrays[i]) for i in group)
-        c = arrays[group[0]].shape[1]
-        x = np.zeros((len(group), n, c), np.float32)
-        for j, i in enumerate(group):
-            x[j, : len(arrays[i])] = normalizer(arrays[i])
-        xt = torch.from_numpy(x).to(device)
-        hid = np.empty((len(group), n, predictor.config.hidden), np.float32)
-        est = np.empty((len(group), n, c), np.float32)
-        state = None
-        for c0 in range(0, n, chunk):
-            e, h, state = predictor(xt[:, c0 : c0 + chunk], state)  # (B, L, C), (B, L, H)
-            hid[:, c0 : c0 + chunk] = h.cpu().numpy()
-            est[:, c0 : c0 + chunk] = e.cpu().numpy()
-        err = np.zeros_like(x)
-        err[:, 1:] = x[:, 1:] - est[:, :-1]  # error of the estimate made one step earlier
-        for j, i in enumerate(group):
-            t = len(arrays[i])
-            out[i] = Stage1Outputs(hid[j, :t].copy(), err[j, :t].copy(), est[j, :t].copy())
-    return out  # type: ignore[return-value]
+    """Stage 1 over whole raw logs, in memory (``predictor_pass`` writes anywhere)."""
+    h, c = predictor.config.hidden, predictor.config.n_channels
+    outs = [
+        Stage1Outputs(np.empty((len(a), h), np.float32), np.empty((len(a), c), np.float32),
+                      np.empty((len(a), c), np.float32))
+        for a in arrays
+    ]  # fmt: skip
+    predictor_pass(predictor, normalizer, arrays, outs, chunk=chunk, batch=batch, device=device)
+    return outs
+
+
+ChunkSink = Callable[[int, int, int, np.ndarray], None]
 
 
 @torch.inference_mode()
+def ensemble_pass(
+    models: Sequence[Classifier],
+    features: Sequence[Rows],
+    sink: ChunkSink,
+    *,
+    chunk: int = 4096,
+    batch: int = 64,
+    device: str = "cpu",
+) -> None:
+    """Every ensemble member over whole logs' features, handing each chunk's probabilities to ``sink``.
+
+    Args:
+        models: The ``M`` members.
+        features: Per log, ``(T, F)`` features (or a ``LazyFeatures``: only one chunk is computed at a time).
+        sink: Called as ``sink(log, start, stop, probs)`` with ``probs`` ``(M, stop − start, K)`` float32, in
+            order of ``start`` within each log.
+        chunk: Steps per LSTM call.
+        batch: Logs per call.
+        device: Torch device.
+    """
+    for model in models:
+        model.to(device).eval()
+    for group in _batches([len(f) for f in features], batch):
+        lengths = [len(features[i]) for i in group]
+        n, width = max(lengths), features[group[0]].shape[1]
+        step = _chunk_for(len(group), chunk)
+        states: list = [None] * len(models)
+        for c0 in range(0, n, step):
+            size = min(step, n - c0)
+            f = np.zeros((len(group), size, width), np.float32)  # (B, L, F)
+            for j, i in enumerate(group):
+                if c0 < lengths[j]:
+                    f[j, : min(size, lengths[j] - c0)] = features[i][c0 : c0 + size]
+            ft = torch.from_numpy(f).to(device)
+            probs = np.empty((len(models), len(group), size, models[0].config.n_classes), np.float32)
+            for m, model in enumerate(models):
+                logits, states[m] = model(ft, states[m])  # (B, L, K)
+                probs[m] = torch.softmax(logits, -1).cpu().numpy()
+            for j, i in enumerate(group):
+                k = min(size, lengths[j] - c0)
+                if k > 0:
+                    sink(i, c0, c0 + k, probs[:, j, :k])
+
+
 def run_classifiers(
     models: Sequence[Classifier],
-    features: Sequence[np.ndarray],
+    features: Sequence[Rows],
     *,
     chunk: int = 4096,
     batch: int = 64,
@@ -87,21 +224,11 @@ def run_classifiers(
     Returns:
         Per log, ``(M, T, K)`` float32 class probabilities of the ``M`` members.
     """
-    out: list[np.ndarray | None] = [None] * len(features)
-    for model in models:
-        model.to(device).eval()
-    for group in _batches([len(f) for f in features], batch):
-        n = max(len(features[i]) for i in group)
-        f = np.zeros((len(group), n, features[group[0]].shape[1]), np.float32)
-        for j, i in enumerate(group):
-            f[j, : len(features[i])] = features[i]
-        ft = torch.from_numpy(f).to(device)
-        probs = np.empty((len(models), len(group), n, models[0].config.n_classes), np.float32)
-        for m, model in enumerate(models):
-            state = None
-            for c0 in range(0, n, chunk):
-                logits, state = model(ft[:, c0 : c0 + chunk], state)  # (B, L, K)
-                probs[m, :, c0 : c0 + chunk] = torch.softmax(logits, -1).cpu().numpy()
-        for j, i in enumerate(group):
-            out[i] = probs[:, j, : len(features[i])].copy()
-    return out  # type: ignore[return-value]
+    k = models[0].config.n_classes
+    out = [np.empty((len(models), len(f), k), np.float32) for f in features]
+
+    def keep(i: int, a: int, b: int, probs: np.ndarray) -> None:
+        out[i][:, a:b] = probs
+
+    ensemble_pass(models, features, keep, chunk=chunk, batch=batch, device=device)
+    return out

@@ -130,10 +130,16 @@ class Classifier(nn.Module):
         return w, b
 
 
-def feature_moments(features: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Per-feature mean and standard deviation ``(F,)`` over every step of ``features`` (each ``(T, F)``)."""
+def feature_moments(features: Sequence[np.ndarray], *, chunk: int = 1 << 16) -> tuple[np.ndarray, np.ndarray]:
+    """Per-feature mean and standard deviation ``(F,)`` over every step of ``features`` (each ``(T, F)``, or
+    anything sliced like it: a chunk is read at a time, so memory-mapped or lazy features stay on disk)."""
+
+    def chunks():
+        for f in features:
+            for a in range(0, len(f), chunk):
+                yield np.asarray(f[a : a + chunk], np.float64)
+
     n = sum(len(f) for f in features)
-    total = sum(f.sum(0, dtype=np.float64) for f in features)
-    mean = total / max(n, 1)
-    var = sum(np.square(f - mean).sum(0) for f in features) / max(n, 1)
+    mean = sum((x.sum(0) for x in chunks()), np.zeros(features[0].shape[1])) / max(n, 1)
+    var = sum((np.square(x - mean).sum(0) for x in chunks()), np.zeros(len(mean))) / max(n, 1)
     return mean.astype(np.float32), np.sqrt(var).astype(np.float32)

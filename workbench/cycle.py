@@ -5,20 +5,22 @@ labels, score every log. Composes ``sessions`` (data, labels, versions) and ``tr
 from __future__ import annotations
 
 import contextlib
+import os
 import shutil
 import threading
+import uuid
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from dataclasses import replace
 
 import numpy as np
 
-from sessions import LogInfo, ModelVersion, Session, WorkbenchError
+from sessions import FileRows, LogInfo, ModelVersion, NpyWriter, Session, WorkbenchError
 from training.bundle import ModelBundle, load_bundle, save_bundle
 from training.config import FeatureMode, TrainConfig, to_dict
 from training.fit_classifier import fit_classifier
 from training.fit_predictor import fit_predictor
-from training.inference import Stage1Outputs, run_classifiers, run_predictor
+from training.inference import LazyFeatures, Stage1Outputs, predictor_pass, run_classifiers
 from training.progress import CancelFn, Cancelled, ProgressFn, never
 from training.scoring import LogScores, score_log
 
@@ -37,7 +39,12 @@ def _save_version(session: Session, stage: str, bundle: ModelBundle, extra: dict
     path = session.next_model_dir()
     if path.exists():  # a crashed save that got as far as the rename but not the catalog
         shutil.rmtree(path)
-    save_bundle(bundle, path)
+    try:
+        save_bundle(bundle, path)  # whole or not at all: written under a temporary name
+    except OSError as exc:
+        raise WorkbenchError(
+            f"{session.path}: cannot save the {stage} model ({exc.strerror or exc}); the active models are unchanged"
+        ) from None
     try:
         return session.register_model(stage, path, config=extra, metrics=bundle.metrics)
     except BaseException:
@@ -95,27 +102,56 @@ def active_predictor(session: Session) -> tuple[ModelVersion, ModelBundle]:
     return version, load_bundle(session.path / version.path)
 
 
-def stage1_outputs(session: Session, version: ModelVersion, bundle: ModelBundle, logs: Sequence[LogInfo]):
+PREDICTOR_BATCH = 64  # logs per stage-1 call when filling the cache
+
+
+def stage1_outputs(
+    session: Session, version: ModelVersion, bundle: ModelBundle, logs: Sequence[LogInfo]
+) -> dict[int, Stage1Outputs]:
     """Stage-1 outputs of ``logs``, computed once per predictor version and cached in the session folder.
 
-    Stage 1 is frozen, so every stage-2 retrain reuses these instead of running it again.
+    Stage 1 is frozen, so every stage-2 retrain reuses these instead of running it again. The outputs are written
+    chunk by chunk to files and handed back as rows read on demand (``FileRows``), so a 10-hour log never sits in
+    memory.
     """
     cache = session.cache_dir(f"stage1-v{version.id:04d}")
     missing = [x for x in logs if not (cache / f"{x.id:06d}.error.npy").exists()]
     if missing:
-        outs = run_predictor(bundle.predictor, bundle.normalizer, [session.array(x.id) for x in missing])
-        for log, out in zip(missing, outs, strict=True):
-            # hidden states lie in (-1, 1): float16 keeps them to 5e-4 at half the disk
-            np.save(cache / f"{log.id:06d}.hidden.npy", out.hidden.astype(np.float16))
-            np.save(cache / f"{log.id:06d}.estimate.npy", out.estimate)
-            np.save(cache / f"{log.id:06d}.error.npy", out.error)  # written last: marks the entry complete
+        h, c = bundle.predictor.config.hidden, bundle.predictor.config.n_channels
+        tag = uuid.uuid4().hex[:8]  # another process may fill the same cache: each writes its own files
+
+        def part(log: LogInfo, name: str, width: int, dtype: type) -> NpyWriter:
+            return NpyWriter(cache / f".{log.id:06d}.{name}.{tag}.npy", (log.n_samples, width), dtype)
+
+        # rows go to disk as they are computed and are read a chunk at a time: a long log never sits in memory;
+        # a group of logs at a time, each log's files open only while its group runs
+        missing.sort(key=lambda x: -x.n_samples)
+        for g0 in range(0, len(missing), PREDICTOR_BATCH):
+            group = missing[g0 : g0 + PREDICTOR_BATCH]
+            sinks: list[Stage1Outputs] = []
+            try:
+                # hidden states lie in (-1, 1): float16 keeps them to 5e-4 at half the disk
+                for x in group:
+                    sinks.append(Stage1Outputs(part(x, "hidden", h, np.float16), part(x, "error", c, np.float32),
+                                               part(x, "estimate", c, np.float32)))  # fmt: skip
+                predictor_pass(bundle.predictor, bundle.normalizer, [session.rows(x.id) for x in group], sinks,
+                               batch=PREDICTOR_BATCH)  # fmt: skip
+                for log, sink in zip(group, sinks, strict=True):
+                    for name in ("hidden", "estimate", "error"):  # error last: its file marks the entry complete
+                        writer = getattr(sink, name)
+                        writer.close()
+                        os.replace(writer.path, cache / f"{log.id:06d}.{name}.npy")
+            finally:
+                for sink in sinks:
+                    for writer in (sink.hidden, sink.error, sink.estimate):
+                        writer.abort()  # a no-op for the files already in place
     result = {}
     for x in logs:
         base = cache / f"{x.id:06d}"
         result[x.id] = Stage1Outputs(
-            np.load(f"{base}.hidden.npy").astype(np.float32),
-            np.load(f"{base}.error.npy"),
-            np.load(f"{base}.estimate.npy"),
+            FileRows.open_npy(f"{base}.hidden.npy"),
+            FileRows.open_npy(f"{base}.error.npy"),
+            FileRows.open_npy(f"{base}.estimate.npy"),
         )
     return result
 
@@ -127,11 +163,12 @@ _features: dict[tuple, list[np.ndarray]] = {}
 
 def stage2_features(
     session: Session, version: ModelVersion, bundle: ModelBundle, logs: Sequence[LogInfo], mode: FeatureMode
-) -> list[np.ndarray]:
+) -> list[np.ndarray] | list[LazyFeatures]:
     """Stage 2's ``(T, F)`` inputs of ``logs``, kept in memory for the next retrain when they fit the budget.
 
     A Retrain in the UI reads the same frozen features every time; loading thousands of cached files and building
     the inputs took 7 s of a 40 s retrain at QCAT scale. One entry is kept (the latest session, predictor, logs).
+    Features past the budget stay on disk: lazy features computed from the memory-mapped cache, batch by batch.
     """
     key = (str(session.path), version.id, mode, tuple(x.id for x in logs))
     with _features_lock:
@@ -139,13 +176,15 @@ def stage2_features(
     if hit is not None:
         return hit
     outs = stage1_outputs(session, version, bundle, logs)
+    lazy = [outs[x.id].lazy(mode) for x in logs]
+    if sum(f.shape[0] * f.shape[1] * 4 for f in lazy) > FEATURE_CACHE_BYTES:
+        return lazy  # too big to hold: each batch computes its rows from the memory-mapped cache
     features = [outs[x.id].features(mode) for x in logs]
-    if sum(f.nbytes for f in features) <= FEATURE_CACHE_BYTES:
-        for f in features:
-            f.setflags(write=False)  # shared between retrains: nobody may change them
-        with _features_lock:
-            _features.clear()
-            _features[key] = features
+    for f in features:
+        f.setflags(write=False)  # shared between retrains: nobody may change them
+    with _features_lock:
+        _features.clear()
+        _features[key] = features
     return features
 
 
@@ -224,5 +263,5 @@ def score_session(session: Session, log_ids: Sequence[int] | None = None) -> dic
     if log_ids is not None:
         logs = [x for x in logs if x.id in set(log_ids)]
     outs = stage1_outputs(session, p_version, bundle, logs)
-    probs = run_classifiers(bundle.classifiers, [outs[x.id].features(bundle.feature_mode) for x in logs])
-    return {x.id: score_log(outs[x.id].error, p) for x, p in zip(logs, probs, strict=True)}
+    probs = run_classifiers(bundle.classifiers, [outs[x.id].lazy(bundle.feature_mode) for x in logs])
+    return {x.id: score_log(outs[x.id].error[:], p) for x, p in zip(logs, probs, strict=True)}

@@ -174,7 +174,7 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
             arrays.append(item)
     if arrays:
         outs = run_predictor(bundle.predictor, bundle.normalizer, arrays)
-        probs = run_classifiers(bundle.classifiers, [o.features(bundle.feature_mode) for o in outs])
+        probs = run_classifiers(bundle.classifiers, [o.lazy(bundle.feature_mode) for o in outs])
         frames = [
             prediction_frame(name, p.mean(0), bundle.classes, bundle.rate_hz)
             for name, p in zip(names, probs, strict=True)

@@ -12,7 +12,7 @@ import numpy as np
 import labeling
 from sessions import LogInfo, Session
 from training.bundle import load_bundle
-from training.inference import run_classifiers
+from training.inference import LazyFeatures, ensemble_pass
 
 from .cycle import model_logs, stage1_outputs
 
@@ -30,8 +30,9 @@ class SessionScores:
         scores: Per log, ``labeling.LogScores`` (``(T,)`` surprise; ``(T, K)`` probs and ``(T,)`` disagreement
             once a classifier exists).
         tracks: Per log, the session-normalised, smoothed tracks in ``[0, 1]`` by kind.
-        embeddings: Per log, ``(T, H + C)`` stage-1 hidden state and surprise ``|x_t − x̂_t|`` (float16), for
-            typical and diverse suggestions: what the label-efficiency simulation measured them with.
+        embeddings: Per log, ``(T, H + C)`` stage-1 hidden state and surprise ``|x_t − x̂_t|``, computed from the
+            memory-mapped feature cache for the rows sliced: for typical and diverse suggestions, what the
+            label-efficiency simulation measured them with.
     """
 
     predictor: int | None = None
@@ -39,7 +40,7 @@ class SessionScores:
     classes: tuple[str, ...] = ()
     scores: dict[int, labeling.LogScores] = field(default_factory=dict)
     tracks: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
-    embeddings: dict[int, np.ndarray] = field(default_factory=dict)
+    embeddings: dict[int, LazyFeatures] = field(default_factory=dict)
 
 
 def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[int] | None = None) -> SessionScores:
@@ -58,28 +59,31 @@ def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[in
     logs = model_logs(session, bundle.channels)
     if log_ids is not None:
         logs = [x for x in logs if x.id in log_ids]
-    outs = stage1_outputs(session, p_version, bundle, logs)
-    embeddings = {x.id: outs[x.id].features(EMBEDDING_MODE) for x in logs}  # (T, H + C) each
+    outs = stage1_outputs(session, p_version, bundle, logs)  # memory-mapped
+    # rows are computed from the cache only where a suggestion reads them: an hour of them is 1.6 GB
+    embeddings = {x.id: outs[x.id].lazy(EMBEDDING_MODE) for x in logs}  # (T, H + C) each
     c_version = session.active_model("classifier")
     if c_version is not None and c_version.config.get("predictor") != p_version.id:
         c_version = None  # trained on another predictor's features: its probabilities would mean nothing
     classes: tuple[str, ...] = ()
-    members: list[np.ndarray | None] = [None] * len(logs)
+    mean_probs: list[np.ndarray | None] = [None] * len(logs)
+    disagreement: list[np.ndarray | None] = [None] * len(logs)
     if c_version is not None:
         c_bundle = load_bundle(session.path / c_version.path)
         classes = tuple(c_bundle.classes)
-        feats = [
-            embeddings[x.id] if c_bundle.feature_mode == EMBEDDING_MODE else outs[x.id].features(c_bundle.feature_mode)
-            for x in logs
-        ]
-        members = run_classifiers(c_bundle.classifiers, feats)
-    scores: dict[int, labeling.LogScores] = {}
-    for x, m in zip(logs, members, strict=True):
-        surprise = np.square(outs[x.id].error).mean(axis=1)  # (T,)
-        if m is None:
-            scores[x.id] = labeling.LogScores(surprise)
-        else:
-            scores[x.id] = labeling.LogScores(surprise, m.mean(axis=0), labeling.mutual_information(m))
+        mean_probs = [np.empty((x.n_samples, len(classes)), np.float32) for x in logs]
+        disagreement = [np.empty(x.n_samples, np.float32) for x in logs]
+
+        def reduce(i: int, a: int, b: int, probs: np.ndarray) -> None:
+            # the members' (M, L, K) probabilities are reduced chunk by chunk, never held for a whole log
+            mean_probs[i][a:b] = probs.mean(axis=0)
+            disagreement[i][a:b] = labeling.mutual_information(probs)
+
+        ensemble_pass(c_bundle.classifiers, [outs[x.id].lazy(c_bundle.feature_mode) for x in logs], reduce)
+    scores = {
+        x.id: labeling.LogScores(outs[x.id].surprise(), p, d)
+        for x, p, d in zip(logs, mean_probs, disagreement, strict=True)
+    }
     ids = [x.id for x in logs]
     tracks = labeling.normalised_tracks([scores[i] for i in ids], window=window)
     return SessionScores(
@@ -88,7 +92,7 @@ def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[in
         classes,
         scores,
         dict(zip(ids, tracks, strict=True)),
-        {i: e.astype(np.float16) for i, e in embeddings.items()},
+        embeddings,
     )
 
 

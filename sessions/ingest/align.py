@@ -7,12 +7,14 @@ longer than ``gap_samples`` of its own periods is in a gap: refused unless ``all
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import IngestError
 from ..logs import Channel, Gap
+from ..rowfiles import NpyWriter
 from .base import IngestOptions, ParsedLog, Stream
 
 
@@ -23,18 +25,22 @@ class AlignedLog:
     parsed: ParsedLog
     t0: float
     rate_hz: float
-    data: np.ndarray  # (T, C) float32
+    data: np.ndarray | NpyWriter  # (T, C) float32, or the file it was written to (see ``align``'s allocate)
     channels: tuple[Channel, ...]
     gaps: tuple[Gap, ...]
     reference: tuple[tuple[int, int, str], ...]  # (start, stop, terrain) in samples
     stream_rates: dict[str, float]
 
 
-def _dedupe(stream: Stream) -> tuple[np.ndarray, np.ndarray]:
-    times, values = stream.times, stream.values
+def _dedupe(stream: Stream) -> tuple[np.ndarray, np.ndarray | None]:
+    """Stamps with duplicates collapsed to the last sample, and which row of ``values`` each keeps (``None``: all,
+    in order): the values themselves may be memory-mapped and are read later, a chunk at a time."""
+    times = stream.times
     keep = np.ones(len(times), dtype=bool)
     keep[:-1] = times[1:] != times[:-1]  # keep the last of equal stamps
-    return times[keep], values[keep]
+    if keep.all():
+        return times, None
+    return times[keep], np.flatnonzero(keep)
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -57,22 +63,34 @@ def stream_rate(times: np.ndarray) -> float:
     return float(1.0 / np.median(np.diff(times)))
 
 
-def align(parsed: ParsedLog, options: IngestOptions) -> AlignedLog:
+ALIGN_ROWS = 1 << 18  # grid rows aligned at a time: bounds the temporaries whatever the log's length
+
+
+def align(
+    parsed: ParsedLog, options: IngestOptions, *, allocate: Callable[[tuple[int, int]], np.ndarray] | None = None
+) -> AlignedLog:
     """Align a parsed log's streams onto one grid.
 
     The grid runs over the time all streams share, at ``options.target_rate`` or the fastest stream's median rate.
+    It is filled ``ALIGN_ROWS`` rows at a time, so memory holds the streams' stamps and one chunk, not the log.
+
+    Args:
+        parsed: The streams (their values may be memory-mapped).
+        options: Rate and gap settings.
+        allocate: Gives what the ``(T, C)`` float32 data is written into, row blocks in order (an ``NpyWriter``,
+            so a long log goes straight to disk); default: an array in memory.
 
     Raises:
-        IngestError: No stream has two samples, the streams share no time, or a gap was found and gaps are not
-            allowed.
+        IngestError: No stream has two samples, the streams share no time, a value is not finite, or a gap was
+            found and gaps are not allowed.
     """
     path = parsed.source_path
-    streams: list[tuple[Stream, np.ndarray, np.ndarray, float]] = []
+    streams: list[tuple[Stream, np.ndarray, np.ndarray | None, float]] = []
     for stream in parsed.streams:
-        times, values = _dedupe(stream)
+        times, rows = _dedupe(stream)
         if len(times) < 2:
             continue
-        streams.append((stream, times, values, stream_rate(times)))
+        streams.append((stream, times, rows, stream_rate(times)))
     if not streams:
         raise IngestError(path, "no stream has at least two samples")
     rate = float(options.target_rate or _snap(max(r for *_, r in streams)))
@@ -82,40 +100,57 @@ def align(parsed: ParsedLog, options: IngestOptions) -> AlignedLog:
         names = ", ".join(s.name for s, *_ in streams)
         raise IngestError(path, f"the streams ({names}) share no time span")
     n = int(np.floor((stop - start) * rate + 1e-9)) + 1
-    grid = start + np.arange(n, dtype=np.float64) / rate  # (T,)
+
+    def grid(a: int, b: int) -> np.ndarray:
+        return start + np.arange(a, b, dtype=np.float64) / rate  # (b - a,)
+
+    def latest(times: np.ndarray, at: np.ndarray) -> np.ndarray:
+        # latest sample at or before each grid time; stamps within 0.1 % of a period count as "at" it,
+        # so float noise does not shift a stream that is sampled on the grid by one sample
+        return np.searchsorted(times, at + 1e-3 / rate, side="right") - 1
 
     width = sum(len(s.channels) for s, *_ in streams)
-    data = np.empty((n, width), dtype=np.float32)
-    channels: list[Channel] = []
+    data = np.empty((n, width), np.float32) if allocate is None else allocate((n, width))
+    channels = [Channel(*c) for s, *_ in streams for c in zip(s.channels, s.units, s.sources, strict=True)]
+    stale: list[list[tuple[int, int]]] = [[] for _ in streams]  # per stream, runs of grid rows gone stale
+    for a in range(0, n, ALIGN_ROWS):
+        b = min(n, a + ALIGN_ROWS)
+        at = grid(a, b)
+        block = np.empty((b - a, width), np.float32)
+        col = 0
+        for s_i, (stream, times, rows, srate) in enumerate(streams):
+            k = stream.values.shape[1]
+            idx = latest(times, at)  # (b - a,)
+            src = idx if rows is None else rows[idx]
+            lo, hi = int(src.min()), int(src.max()) + 1
+            block[:, col : col + k] = np.asarray(stream.values[lo:hi], np.float32)[src - lo]  # one read, gathered
+            col += k
+            for r0, r1 in _runs(at - times[idx] > options.gap_samples / srate):
+                if stale[s_i] and stale[s_i][-1][1] == a + r0:  # a run that crosses the chunk boundary
+                    stale[s_i][-1] = (stale[s_i][-1][0], a + r1)
+                else:
+                    stale[s_i].append((a + r0, a + r1))
+        if not np.isfinite(block).all():
+            bad = np.argwhere(~np.isfinite(block))[0]
+            raise IngestError(path, "non-finite value after alignment", where=f"channel {channels[bad[1]].name}")
+        data[a:b] = block
     gaps: list[Gap] = []
-    col = 0
-    for stream, times, values, srate in streams:
-        # (T,) latest sample at or before each grid time; stamps within 0.1 % of a period count as "at" it,
-        # so float noise does not shift a stream that is sampled on the grid by one sample.
-        idx = np.searchsorted(times, grid + 1e-3 / rate, side="right") - 1
-        k = values.shape[1]
-        data[:, col : col + k] = values[idx]
-        col += k
-        channels.extend(Channel(c, u, s) for c, u, s in zip(stream.channels, stream.units, stream.sources, strict=True))
-        age = grid - times[idx]
-        limit = options.gap_samples / srate
-        for stale0, g1 in _runs(age > limit):
-            last = int(idx[stale0])  # the last sample before the silence
-            after = min(int(idx[g1 - 1]) + 1, len(times) - 1)  # the first one after it
+    for (stream, times, _, srate), runs in zip(streams, stale, strict=True):
+        for stale0, g1 in runs:
+            last = int(latest(times, grid(stale0, stale0 + 1))[0])  # the last sample before the silence
+            after = min(int(latest(times, grid(g1 - 1, g1))[0]) + 1, len(times) - 1)  # the first one after it
             seconds = float(times[after] - times[last])
             # The gap is recorded from the grid point holding that last sample, not from when it went stale.
-            g0 = int(np.searchsorted(grid, times[last], side="left"))
+            near = max(0, int(np.floor((times[last] - start) * rate)) - 1)
+            g0 = min(n, near + int(np.searchsorted(grid(near, near + 3), times[last], side="left")))
             reason = f"no data for {seconds:.3f} s ({seconds * srate:.0f} samples at {srate:.1f} Hz)"
             if not options.allow_gaps:
                 raise IngestError(
                     path,
                     f"{reason} in stream {stream.name!r}; use --allow-gaps to record it as a gap",
-                    where=f"t={grid[g0] - start:.3f} s",
+                    where=f"t={grid(g0, g0 + 1)[0] - start:.3f} s",
                 )
             gaps.append(Gap(g0, g1, stream.name, reason))
-    if not np.isfinite(data).all():
-        bad = np.argwhere(~np.isfinite(data))[0]
-        raise IngestError(path, "non-finite value after alignment", where=f"channel {channels[bad[1]].name}")
 
     reference = []
     for t_a, t_b, terrain in parsed.reference:

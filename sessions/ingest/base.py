@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..rowfiles import FileRows
+
 
 @dataclass(frozen=True)
 class Stream:
@@ -15,7 +17,7 @@ class Stream:
     Attributes:
         name: Short name of the source, used as channel prefix ("imu", "fl").
         times: ``(N,)`` float64 seconds, non-decreasing.
-        values: ``(N, K)`` float64.
+        values: ``(N, K)`` float64: an array, or rows on disk (``FileRows``) read a block at a time.
         channels: ``K`` channel names (already prefixed).
         units: ``K`` units.
         sources: ``K`` origins ("topic:field" / "file:column").
@@ -23,7 +25,7 @@ class Stream:
 
     name: str
     times: np.ndarray
-    values: np.ndarray
+    values: np.ndarray | FileRows
     channels: tuple[str, ...]
     units: tuple[str, ...]
     sources: tuple[str, ...]

@@ -14,6 +14,7 @@ import numpy as np
 from ..errors import IngestError
 from .base import ChannelSpec, IngestOptions, ParsedLog, Stream
 from .fields import FieldSpec, format_path, get, infer_fields, parse_path, stamp_seconds
+from .spill import RowBuffer, reorder
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
@@ -27,8 +28,7 @@ class _Topic:
     fields: list[FieldSpec] = field(default_factory=list)
     decode: Callable[[bytes], object] | None = None
     unusable: str | None = None  # why the topic gives no channels
-    times: list[float] = field(default_factory=list)
-    rows: list[list[float]] = field(default_factory=list)
+    rows: RowBuffer | None = None  # stamps and field values, spilled to disk
     dropped: int = 0
 
 
@@ -95,7 +95,10 @@ def _read(
             raise IngestError(path, "not an MCAP file (wrong magic bytes)", where="byte 0")
         raw.seek(0)
         try:
-            for schema, channel, message in make_reader(raw, validate_crcs=True).iter_messages(log_time_order=False):
+            # log-time order: the reader decodes a chunk only when its messages are next, so memory holds the
+            # chunks that overlap in time. In insert order it decodes every chunk before yielding anything: the
+            # whole file in memory (mcap 1.x's orderless queue).
+            for schema, channel, message in make_reader(raw, validate_crcs=True).iter_messages(log_time_order=True):
                 on_message(schema, channel, message)
             return
         except IngestError:
@@ -190,6 +193,7 @@ def read_mcap(
             if not t.fields:
                 t.unusable = f"no sensor fields recognised in {t.schema or 'its messages'}"
                 return
+            t.rows = RowBuffer(len(t.fields))
         try:
             row = [float(get(msg, f.path)) for f in t.fields]
         except (AttributeError, KeyError, IndexError, TypeError, ValueError) as exc:
@@ -209,12 +213,11 @@ def read_mcap(
             )
         header = t.fields[0].header
         stamp = stamp_seconds(msg, header) if header is not None else None
-        t.times.append(stamp if stamp is not None else message.log_time * 1e-9)
-        t.rows.append(row)
+        t.rows.append(stamp if stamp is not None else message.log_time * 1e-9, row)
 
     _read(path, on_message, reset, on_bytes)
 
-    usable = [t for t in topics.values() if not t.unusable and t.rows]
+    usable = [t for t in topics.values() if not t.unusable and t.rows is not None and len(t.rows)]
     reports = [
         TopicReport(
             t.topic,
@@ -234,17 +237,20 @@ def read_mcap(
     prefixes = _topic_prefixes([t.topic for t in usable])
     streams = []
     for t in usable:
-        times = np.asarray(t.times, dtype=np.float64)
-        values = np.asarray(t.rows, dtype=np.float64)
-        order = np.argsort(times, kind="stable")  # logs are not always in stamp order
-        times, values = times[order], values[order]
-        keep = [i for i, f in enumerate(t.fields) if not ("torque" in f.name and not values[:, i].any())]
+        times, values = t.rows.times(), t.rows.values()  # values stay on disk
+        if (np.diff(times) < 0).any():  # logs are not always in stamp order
+            order = np.argsort(times, kind="stable")
+            times, values = times[order], reorder(values, order)
+        nonzero = values.column_any()
+        keep = [i for i, f in enumerate(t.fields) if not ("torque" in f.name and not nonzero[i])]
+        if len(keep) < values.shape[1]:
+            values = values.select(keep)
         prefix = prefixes[t.topic]
         streams.append(
             Stream(
                 name=prefix,
                 times=times,
-                values=values[:, keep],
+                values=values,
                 channels=tuple(f"{prefix}/{t.fields[i].name}" for i in keep),
                 units=tuple(t.fields[i].unit for i in keep),
                 sources=tuple(f"{t.topic}:{format_path(t.fields[i].path)}" for i in keep),

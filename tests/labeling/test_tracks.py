@@ -34,6 +34,12 @@ def test_smooth_is_a_centred_mean_that_shrinks_at_the_ends() -> None:
     np.testing.assert_allclose(smooth(x, 3), [0.0, 1.0, 1.0, 1.0, 0.0])
     np.testing.assert_allclose(smooth(x, 1), x)
     np.testing.assert_allclose(smooth(np.ones(4), 10), np.ones(4))
+    rng = np.random.default_rng(0)
+    for n in (1, 2, 5, 24, 25, 26, 300):
+        for window in (2, 3, 4, 25, 26, 400):
+            y = rng.normal(size=n)
+            want = [y[max(0, t - window // 2) : max(0, t - window // 2 + window)].mean() for t in range(n)]
+            np.testing.assert_allclose(smooth(y, window), want, err_msg=f"T={n}, window={window}")
 
 
 def test_session_normaliser_ranks_across_logs() -> None:

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from sessions import SCHEMA_VERSION, Session, SessionError
+from sessions.rowfiles import NpyWriter
 from sessions.schema import MIGRATIONS, migrate, schema_version
 
 
@@ -171,7 +172,8 @@ def test_a_session_folder_that_cannot_be_written_gives_a_clear_error(
     def no_space(*args: object, **kwargs: object) -> None:
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(np, "save", no_space)
+    # aligned rows are written block by block while aligning: the disk fills on the first block
+    monkeypatch.setattr(NpyWriter, "__setitem__", no_space)
     with pytest.raises(SessionError, match="cannot write to the session: No space left on device"):
         s.ingest([demo_mcap])
     monkeypatch.undo()

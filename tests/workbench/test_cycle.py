@@ -53,8 +53,8 @@ def test_versions_are_registered_active_and_loadable(trained: Session) -> None:
 
 def test_a_retrain_reuses_cached_stage1_and_warm_starts(trained: Session, monkeypatch) -> None:
     calls = []
-    real = cycle.run_predictor
-    monkeypatch.setattr(cycle, "run_predictor", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = cycle.predictor_pass
+    monkeypatch.setattr(cycle, "predictor_pass", lambda *a, **k: calls.append(1) or real(*a, **k))
     v2 = cycle.train_classifier(trained, config=TINY, hidden=8)
     assert calls == []  # stage 1 was not run again: its outputs came from the cache
     assert v2.config["warm_start"] is True

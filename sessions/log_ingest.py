@@ -1,0 +1,211 @@
+"""The ingest part of :class:`sessions.Session`: log files read, aligned and stored as arrays in the session.
+
+Each source is all-or-nothing: aligned rows go to staged files in the logs folder as they are computed, and a log is
+listed only once its array is synced and renamed into place in the same transaction that records it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import hashlib
+import json
+import os
+import sqlite3
+import threading
+import uuid
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from . import labels as _labels
+from .errors import IngestError, SessionError
+from .ingest import AlignedLog, IngestOptions, align, plan_sources, read_source
+from .logs import LogInfo
+from .rowfiles import NpyWriter
+
+LOGS_DIR = "logs"
+
+
+def _sha256(files: Sequence[str | Path]) -> str:
+    h = hashlib.sha256()
+    for f in files:
+        with open(f, "rb") as fh:
+            for block in iter(lambda fh=fh: fh.read(1 << 20), b""):
+                h.update(block)
+    return h.hexdigest()
+
+
+def fsync_dir(path: Path) -> None:
+    """Make a folder's entries (renames, new files) durable."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+class LogIngest:
+    """Ingest for :class:`sessions.Session` (a mixin over its connection, lock and path)."""
+
+    path: Path
+    _conn: sqlite3.Connection
+    _lock: threading.RLock
+
+    # Session's write transaction, reads and catalog, which this part uses
+    _write: Callable[[], contextlib.AbstractContextManager[sqlite3.Connection]]
+    _read: Callable[..., list[tuple]]
+    log: Callable[[int], LogInfo]
+
+    def ingest(
+        self,
+        paths: Sequence[str | Path],
+        *,
+        options: IngestOptions | None = None,
+        on_error: Callable[[IngestError], None] | None = None,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> list[LogInfo]:
+        """Ingest log files (or folders of them). Each source is all-or-nothing.
+
+        Args:
+            paths: MCAP / CSV files or folders holding them.
+            options: How to read and align.
+            on_error: Called with each refused file, and ingest goes on; without it the first error is raised.
+            progress: Called now and then with (bytes read, bytes in all sources), for a progress bar.
+
+        Returns:
+            The logs of the given paths: newly ingested ones, and ones already in the session (same content).
+        """
+        options = options or IngestOptions()
+        sources, errors = plan_sources(list(paths))
+
+        def fail(err: IngestError) -> None:
+            if on_error is None:
+                raise err
+            on_error(err)
+
+        for err in errors:
+            fail(err)
+        out: list[LogInfo] = []
+        total = sum(s.size for s in sources)
+        done = 0
+        for source in sources:
+            on_bytes = None if progress is None else (lambda n, base=done: progress(base + n, total))
+            writers: list[NpyWriter] = []
+            allocate = functools.partial(self._staged_file, writers)
+            try:
+                parsed, _ = read_source(source, options, on_bytes=on_bytes)
+                aligned = []
+                for p in parsed:
+                    aligned.append(align(p, options, allocate=allocate))
+                    writers[-1].close()
+                out.extend(self._store(aligned, source.files))
+            except IngestError as err:
+                fail(err)
+            except OSError as exc:
+                raise SessionError(f"{self.path}: cannot write to the session: {exc.strerror or exc}") from None
+            finally:
+                for w in writers:  # closed or not, placed or not: a staged file left here is garbage
+                    with contextlib.suppress(OSError):
+                        w.abort()
+            done += source.size
+            if progress is not None:
+                progress(done, total)
+        return out
+
+    def _staged_file(self, writers: list[NpyWriter], shape: tuple[int, int]) -> NpyWriter:
+        """A staged file in the logs folder that aligned rows go straight to: a long log never sits in memory."""
+        try:
+            writers.append(NpyWriter(self.path / LOGS_DIR / f".tmp-{uuid.uuid4().hex}.npy", shape, np.float32))
+        except OSError as exc:
+            raise SessionError(f"{self.path}: cannot write to the session: {exc.strerror or exc}") from None
+        return writers[-1]
+
+    def _store(self, aligned: list[AlignedLog], files: Sequence[Path]) -> list[LogInfo]:
+        try:
+            sha = _sha256(files)
+        except OSError as exc:
+            raise IngestError(files[0], f"cannot read: {exc.strerror or exc}") from None
+        try:
+            return self._write_logs(aligned, sha)
+        except OSError as exc:
+            # Not the file's fault (disk full, read-only folder): stop, the session is as it was.
+            raise SessionError(f"{self.path}: cannot write to the session: {exc.strerror or exc}") from None
+
+    def _write_logs(self, aligned: list[AlignedLog], sha: str) -> list[LogInfo]:
+        logs_dir = self.path / LOGS_DIR
+        # The same recording again keeps the copy we have: no array is written for it.
+        ids = {name: int(i) for name, i in self._read("SELECT name, id FROM logs WHERE source_sha256 = ?", (sha,))}
+        staged: list[tuple[AlignedLog, Path]] = []
+        placed: list[Path] = []
+        try:
+            for log in aligned:
+                if log.parsed.name in ids:
+                    continue
+                assert isinstance(log.data, NpyWriter), "ingest aligns into staged files"
+                staged.append((log, log.data.path))  # written and synced while aligning
+            with self._write() as conn:
+                for log, tmp in staged:
+                    row = conn.execute(  # another process may have ingested it meanwhile
+                        "SELECT id FROM logs WHERE source_sha256 = ? AND name = ?", (sha, log.parsed.name)
+                    ).fetchone()
+                    if row is not None:
+                        ids[log.parsed.name] = int(row[0])
+                        continue
+                    log_id = self._insert_log(conn, log, sha, tmp.name)
+                    final = logs_dir / f"{log_id:06d}.npy"
+                    conn.execute("UPDATE logs SET file = ? WHERE id = ?", (f"{LOGS_DIR}/{final.name}", log_id))
+                    os.replace(tmp, final)
+                    placed.append(final)
+                    ids[log.parsed.name] = log_id
+                fsync_dir(logs_dir)
+        except BaseException:
+            for p in placed:
+                with contextlib.suppress(OSError):
+                    p.unlink()
+            raise
+        finally:
+            for _, tmp in staged:
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+        return [self.log(ids[log.parsed.name]) for log in aligned]
+
+    @staticmethod
+    def _insert_log(conn: sqlite3.Connection, log: AlignedLog, sha: str, tmp_name: str) -> int:
+        p = log.parsed
+        info = {"files": list(p.files), "stream_rates_hz": log.stream_rates, "notes": list(p.notes)}
+        cur = conn.execute(
+            "INSERT INTO logs (name, source_path, source_sha256, format, file, n_samples, rate_hz, t0, "
+            "reference_terrain, info, ingested_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (
+                p.name,
+                p.source_path,
+                sha,
+                p.format,
+                tmp_name,
+                log.data.shape[0],
+                log.rate_hz,
+                log.t0,
+                p.reference_terrain,
+                json.dumps(info),
+                _labels.now(),
+            ),
+        )
+        log_id = int(cur.lastrowid)
+        conn.executemany(
+            "INSERT INTO channels (log_id, idx, name, unit, source) VALUES (?, ?, ?, ?, ?)",
+            [(log_id, i, c.name, c.unit, c.source) for i, c in enumerate(log.channels)],
+        )
+        conn.executemany(
+            "INSERT INTO gaps (log_id, start, stop, stream, reason) VALUES (?, ?, ?, ?, ?)",
+            [(log_id, g.start, g.stop, g.stream, g.reason) for g in log.gaps],
+        )
+        reference = list(log.reference)
+        if not reference and p.reference_terrain:
+            reference = [(0, log.data.shape[0], p.reference_terrain)]
+        conn.executemany(
+            "INSERT INTO reference (log_id, start, stop, terrain) VALUES (?, ?, ?, ?)",
+            [(log_id, a, b, t) for a, b, t in reference],
+        )
+        return log_id

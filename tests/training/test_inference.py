@@ -1,0 +1,92 @@
+"""Offline passes: chunked, batched and written anywhere, they equal one pass over each whole log."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+import torch
+
+from training import inference
+from training.config import ClassifierConfig, PredictorConfig
+from training.data import Normalizer
+from training.inference import Stage1Outputs, ensemble_pass, predictor_pass, run_classifiers, run_predictor
+from training.models import Classifier, Predictor, feature_moments
+
+
+@pytest.fixture
+def models() -> tuple[Predictor, list[Classifier], list[np.ndarray], Normalizer]:
+    torch.manual_seed(0)
+    rng = np.random.default_rng(0)
+    logs = [rng.normal(size=(n, 3)).astype(np.float32) for n in (700, 90, 333)]
+    pred = Predictor(PredictorConfig(3, 8)).eval()
+    clfs = [Classifier(ClassifierConfig(11, 4, 6)).eval() for _ in range(3)]
+    return pred, clfs, logs, Normalizer.fit(logs)
+
+
+def whole(pred: Predictor, norm: Normalizer, log: np.ndarray) -> Stage1Outputs:
+    """One call over the whole log, no batching, no chunks: the reference."""
+    with torch.inference_mode():
+        x = torch.from_numpy(norm(log))[None]
+        e, h, _ = pred(x)
+    err = np.zeros_like(log)
+    err[1:] = x[0, 1:].numpy() - e[0, :-1].numpy()
+    return Stage1Outputs(h[0].numpy(), err, e[0].numpy())
+
+
+def test_predictor_pass_in_small_chunks_into_any_sink_equals_one_whole_pass(models, monkeypatch) -> None:
+    pred, _, logs, norm = models
+    monkeypatch.setattr(inference, "STEPS_PER_CALL", 2)  # the batch-wide cap on chunk length bottoms out at 256
+    outs = run_predictor(pred, norm, logs, chunk=4096, batch=2)
+    small = run_predictor(pred, norm, logs, chunk=50, batch=3)
+    for log, a, b in zip(logs, outs, small, strict=True):
+        ref = whole(pred, norm, log)
+        for name in ("hidden", "error", "estimate"):
+            np.testing.assert_allclose(getattr(a, name), getattr(ref, name), atol=1e-5)
+            np.testing.assert_allclose(getattr(b, name), getattr(ref, name), atol=1e-5)
+    assert outs[0].error[0].tolist() == [0.0, 0.0, 0.0]  # the first step has no estimate
+    np.testing.assert_allclose(outs[0].surprise(chunk=64), np.square(outs[0].error).mean(1), rtol=1e-6)
+
+    written: list[list[tuple[int, int]]] = [[] for _ in logs]
+
+    class Recorder:  # a sink that only takes rows in order, as a file writer does
+        def __init__(self, i: int, width: int) -> None:
+            self.i, self.rows = i, np.zeros((len(logs[i]), width), np.float32)
+
+        def __setitem__(self, key: slice, value: np.ndarray) -> None:
+            written[self.i].append((key.start, key.stop))
+            self.rows[key] = value
+
+    sinks = [Stage1Outputs(Recorder(i, 8), Recorder(i, 3), Recorder(i, 3)) for i in range(len(logs))]
+    predictor_pass(pred, norm, logs, sinks, chunk=64)
+    for i, log in enumerate(logs):
+        starts = [a for a, _ in written[i][::3]]
+        assert starts == sorted(starts) and starts[0] == 0 and written[i][-1][1] == len(log)
+        np.testing.assert_allclose(sinks[i].hidden.rows, outs[i].hidden, atol=1e-5)
+
+
+def test_lazy_features_and_ensemble_pass_equal_the_arrays_in_memory(models) -> None:
+    pred, clfs, logs, norm = models
+    outs = run_predictor(pred, norm, logs)
+    arrays = [o.features("hidden+surprise") for o in outs]
+    lazy = [o.lazy("hidden+surprise") for o in outs]
+    assert lazy[0].shape == arrays[0].shape == (700, 11) and len(lazy[1]) == 90
+    np.testing.assert_array_equal(lazy[0][100:250], arrays[0][100:250])
+    np.testing.assert_array_equal(lazy[2][300:9999], arrays[2][300:])
+    with pytest.raises(TypeError):
+        lazy[0][5]
+    for a, b in zip(feature_moments(lazy, chunk=64), feature_moments(arrays), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
+    ref = run_classifiers(clfs, arrays)
+    chunks: list[tuple[int, int, int]] = []
+
+    def sink(i: int, a: int, b: int, probs: np.ndarray) -> None:
+        chunks.append((i, a, b))
+        np.testing.assert_allclose(probs, ref[i][:, a:b], atol=1e-5)
+
+    ensemble_pass(clfs, lazy, sink, chunk=100, batch=2)
+    for i, log in enumerate(logs):
+        spans = [(a, b) for j, a, b in chunks if j == i]
+        assert spans[0][0] == 0 and spans[-1][1] == len(log)
+        assert all(b0 == a1 for (_, b0), (a1, _) in itertools.pairwise(spans))  # every step, in order
