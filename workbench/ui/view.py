@@ -32,15 +32,23 @@ class ClientView:
     """Everything one browser sees; built when it connects, dropped when it leaves."""
 
     def __init__(self, client: viser.ClientHandle, state: SharedState, job: TrainJob) -> None:
+        self.client, self.state, self.job = client, state, job
+        self.author = f"browser-{client.client_id}"
+        self._lock = threading.RLock()
+        self._updating = False  # set while the server moves widgets, so their callbacks do not echo
+        # Widgets are live as soon as they are added, and a fast client acts before the view is whole (a label
+        # saved mid-build met a view without its robot panel): callbacks take this lock, held until the end.
+        with self._lock:
+            self._build()
+
+    def _build(self) -> None:
         from .panel_data import DataPanel
         from .panel_label import LabelPanel
         from .panel_suggest import SuggestPanel
         from .panel_train import TrainPanel
         from .robot import RobotView
 
-        self.client, self.state, self.job = client, state, job
-        self.author = f"browser-{client.client_id}"
-        self._lock = threading.RLock()
+        client, state = self.client, self.state
         logs = state.logs()
         self.log: LogInfo | None = logs[0] if logs else None
         if self.log is not None:
@@ -54,7 +62,6 @@ class ClientView:
         self.pixels = PIXELS  # the benchmark raises it to send raw windows as its reference
         self._charts: list = []
         self._chart_key: tuple = ()
-        self._updating = False  # set while the server moves widgets, so their callbacks do not echo
 
         gui = client.gui
         gui.configure_theme(

@@ -1,0 +1,127 @@
+"""Promise 2: training can die at any moment. Killed mid-epoch or mid-save, the session opens, the previous active
+model still loads and scores, and no half-written version is listed."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sessions import Session
+from training.bundle import load_bundle
+from workbench import cycle
+from workbench.seed import seed_labels
+
+# A training run in its own process, killed by SIGKILL from inside at a chosen point: after N optimiser steps
+# (mid-epoch), while a weights file is half written (mid-save), or with the files in place but not yet registered.
+CHILD = textwrap.dedent(
+    """
+    import os, signal, sys
+    from sessions import Session
+    from training.config import TrainConfig
+    from workbench import cycle
+    import training.bundle as bundle
+
+    path, where, stage, steps = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+
+    def die():
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    count = [0]
+
+    def progress(p):
+        count[0] += 1
+        if where == "epoch" and count[0] >= steps:
+            die()
+
+    if where == "save":
+        real = bundle.save_file
+
+        def half(tensors, filename, **kw):
+            real(tensors, filename, **kw)
+            with open(filename, "r+b") as f:
+                f.truncate(os.path.getsize(filename) // 2)
+            die()
+
+        bundle.save_file = half
+    if where == "register":
+        Session.register_model = lambda *a, **k: die()
+    config = TrainConfig(max_epochs=3, patience=2, chunk=32, piece=256, batch_size=16, label_piece=64, context=32,
+                         k_folds=3)
+    with Session.open(path) as s:
+        train = cycle.train_predictor if stage == "predictor" else cycle.train_classifier
+        train(s, config=config, hidden=8, progress=progress)
+    sys.exit(3)  # not killed: the test's hook never fired
+    """
+)
+
+
+def kill_training(path: Path, where: str, stage: str, steps: int = 1) -> None:
+    out = subprocess.run([sys.executable, "-c", CHILD, str(path), where, stage, str(steps)], capture_output=True,
+                         text=True, timeout=300)  # fmt: skip
+    assert out.returncode == -signal.SIGKILL, out.stderr[-2000:]
+
+
+def state_of(path: Path) -> tuple:
+    with Session.open(path) as s:
+        return tuple((v.id, v.stage, v.active, v.path) for v in s.model_versions())
+
+
+def check_after_kill(path: Path, before: tuple) -> None:
+    """Opens; the same versions listed and active as before the kill; each loads; the active ones score."""
+    assert state_of(path) == before
+    with Session.open(path) as s:
+        for v in s.model_versions():
+            load_bundle(s.path / v.path)  # every listed version is whole
+        scores = cycle.score_session(s)
+        assert scores and all(np.isfinite(sc.probs).all() for sc in scores.values())
+
+
+@pytest.fixture(scope="module")
+def trained_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from tests.workbench.test_cycle import TINY
+    from workbench.demo import generate_demo_logs
+
+    root = tmp_path_factory.mktemp("killtrain")
+    logs = generate_demo_logs(root / "logs", n_logs=2, minutes=1.0, seed=5)
+    path = root / "s"
+    with Session.create(path) as s:
+        s.ingest(logs)
+        seed_labels(s, 0.15, seed=1)
+        cycle.train_predictor(s, config=TINY, hidden=8)
+        cycle.train_classifier(s, config=TINY, hidden=8)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("where", "stage", "steps"),
+    [("epoch", "classifier", 2), ("epoch", "predictor", 2), ("save", "classifier", 0), ("save", "predictor", 0),
+     ("register", "classifier", 0)],
+)  # fmt: skip
+def test_a_training_killed_anywhere_leaves_the_previous_models_working(
+    trained_session: Path, where: str, stage: str, steps: int
+) -> None:
+    before = state_of(trained_session)
+    kill_training(trained_session, where, stage, steps)
+    check_after_kill(trained_session, before)
+
+
+def run_random_kills(path: Path, kills: int, seed: int) -> int:
+    """Kills after a random number of optimiser steps, each stage in turn; returns how many were checked."""
+    rng = np.random.default_rng(seed)
+    for i in range(kills):
+        before = state_of(path)
+        kill_training(path, "epoch", ("classifier", "predictor")[i % 2], int(rng.integers(1, 12)))
+        check_after_kill(path, before)
+    return kills
+
+
+@pytest.mark.slow
+def test_training_killed_at_forty_random_moments(trained_session: Path) -> None:
+    n = run_random_kills(trained_session, 40, seed=3)
+    print(f"promise 2 (training killed mid-epoch / mid-save): {n + 5} kills, 0 failures")

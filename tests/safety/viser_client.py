@@ -1,0 +1,92 @@
+"""A client that speaks viser's websocket protocol as the browser does, to drive the workbench without a browser.
+
+Server frames are ``[8 B inner size][8 B compressed size][zstd msgpack {"messages": [...]}][binary buffers]``; the
+client sends one msgpack-encoded message per frame (viser 1.1, ``viser/infra/_infra.py``). Messages are kept as the
+plain dicts they decode to: ``{"type": "GuiButtonMessage", "uuid": ..., "props": {"label": ...}}``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import msgspec
+import viser
+import zstandard
+from viser import _messages
+from websockets.sync.client import connect
+
+
+class ViserClient:
+    """One connection. ``widgets`` maps a GUI label to its uuid (this client's own panel); ``wait_for`` reads frames
+    until a message matches."""
+
+    def __init__(self, url: str, *, timeout: float = 20.0) -> None:
+        self.ws = connect(url.replace("http://", "ws://"), subprotocols=[f"viser-v{viser.__version__}"],
+                          max_size=None, open_timeout=timeout)  # fmt: skip
+        self._unzip = zstandard.ZstdDecompressor()
+        self.widgets: dict[str, str] = {}
+        self.props: dict[str, dict] = {}  # uuid -> latest props
+        # viser counts a client as connected (and builds its panel) at its first camera message, as a browser sends
+        camera = _messages.ViewerCameraMessage((1.0, 0.0, 0.0, 0.0), (3.0, 3.0, 3.0), 1.0, 0.01, 100.0, 800, 1200,
+                                               (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))  # fmt: skip
+        self._send(camera)
+
+    def close(self) -> None:
+        self.ws.close()
+
+    def _messages(self, raw: bytes) -> list[dict]:
+        inner, size = int.from_bytes(raw[:8], "little"), int.from_bytes(raw[8:16], "little")
+        return msgspec.msgpack.decode(self._unzip.decompress(raw[16 : 16 + size], max_output_size=inner))["messages"]
+
+    def _track(self, m: dict) -> None:
+        props = m.get("props")
+        if m["type"].startswith("Gui") and isinstance(props, dict) and "uuid" in m:
+            self.props[m["uuid"]] = dict(props)
+            if "label" in props:
+                self.widgets[props["label"]] = m["uuid"]
+        elif m["type"] == "GuiUpdateMessage" and m["uuid"] in self.props:
+            self.props[m["uuid"]].update(m["updates"])
+
+    def wait_for(self, match: Callable[[dict], bool], *, timeout: float = 20.0) -> dict:
+        """Read until a message satisfies ``match``; raises ``TimeoutError`` (or the connection's error)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError("no matching message from the server")
+            raw = self.ws.recv(timeout=left)
+            for m in self._messages(raw):
+                self._track(m)
+                if match(m):
+                    return m
+
+    def wait_widget(self, label: str, *, timeout: float = 30.0) -> str:
+        """The uuid of the widget labelled ``label`` once the server has sent it."""
+        if label not in self.widgets:
+            self.wait_for(lambda m: label in self.widgets, timeout=timeout)
+        return self.widgets[label]
+
+    def send_update(self, uuid: str, **updates: object) -> None:
+        """What the browser sends when a person moves a widget (a button click is ``value=True``)."""
+        self._send(_messages.GuiUpdateMessage(uuid, dict(updates)))
+
+    def _send(self, message: _messages.Message) -> None:
+        self.ws.send(msgspec.msgpack.encode(message.as_serializable_dict()))
+
+    def label(self, start_s: float, stop_s: float, *, sent: Callable[[], None] | None = None) -> tuple[str, str]:
+        """Label ``[start_s, stop_s]`` with the chosen terrain as a person does: move the range, press Save.
+
+        Waits for the server to take the range (its snap note changes) before pressing Save, as a person would see
+        the range before saving; ``sent`` is called just before Save is pressed. Returns the notification's title
+        and body ("Saved", "... (segment N)").
+        """
+        span, save = self.wait_widget("Range (s)"), self.wait_widget("Save label (Enter)")
+        self.send_update(span, value=(round(start_s, 2), round(stop_s, 2)))
+        self.wait_for(lambda m: m["type"] == "GuiUpdateMessage" and any(
+            k in str(m["updates"].get("content", "")) for k in ("Snap proposal", "No change point")))  # fmt: skip
+        if sent is not None:
+            sent()
+        self.send_update(save, value=True)
+        note = self.wait_for(lambda m: m["type"] == "NotificationShowMessage")["props"]
+        return note["title"], note["body"]
