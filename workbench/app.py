@@ -5,9 +5,12 @@ from __future__ import annotations
 import html
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from sessions import Session
+
+from .ui.panel_data import MAX_UPLOAD_MB, safe_name
 
 _STYLE = (
     "<style>.wb-table{border-collapse:collapse;width:100%;font-size:0.8em;white-space:nowrap}"
@@ -61,6 +64,33 @@ def terrains_html(session: Session) -> str:
     return _STYLE + chips
 
 
+def limit_uploads(server, max_bytes: int, refused: Callable[[int, str, int], None]) -> bool:
+    """Refuse an upload larger than ``max_bytes`` at its first message, before viser buffers its parts in memory.
+
+    viser 1.1 holds a whole upload in memory before ``on_upload`` sees it, so a size check there comes after the
+    harm. This wraps viser's handler of the upload's start message (its internal handler registry); the parts of a
+    refused upload are then dropped as parts of an unknown transfer. Returns False, leaving the check after the
+    upload as the only one, when this viser has no such registry.
+    """
+    from viser import _messages
+
+    gui = server.gui
+    try:
+        interface, original = gui._websock_interface, gui._handle_file_transfer_start
+        interface.unregister_handler(_messages.FileTransferStartUpload, original)
+    except (AttributeError, AssertionError, ValueError):
+        return False
+
+    def start(client_id: int, message: _messages.FileTransferStartUpload) -> None:
+        if message.size_bytes > max_bytes:
+            refused(client_id, message.filename, message.size_bytes)
+            return
+        original(client_id, message)
+
+    interface.register_handler(_messages.FileTransferStartUpload, start)
+    return True
+
+
 class WorkbenchApp:
     """A viser server over one session: shared state and training job, and one :class:`ClientView` per browser."""
 
@@ -107,9 +137,17 @@ class WorkbenchApp:
 
         self.server.on_client_connect(connect)
         self.server.on_client_disconnect(disconnect)
+        limit_uploads(self.server, MAX_UPLOAD_MB << 20, self._upload_refused)
         self._stop = threading.Event()
         self._watch = threading.Thread(target=self._poll, name="session-watch", daemon=True)
         self._watch.start()
+
+    def _upload_refused(self, client_id: int, name: str, size: int) -> None:
+        client = self.server.get_clients().get(client_id)  # the client, not its view: that may still be building
+        if client is not None:
+            body = (f"{safe_name(name)}: {size / 2**20:.0f} MB is over the {MAX_UPLOAD_MB} MB upload limit; "
+                    "ingest it with `workbench ingest` instead")  # fmt: skip
+            client.add_notification("Not done", body, auto_close_seconds=8.0, color="red")
 
     @property
     def url(self) -> str:

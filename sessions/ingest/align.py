@@ -63,6 +63,7 @@ def stream_rate(times: np.ndarray) -> float:
     return float(1.0 / np.median(np.diff(times)))
 
 
+MIN_RATE_HZ = 1e-3  # slower "sensors" are stamps gone wrong (a column of dates, a unit error)
 ALIGN_ROWS = 1 << 18  # grid rows aligned at a time: bounds the temporaries whatever the log's length
 
 
@@ -94,6 +95,9 @@ def align(
     if not streams:
         raise IngestError(path, "no stream has at least two samples")
     rate = float(options.target_rate or _snap(max(r for *_, r in streams)))
+    if not MIN_RATE_HZ <= rate < float("inf"):
+        raise IngestError(path, f"sample rate {rate:g} Hz: the stamps are not those of a sensor log "
+                                f"(at least {MIN_RATE_HZ:g} Hz, one sample every {1 / MIN_RATE_HZ:g} s)")  # fmt: skip
     start = max(float(t[0]) for _, t, _, _ in streams)
     stop = min(float(t[-1]) for _, t, _, _ in streams)
     if stop <= start:

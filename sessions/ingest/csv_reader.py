@@ -65,10 +65,43 @@ def is_qcat(path: Path) -> bool:
     return QCAT_RE.match(path.name) is not None
 
 
+MAX_LINE_BYTES = 1 << 20  # a sensor CSV row is a few hundred bytes; a longer "line" is not one
+
+
+def _check_text(path: Path, *, block: int = 1 << 20) -> None:
+    """Refuse binary data and absurd lines before the parser holds them: a 2 GB line would be read whole."""
+    line, run, offset = 1, 0, 0  # run: bytes of the current line so far
+
+    def too_long(at_line: int) -> IngestError:
+        return IngestError(path, f"a line longer than {MAX_LINE_BYTES >> 20} MiB: not a sensor CSV",
+                           where=f"line {at_line}")  # fmt: skip
+
+    with open(path, "rb") as f:
+        while chunk := f.read(block):
+            nul = chunk.find(b"\0")
+            if nul >= 0:
+                raise IngestError(path, "binary data (NUL bytes), not CSV text", where=f"byte {offset + nul}")
+            breaks = np.flatnonzero(np.frombuffer(chunk, np.uint8) == ord("\n"))  # (n,)
+            if len(breaks) == 0:
+                run += len(chunk)
+            else:
+                lengths = np.diff(breaks, prepend=-1) - 1  # each line ending in this chunk
+                lengths[0] += run
+                over = np.flatnonzero(lengths > MAX_LINE_BYTES)
+                if len(over):
+                    raise too_long(line + int(over[0]))
+                line += len(breaks)
+                run = len(chunk) - int(breaks[-1]) - 1
+            if run > MAX_LINE_BYTES:
+                raise too_long(line)
+            offset += len(chunk)
+
+
 def _read_frame(path: Path, *, header: bool | None, names: tuple[str, ...] = ()) -> pd.DataFrame:
     """Read a CSV as strings, so that bad cells can be reported by row and column."""
     if path.stat().st_size == 0:
         raise IngestError(path, "empty file")
+    _check_text(path)
     if header is None:
         first = next(csv.reader([_first_line(path)]), [])
         header = any(_not_number(c) for c in first if c.strip())

@@ -116,15 +116,14 @@ def summary(kills: int, acked: int, stored: int) -> str:
             f"after every kill, {stored} in the session at the end")  # fmt: skip
 
 
-def test_acknowledged_labels_survive_ten_kills(tmp_path: Path) -> None:
+def test_acknowledged_labels_survive_ten_kills(tmp_path: Path, promise) -> None:
     kills, acked, stored = run_kills(tmp_path, 120.0, 10, seed=1)
     assert acked > 0 and stored >= acked
-    print(summary(kills, acked, stored))
+    promise(summary(kills, acked, stored))
 
 
 @pytest.mark.slow
-def test_acknowledged_labels_survive_two_hundred_kills(tmp_path: Path, record_property) -> None:
+def test_acknowledged_labels_survive_two_hundred_kills(tmp_path: Path, promise) -> None:
     kills, acked, stored = run_kills(tmp_path, 900.0, 200, seed=2)
     assert kills == 200 and acked > 0 and stored >= acked
-    record_property("summary", summary(kills, acked, stored))
-    print(summary(kills, acked, stored))
+    promise(summary(kills, acked, stored))

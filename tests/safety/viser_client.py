@@ -61,6 +61,11 @@ class ViserClient:
                 if match(m):
                     return m
 
+    def wait_until(self, condition: Callable[[], bool], *, timeout: float = 20.0) -> None:
+        """Read messages until ``condition()`` (on what this client has been told so far) holds."""
+        if not condition():
+            self.wait_for(lambda m: condition(), timeout=timeout)
+
     def wait_widget(self, label: str, *, timeout: float = 30.0) -> str:
         """The uuid of the widget labelled ``label`` once the server has sent it."""
         if label not in self.widgets:
@@ -81,12 +86,20 @@ class ViserClient:
         the range before saving; ``sent`` is called just before Save is pressed. Returns the notification's title
         and body ("Saved", "... (segment N)").
         """
-        span, save = self.wait_widget("Range (s)"), self.wait_widget("Save label (Enter)")
+        span = self.wait_widget("Range (s)")
         self.send_update(span, value=(round(start_s, 2), round(stop_s, 2)))
         self.wait_for(lambda m: m["type"] == "GuiUpdateMessage" and any(
             k in str(m["updates"].get("content", "")) for k in ("Snap proposal", "No change point")))  # fmt: skip
         if sent is not None:
             sent()
-        self.send_update(save, value=True)
-        note = self.wait_for(lambda m: m["type"] == "NotificationShowMessage")["props"]
-        return note["title"], note["body"]
+        return self.click("Save label (Enter)", ("Saved",))
+
+    def click(self, button: str, done: tuple[str, ...], **before: object) -> tuple[str, str]:
+        """Set widgets (label -> value), press ``button``, and return the title and body of the notification
+        that answers it: one titled in ``done``, or an error ("Not done", "Something went wrong")."""
+        for label, value in before.items():
+            self.send_update(self.wait_widget(label), value=value)
+        self.send_update(self.wait_widget(button), value=True)
+        titles = (*done, "Not done", "Something went wrong")
+        note = self.wait_for(lambda m: m["type"] == "NotificationShowMessage" and m["props"]["title"] in titles)
+        return note["props"]["title"], note["props"]["body"]

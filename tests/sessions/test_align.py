@@ -88,3 +88,9 @@ def test_rate_override_and_reference_in_samples() -> None:
     assert out.rate_hz == 50.0
     assert out.data.shape[0] == 500  # 9.99 s at 50 Hz, both ends included
     assert out.reference == ((0, 200, "grass"), (200, 500, "sand"))
+
+
+def test_stamps_too_sparse_for_a_sensor_are_refused_not_divided_by_zero() -> None:
+    """Found by the CSV fuzz target: two stamps 23 days apart made a rate of 0 Hz and a division by zero."""
+    with pytest.raises(IngestError, match=r"sample rate .* Hz: the stamps are not those of a sensor log"):
+        align(log(stream("a", [-2_000_000.0, 0.0], [0.0, 1.0])), IngestOptions())

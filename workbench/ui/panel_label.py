@@ -167,6 +167,8 @@ class LabelPanel:
     def relabel(self) -> None:
         seg = self._chosen_segment()
         self.view.state.change_label(seg.id, author=self.view.author, terrain=self.terrain.value)
+        note = f"segment {seg.id}: {seg.terrain} → {self.terrain.value}; U undoes"
+        self.view.notify("Relabelled", note, color="blue")
 
     def delete(self) -> None:
         seg = self._chosen_segment()

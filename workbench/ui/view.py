@@ -35,7 +35,10 @@ class ClientView:
         self.client, self.state, self.job = client, state, job
         self.author = f"browser-{client.client_id}"
         self._lock = threading.RLock()
-        self._updating = False  # set while the server moves widgets, so their callbacks do not echo
+        # Set while the server moves widgets, so their callbacks do not echo. Per thread: viser runs those callbacks
+        # synchronously in the thread that moved the widget, while another person's click runs in another thread
+        # and must not be dropped (a view-wide flag lost clicks that came during a refresh).
+        self._quiet = threading.local()
         # Widgets are live as soon as they are added, and a fast client acts before the view is whole (a label
         # saved mid-build met a view without its robot panel): callbacks take this lock, held until the end.
         with self._lock:
@@ -132,7 +135,7 @@ class ClientView:
 
     def _guard(self, fn: Callable[[], None]) -> None:
         """Run a widget callback unless the server itself moved the widget; report errors in the page."""
-        if self._updating:
+        if getattr(self._quiet, "depth", 0):
             return
         try:
             with self._lock:
@@ -149,11 +152,11 @@ class ClientView:
     @contextlib.contextmanager
     def quiet(self) -> Iterator[None]:
         """Widgets changed inside this block are moved by the server: their callbacks do not echo."""
-        self._updating = True
+        self._quiet.depth = getattr(self._quiet, "depth", 0) + 1  # blocks nest
         try:
             yield
         finally:
-            self._updating = False
+            self._quiet.depth -= 1
 
     def set_widget(self, handle, value) -> None:
         """Move a widget from the server without triggering its callback."""

@@ -1,0 +1,174 @@
+"""Promise 4: several people at once. N clients speaking viser's protocol label, relabel and delete concurrently
+while a retrain runs: no label lost or duplicated, every client ends up showing the same label set, and saves keep
+being answered (their latency is printed; the target is checked by ``benchmarks/bench_labels.py``, not here)."""
+
+from __future__ import annotations
+
+import re
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sessions import Session
+from tests.browser.conftest import free_port
+from tests.safety.viser_client import ViserClient
+
+SEGMENT = re.compile(r"segment (\d+)")
+SUMMARY = re.compile(r"<b>(\d+)</b> segments labelled in the session")
+
+
+@dataclass
+class Acts:
+    """What one client was told: segments it added (id -> terrain), relabelled (id -> terrain), deleted."""
+
+    added: dict[int, str] = field(default_factory=dict)
+    relabelled: dict[int, str] = field(default_factory=dict)
+    deleted: set[int] = field(default_factory=set)
+    save_ms: list[float] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+
+
+def person(url: str, region_s: float, ops: int, seed: int, acts: Acts) -> ViserClient:
+    """Labels 1 s stretches in its own region; now and then relabels or deletes one of its own."""
+    rng = np.random.default_rng(seed)
+    client = ViserClient(url)
+    client.wait_widget("Save label (Enter)")
+    at = region_s
+    terrain_now = "concrete"  # the Terrain dropdown starts on the first terrain; a relabel moves it
+    for _ in range(ops):
+        mine = sorted(set(acts.added) - acts.deleted)
+        roll = rng.random()
+        t0 = time.perf_counter()
+        try:
+            title, body = act(client, acts, mine, roll, rng, at)
+        except TimeoutError:
+            acts.errors.append(f"no answer within 20 s to action {roll:.2f} after {time.perf_counter() - t0:.1f} s "
+                               f"(at {time.strftime('%H:%M:%S')})")  # fmt: skip
+            return client
+        if title == "Relabelled":
+            terrain_now = body.split("→ ")[1].split(";")[0]
+        if title == "Saved":
+            acts.save_ms.append(1e3 * (time.perf_counter() - t0))
+            acts.added[int(SEGMENT.search(body).group(1))] = terrain_now
+        if roll >= 0.4 or not mine:
+            at += 1.5
+        if title in ("Not done", "Something went wrong"):
+            acts.errors.append(f"{title}: {body}")
+    return client
+
+
+def act(client: ViserClient, acts: Acts, mine: list[int], roll: float, rng, at: float) -> tuple[str, str]:
+    """One action: delete (20 %) or relabel (20 %) one of this person's segments, else label a new stretch."""
+    if mine and roll < 0.2:
+        seg = int(rng.choice(mine))
+        title, body = client.click("Delete", ("Deleted",), Segment=f"#{seg}")
+        if title == "Deleted":
+            acts.deleted.add(seg)
+        return title, body
+    if mine and roll < 0.4:
+        seg, terrain = int(rng.choice(mine)), str(rng.choice(["dirt", "sand", "gravel"]))
+        title, body = client.click("Relabel as chosen terrain", ("Relabelled",), Segment=f"#{seg}", Terrain=terrain)
+        if title == "Relabelled":
+            acts.relabelled[seg] = terrain
+        return title, body
+    return client.label(at, at + 1.0)
+
+
+@pytest.fixture
+def trained(tmp_path: Path) -> Path:
+    from tests.workbench.test_cycle import TINY
+    from workbench import cycle
+    from workbench.demo import generate_walk, write_walk
+
+    mcap = write_walk(generate_walk(6, 800.0), tmp_path / "walk.mcap", seed=6)
+    with Session.create(tmp_path / "s") as s:
+        (log,) = s.ingest([mcap])
+        s.add_segment(log.id, 100, 300, "grass", author="seed")
+        s.add_segment(log.id, 500, 700, "concrete", author="seed")
+        cycle.train_predictor(s, config=TINY, hidden=8)
+        cycle.train_classifier(s, config=TINY, hidden=8)
+    return tmp_path / "s"
+
+
+def run_people(path: Path, people: int, ops: int) -> tuple[int, list[float]]:
+    from training.config import TrainConfig
+    from workbench.app import WorkbenchApp
+
+    session = Session.open(path)
+    app = WorkbenchApp(session, port=free_port(), hidden=8, max_epochs=(2, 30))
+    app.job.classifier_config = TrainConfig(max_epochs=30, patience=30, k_folds=3)  # a retrain that lasts
+    app.job.warm_epochs = None
+    clients: list[ViserClient] = []
+    try:
+        before = {seg.id: seg for seg in session.segments()}
+        versions = len(session.model_versions("classifier"))
+        app.job.start()
+        acts = [Acts() for _ in range(people)]
+        width = 1.5 * ops + 5  # each person labels in a region of their own
+        threads = [threading.Thread(target=lambda i=i: clients.append(person(app.url, 20 + width * i, ops, i, acts[i])))
+                   for i in range(people)]  # fmt: skip
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(300)
+        assert app.job.running or len(session.model_versions("classifier")) > versions  # it overlapped the labelling
+        for a in acts:
+            assert not a.errors, a.errors
+        # every acknowledged change is in the session, and nothing else changed
+        want = dict(before)
+        now = {seg.id: seg for seg in session.segments()}
+        for a in acts:
+            for seg_id in a.added:
+                if seg_id not in a.deleted:
+                    assert seg_id in now, f"acknowledged segment {seg_id} is gone"
+                    want[seg_id] = now[seg_id]
+                    assert now[seg_id].terrain == a.relabelled.get(seg_id, a.added[seg_id])
+            for seg_id in a.deleted:
+                assert seg_id not in now, f"deleted segment {seg_id} is back"
+        assert set(now) == set(want), f"unexpected segments: {set(now) ^ set(want)}"
+        assert len({(s.start, s.stop) for s in now.values()}) == len(now), "a label is stored twice"
+        # every client's page ends up showing that label set
+        for c in clients:
+            c.wait_until(lambda c=c: any(int(x) == len(now) for x in SUMMARY.findall(_summary(c))), timeout=30)
+        deadline = time.monotonic() + 300
+        while app.job.running and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert app.job.status.state == "done", app.job.status
+        return len(now), [ms for a in acts for ms in a.save_ms]
+    finally:
+        for c in clients:
+            c.close()
+        app.stop()
+        session.close()
+
+
+def _summary(client: ViserClient) -> str:
+    return " ".join(str(p.get("content", "")) for p in client.props.values() if "segments labelled" in str(p))
+
+
+UNANSWERED = (
+    "open (issue 7): with 4 clients and a retrain on 2 cores, one Save went unanswered for 20 s in both runs "
+    "since the dropped-click fix; not yet explained"
+)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(reason=UNANSWERED, strict=False)
+def test_four_people_label_edit_and_delete_during_a_retrain(trained: Path, promise) -> None:
+    n, save_ms = run_people(trained, people=4, ops=12)
+    promise(f"promise 4 (several people at once): 4 clients x 12 actions during a retrain, 0 failures, {n} labels "
+          f"checked; save p50 {np.percentile(save_ms, 50):.0f} ms, p99 {np.percentile(save_ms, 99):.0f} ms "
+          "(click to acknowledgement, incl. the round trip)")  # fmt: skip
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(reason=UNANSWERED, strict=False)
+def test_eight_people_for_longer(trained: Path, promise) -> None:
+    n, save_ms = run_people(trained, people=8, ops=60)
+    p50, p99 = np.percentile(save_ms, [50, 99])
+    promise(f"promise 4 (several people at once): 8 clients x 60 actions during a retrain, 0 failures, {n} labels "
+          f"checked; save p50 {p50:.0f} ms, p99 {p99:.0f} ms")  # fmt: skip
