@@ -127,13 +127,15 @@ class NpyWriter:
         self._file.write(block.tobytes())
         self._next = b
 
-    def close(self) -> None:
-        """Finish the file: every row written, flushed and synced to disk."""
+    def close(self, *, sync: bool = True) -> None:
+        """Finish the file: every row written and flushed; synced to disk unless ``sync`` is false (derived data
+        that can be recomputed: thousands of small files would each wait for the disk)."""
         if self._next != self.shape[0]:
             self.abort()
             raise ValueError(f"{self.path}: {self._next} of {self.shape[0]} rows written")
         self._file.flush()
-        os.fsync(self._file.fileno())
+        if sync:
+            os.fsync(self._file.fileno())
         self._file.close()
 
     def abort(self) -> None:

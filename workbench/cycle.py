@@ -139,7 +139,7 @@ def stage1_outputs(
                 for log, sink in zip(group, sinks, strict=True):
                     for name in ("hidden", "estimate", "error"):  # error last: its file marks the entry complete
                         writer = getattr(sink, name)
-                        writer.close()
+                        writer.close(sync=False)  # a cache: recomputed if lost, as np.save never synced it either
                         os.replace(writer.path, cache / f"{log.id:06d}.{name}.npy")
             finally:
                 for sink in sinks:
