@@ -84,7 +84,9 @@ def test_one_broken_view_does_not_stop_the_others(trained: Session) -> None:  # 
         st.stop()
 
 
-def test_snap_moves_edges_to_change_points_only_nearby(state: SharedState) -> None:
+def test_snap_moves_edges_to_change_points_only_nearby(state: SharedState, monkeypatch) -> None:
+    from workbench.ui import state as state_module
+
     log = state.logs()[0]
     cps = state.change_points(log.id)
     assert len(cps) > 0
@@ -93,6 +95,14 @@ def test_snap_moves_edges_to_change_points_only_nearby(state: SharedState) -> No
     assert snap.start == p and snap.moved_start
     far = state.snap(log.id, 0, 1)
     assert far.stop > far.start
+    # before the worker has the log's change points, a snap looks only around the range, and finds the same edge
+    seen: list[int] = []
+    real = state_module.log_change_points
+    monkeypatch.setattr(state_module, "log_change_points", lambda x, *a, **k: seen.append(len(x)) or real(x, *a, **k))
+    state._change_points.clear()
+    local = state.snap(log.id, p - 30, p + 700)
+    assert local.moved_start and abs(local.start - p) <= 25
+    assert min(seen) <= 730 + 2 * 10 * round(log.rate_hz)  # the window around the range, not the log
 
 
 def test_retrain_job_runs_in_the_background_and_reports(state: SharedState) -> None:

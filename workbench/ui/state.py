@@ -37,6 +37,9 @@ class Queued:
         return self.start / self.log.rate_hz, self.stop / self.log.rate_hz
 
 
+SNAP_CONTEXT_S = 10  # seconds of signal either side of a range that its snap looks at before the log's are known
+
+
 class SharedState:
     """The session and what is derived from it, safe to use from viser's callback threads and the job thread."""
 
@@ -188,9 +191,23 @@ class SharedState:
         return cps
 
     def snap(self, log_id: int, start: int, stop: int) -> labeling.Snap:
-        """Edges of a rough range moved to change points within 1 s (a proposal, not applied)."""
+        """Edges of a rough range moved to change points within 1 s (a proposal, not applied).
+
+        Uses the log's change points when the worker has them; otherwise finds them in a window around the range
+        only. A person's range selection must not wait for a pass over the whole log (an 800 s log under a retrain
+        left a Save unanswered for 20 s; an hour-long one would take minutes).
+        """
         log = self.log(log_id)
-        return labeling.snap_range(start, stop, self.change_points(log_id), radius=round(1.0 * log.rate_hz))
+        radius = round(1.0 * log.rate_hz)
+        with self._lock:
+            cps = self._change_points.get((log_id, self.scores.predictor))
+        if cps is None:
+            a = max(0, start - SNAP_CONTEXT_S * round(log.rate_hz))
+            b = min(log.n_samples, stop + SNAP_CONTEXT_S * round(log.rate_hz))
+            s = self.scores.scores.get(log_id)
+            surprise = None if s is None else s.surprise[a:b]
+            cps = a + log_change_points(self.session.samples(log_id, a, b), surprise, rate_hz=log.rate_hz)
+        return labeling.snap_range(start, stop, cps, radius=radius)
 
     def _work(self) -> None:
         while not self._stop.is_set():
