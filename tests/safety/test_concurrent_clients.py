@@ -151,8 +151,8 @@ def _summary(client: ViserClient) -> str:
 
 
 UNANSWERED = (
-    "open (issue 7): with 4 clients and a retrain on 2 cores, one Save went unanswered for 20 s in both runs "
-    "since the dropped-click fix; not yet explained"
+    "open (issue 7): with 4 clients and a retrain on 2 cores, an action goes unanswered for 20 s in every run "
+    "since the dropped-click fix (3 runs), also after snapping stopped scanning the whole log; not yet explained"
 )
 
 
