@@ -16,7 +16,7 @@ import torch
 
 from .config import FeatureMode
 from .data import Normalizer
-from .models import Classifier, Predictor, stage1_features
+from .models import Classifier, Predictor, feature_width, stage1_features
 
 STEPS_PER_CALL = 1 << 17  # batch × chunk of one LSTM call: bounds its activations whatever the batch
 
@@ -73,8 +73,8 @@ class LazyFeatures:
 
     def __init__(self, outputs: Stage1Outputs, mode: FeatureMode) -> None:
         self.outputs, self.mode = outputs, mode
-        width = outputs.features(mode, 0, 1).shape[1]
-        self.shape = (len(outputs), width)
+        # from the shapes, not a computed row: a session of thousands of logs would read every cache file for it
+        self.shape = (len(outputs), feature_width(mode, outputs.hidden.shape[1], outputs.error.shape[1]))
 
     def __len__(self) -> int:
         return self.shape[0]

@@ -80,6 +80,13 @@ def stage1_features(
     return torch.cat([hidden, error], dim=-1)  # (B, T, H + C)
 
 
+def feature_width(mode: FeatureMode, hidden: int, channels: int) -> int:
+    """``F`` of ``stage1_features(mode, ...)`` for a stage 1 of ``hidden`` units over ``channels`` channels."""
+    return {"hidden": hidden, "hidden+surprise": hidden + channels, "hidden+error": hidden + channels}.get(
+        mode, channels
+    )
+
+
 def one_step_errors(x: torch.Tensor, estimate: torch.Tensor, previous: torch.Tensor | None = None) -> torch.Tensor:
     """``x_t − x̂_t`` for every ``t`` of a chunk: ``estimate`` is shifted by one, ``previous`` bridges chunks.
 

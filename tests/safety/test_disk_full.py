@@ -67,15 +67,12 @@ def test_a_read_only_session_refuses_every_change_and_keeps_its_state(labelled: 
 
 def test_a_model_save_on_a_full_disk_leaves_the_active_models(tmp_path: Path, monkeypatch) -> None:
     import training.bundle as bundle
-    from tests.workbench.test_cycle import TINY
+    from tests.workbench.test_cycle import TINY, build_trained
     from workbench import cycle
     from workbench.demo import generate_demo_logs
-    from workbench.seed import seed_labels
 
-    s = Session.create(tmp_path / "s")
-    s.ingest(generate_demo_logs(tmp_path / "logs", n_logs=2, minutes=1.0, seed=5))
-    seed_labels(s, 0.15, seed=1)
-    cycle.train_predictor(s, config=TINY, hidden=8)
+    s = build_trained(tmp_path / "s", generate_demo_logs(tmp_path / "logs", n_logs=2, minutes=1.0, seed=5),
+                      classifier=False)  # fmt: skip
     before = [(v.id, v.active) for v in s.model_versions()]
 
     def no_space(*args, **kwargs):

@@ -15,7 +15,6 @@ import pytest
 from sessions import Session
 from training.bundle import load_bundle
 from workbench import cycle
-from workbench.seed import seed_labels
 
 # A training run in its own process, killed by SIGKILL from inside at a chosen point: after N optimiser steps
 # (mid-epoch), while a weights file is half written (mid-save), or with the files in place but not yet registered.
@@ -84,18 +83,12 @@ def check_after_kill(path: Path, before: tuple) -> None:
 
 @pytest.fixture(scope="module")
 def trained_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from tests.workbench.test_cycle import TINY
+    from tests.workbench.test_cycle import build_trained
     from workbench.demo import generate_demo_logs
 
     root = tmp_path_factory.mktemp("killtrain")
-    logs = generate_demo_logs(root / "logs", n_logs=2, minutes=1.0, seed=5)
-    path = root / "s"
-    with Session.create(path) as s:
-        s.ingest(logs)
-        seed_labels(s, 0.15, seed=1)
-        cycle.train_predictor(s, config=TINY, hidden=8)
-        cycle.train_classifier(s, config=TINY, hidden=8)
-    return path
+    build_trained(root / "s", generate_demo_logs(root / "logs", n_logs=2, minutes=1.0, seed=5)).close()
+    return root / "s"
 
 
 @pytest.mark.parametrize(

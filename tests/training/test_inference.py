@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from training import inference
-from training.config import ClassifierConfig, PredictorConfig
+from training.config import FEATURE_MODES, ClassifierConfig, PredictorConfig
 from training.data import Normalizer
 from training.inference import Stage1Outputs, ensemble_pass, predictor_pass, run_classifiers, run_predictor
 from training.models import Classifier, Predictor, feature_moments
@@ -90,3 +90,10 @@ def test_lazy_features_and_ensemble_pass_equal_the_arrays_in_memory(models) -> N
         spans = [(a, b) for j, a, b in chunks if j == i]
         assert spans[0][0] == 0 and spans[-1][1] == len(log)
         assert all(b0 == a1 for (_, b0), (a1, _) in itertools.pairwise(spans))  # every step, in order
+
+
+@pytest.mark.parametrize("mode", FEATURE_MODES)
+def test_lazy_features_know_their_width_without_computing_a_row(models, mode) -> None:
+    pred, _, logs, norm = models
+    out = run_predictor(pred, norm, logs[:1])[0]
+    assert out.lazy(mode).shape == out.features(mode).shape

@@ -26,13 +26,20 @@ def demo_logs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     return generate_demo_logs(tmp_path_factory.mktemp("logs"), n_logs=2, minutes=1.0, seed=5)
 
 
-@pytest.fixture
-def trained(tmp_path: Path, demo_logs: list[Path]) -> Session:
-    s = Session.create(tmp_path / "s")
-    s.ingest(demo_logs)
+def build_trained(path: Path, logs: list[Path], *, classifier: bool = True) -> Session:
+    """A session at ``path`` with ``logs``, 15 % seed labels and tiny trained models (the classifier optional)."""
+    s = Session.create(path)
+    s.ingest(logs)
     seed_labels(s, 0.15, seed=1)
     cycle.train_predictor(s, config=TINY, hidden=8)
-    cycle.train_classifier(s, config=TINY, hidden=8)
+    if classifier:
+        cycle.train_classifier(s, config=TINY, hidden=8)
+    return s
+
+
+@pytest.fixture
+def trained(tmp_path: Path, demo_logs: list[Path]) -> Session:
+    s = build_trained(tmp_path / "s", demo_logs)
     yield s
     s.close()
 
