@@ -1,6 +1,7 @@
 """Promise 4: several people at once. N clients speaking viser's protocol label, relabel and delete concurrently
 while a retrain runs: no label lost or duplicated, every client ends up showing the same label set, and saves keep
-being answered (their latency is printed; the target is checked by ``benchmarks/bench_labels.py``, not here)."""
+being answered. The summary line carries the server's click -> committed times under that load (target: p99 <= 50 ms)
+beside what the clients saw; ``benchmarks/bench_labels.py`` measures the same save without the load."""
 
 from __future__ import annotations
 
@@ -43,16 +44,17 @@ def person(url: str, region_s: float, ops: int, seed: int, acts: Acts) -> ViserC
         mine = sorted(set(acts.added) - acts.deleted)
         roll = rng.random()
         t0 = time.perf_counter()
+        pressed: list[float] = []  # when Save was pressed: the latency is Save -> acknowledgement
         try:
-            title, body = act(client, acts, mine, roll, rng, at)
-        except TimeoutError:
+            title, body = act(client, acts, mine, roll, rng, at, pressed)
+        except TimeoutError as exc:
             acts.errors.append(f"no answer within 20 s to action {roll:.2f} after {time.perf_counter() - t0:.1f} s "
-                               f"(at {time.strftime('%H:%M:%S')})")  # fmt: skip
+                               f"(at {time.strftime('%H:%M:%S')}): {exc}")  # fmt: skip
             return client
         if title == "Relabelled":
             terrain_now = body.split("→ ")[1].split(";")[0]
         if title == "Saved":
-            acts.save_ms.append(1e3 * (time.perf_counter() - t0))
+            acts.save_ms.append(1e3 * (time.perf_counter() - pressed[0]))
             acts.added[int(SEGMENT.search(body).group(1))] = terrain_now
         if roll >= 0.4 or not mine:
             at += 1.5
@@ -61,21 +63,36 @@ def person(url: str, region_s: float, ops: int, seed: int, acts: Acts) -> ViserC
     return client
 
 
-def act(client: ViserClient, acts: Acts, mine: list[int], roll: float, rng, at: float) -> tuple[str, str]:
+def act(client: ViserClient, acts: Acts, mine: list[int], roll: float, rng, at: float,
+        pressed: list[float]) -> tuple[str, str]:  # fmt: skip
     """One action: delete (20 %) or relabel (20 %) one of this person's segments, else label a new stretch."""
     if mine and roll < 0.2:
         seg = int(rng.choice(mine))
-        title, body = client.click("Delete", ("Deleted",), Segment=f"#{seg}")
+        title, body = client.click("Delete", ("Deleted",), Segment=option(client, seg))
         if title == "Deleted":
-            acts.deleted.add(seg)
+            acts.deleted.add(int(SEGMENT.search(body).group(1)))  # what the server says it deleted
         return title, body
     if mine and roll < 0.4:
         seg, terrain = int(rng.choice(mine)), str(rng.choice(["dirt", "sand", "gravel"]))
-        title, body = client.click("Relabel as chosen terrain", ("Relabelled",), Segment=f"#{seg}", Terrain=terrain)
+        title, body = client.click("Relabel as chosen terrain", ("Relabelled",), Segment=option(client, seg),
+                                   Terrain=terrain)  # fmt: skip
         if title == "Relabelled":
-            acts.relabelled[seg] = terrain
+            acts.relabelled[int(SEGMENT.search(body).group(1))] = terrain
         return title, body
-    return client.label(at, at + 1.0)
+    return client.label(at, at + 1.0, sent=lambda: pressed.append(time.perf_counter()))
+
+
+def option(client: ViserClient, seg: int) -> str:
+    """The Segment dropdown's entry for ``seg``, as a person picks it (once this client's list shows it)."""
+    uuid = client.wait_widget("Segment")
+    found: list[str] = []
+
+    def listed() -> bool:
+        found[:] = [o for o in client.props[uuid].get("options", ()) if o.startswith(f"#{seg} ")]
+        return bool(found)
+
+    client.wait_until(listed)
+    return found[0]
 
 
 @pytest.fixture
@@ -94,7 +111,9 @@ def trained(tmp_path: Path) -> Path:
     return tmp_path / "s"
 
 
-def run_people(path: Path, people: int, ops: int) -> tuple[int, list[float]]:
+def run_people(path: Path, people: int, ops: int) -> tuple[int, list[float], list[float]]:
+    """Returns the number of labels checked, Save -> acknowledgement times seen by the clients, and the server's
+    click -> committed times (the Save handler's ``add_label``: the figure the issue's 50 ms p99 is about)."""
     from training.config import TrainConfig
     from workbench.app import WorkbenchApp
 
@@ -102,6 +121,17 @@ def run_people(path: Path, people: int, ops: int) -> tuple[int, list[float]]:
     app = WorkbenchApp(session, port=free_port(), hidden=8, max_epochs=(2, 30))
     app.job.classifier_config = TrainConfig(max_epochs=30, patience=30, k_folds=3)  # a retrain that lasts
     app.job.warm_epochs = None
+    commit_ms: list[float] = []
+    add_label = app.state.add_label
+
+    def timed_add_label(*args, **kwargs):
+        t = time.perf_counter()
+        try:
+            return add_label(*args, **kwargs)
+        finally:
+            commit_ms.append(1e3 * (time.perf_counter() - t))
+
+    app.state.add_label = timed_add_label  # type: ignore[method-assign]
     clients: list[ViserClient] = []
     try:
         before = {seg.id: seg for seg in session.segments()}
@@ -138,7 +168,7 @@ def run_people(path: Path, people: int, ops: int) -> tuple[int, list[float]]:
         while app.job.running and time.monotonic() < deadline:
             time.sleep(0.2)
         assert app.job.status.state == "done", app.job.status
-        return len(now), [ms for a in acts for ms in a.save_ms]
+        return len(now), [ms for a in acts for ms in a.save_ms], commit_ms
     finally:
         for c in clients:
             c.close()
@@ -150,25 +180,23 @@ def _summary(client: ViserClient) -> str:
     return " ".join(str(p.get("content", "")) for p in client.props.values() if "segments labelled" in str(p))
 
 
-UNANSWERED = (
-    "open (issue 7): with 4 clients and a retrain on 2 cores, an action goes unanswered for 20 s in every run "
-    "since the dropped-click fix (3 runs), also after snapping stopped scanning the whole log; not yet explained"
-)
+def test_two_people_briefly(trained: Path, promise) -> None:
+    promise(summary(2, 8, *run_people(trained, people=2, ops=8)))
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason=UNANSWERED, strict=False)
 def test_four_people_label_edit_and_delete_during_a_retrain(trained: Path, promise) -> None:
-    n, save_ms = run_people(trained, people=4, ops=12)
-    promise(f"promise 4 (several people at once): 4 clients x 12 actions during a retrain, 0 failures, {n} labels "
-          f"checked; save p50 {np.percentile(save_ms, 50):.0f} ms, p99 {np.percentile(save_ms, 99):.0f} ms "
-          "(click to acknowledgement, incl. the round trip)")  # fmt: skip
+    promise(summary(4, 12, *run_people(trained, people=4, ops=12)))
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason=UNANSWERED, strict=False)
 def test_eight_people_for_longer(trained: Path, promise) -> None:
-    n, save_ms = run_people(trained, people=8, ops=60)
-    p50, p99 = np.percentile(save_ms, [50, 99])
-    promise(f"promise 4 (several people at once): 8 clients x 60 actions during a retrain, 0 failures, {n} labels "
-          f"checked; save p50 {p50:.0f} ms, p99 {p99:.0f} ms")  # fmt: skip
+    promise(summary(8, 60, *run_people(trained, people=8, ops=60)))
+
+
+def summary(people: int, ops: int, n: int, save_ms: list[float], commit_ms: list[float]) -> str:
+    s50, s99 = np.percentile(save_ms, [50, 99])
+    c50, c99 = np.percentile(commit_ms, [50, 99])
+    return (f"promise 4 (several people at once): {people} clients x {ops} actions during a retrain, 0 failures, "
+            f"{n} labels checked; label save click -> committed p50 {c50:.1f} ms, p99 {c99:.1f} ms (server); "
+            f"Save -> acknowledgement p50 {s50:.0f} ms, p99 {s99:.0f} ms (client, incl. the round trip)")  # fmt: skip

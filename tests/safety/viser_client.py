@@ -8,6 +8,7 @@ plain dicts they decode to: ``{"type": "GuiButtonMessage", "uuid": ..., "props":
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Callable
 
 import msgspec
@@ -27,6 +28,8 @@ class ViserClient:
         self._unzip = zstandard.ZstdDecompressor()
         self.widgets: dict[str, str] = {}
         self.props: dict[str, dict] = {}  # uuid -> latest props
+        self._inbox: deque[dict] = deque()  # received, not yet read
+        self.recent: deque[str] = deque(maxlen=40)  # what came lately, for the message of a timeout
         # viser counts a client as connected (and builds its panel) at its first camera message, as a browser sends
         camera = _messages.ViewerCameraMessage((1.0, 0.0, 0.0, 0.0), (3.0, 3.0, 3.0), 1.0, 0.01, 100.0, 800, 1200,
                                                (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))  # fmt: skip
@@ -40,6 +43,10 @@ class ViserClient:
         return msgspec.msgpack.decode(self._unzip.decompress(raw[16 : 16 + size], max_output_size=inner))["messages"]
 
     def _track(self, m: dict) -> None:
+        if m["type"] == "NotificationShowMessage":
+            self.recent.append(f"{time.strftime('%H:%M:%S')} notification {m['props']['title']}: {m['props']['body']}")
+        elif m["type"] == "GuiUpdateMessage" and self.props.get(m["uuid"], {}).get("label"):
+            self.recent.append(f"{time.strftime('%H:%M:%S')} update {self._name(m['uuid'])}: {str(m['updates'])[:60]}")
         props = m.get("props")
         if m["type"].startswith("Gui") and isinstance(props, dict) and "uuid" in m:
             self.props[m["uuid"]] = dict(props)
@@ -49,17 +56,30 @@ class ViserClient:
             self.props[m["uuid"]].update(m["updates"])
 
     def wait_for(self, match: Callable[[dict], bool], *, timeout: float = 20.0) -> dict:
-        """Read until a message satisfies ``match``; raises ``TimeoutError`` (or the connection's error)."""
+        """Read until a message satisfies ``match``; raises ``TimeoutError`` (or the connection's error).
+
+        The messages after the match in the same frame stay in the inbox for the next call: a frame carries many
+        (a whole panel, or an update and a notification), and dropping the rest lost widgets and answers.
+        """
         deadline = time.monotonic() + timeout
         while True:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                raise TimeoutError("no matching message from the server")
-            raw = self.ws.recv(timeout=left)
-            for m in self._messages(raw):
-                self._track(m)
-                if match(m):
-                    return m
+            if not self._inbox:
+                left = deadline - time.monotonic()
+                try:
+                    if left <= 0:
+                        raise TimeoutError
+                    raw = self.ws.recv(timeout=left)
+                except TimeoutError:
+                    lately = " | ".join(self.recent)
+                    raise TimeoutError(f"no matching message within {timeout:.0f} s; lately: {lately}") from None
+                self._inbox.extend(self._messages(raw))
+            m = self._inbox.popleft()
+            self._track(m)
+            if match(m):
+                return m
+
+    def _name(self, uuid: str) -> str:
+        return str(self.props.get(uuid, {}).get("label", uuid))
 
     def wait_until(self, condition: Callable[[], bool], *, timeout: float = 20.0) -> None:
         """Read messages until ``condition()`` (on what this client has been told so far) holds."""

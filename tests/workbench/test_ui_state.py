@@ -51,7 +51,8 @@ def test_a_saved_label_is_committed_before_views_hear_of_it_and_the_queue_follow
     n = len(state.session.segments())
     q = state.queue[0]
     state.add_label(q.log.id, q.start, q.stop, "grass", author="browser-1", source="suggestion")
-    assert ("labels", n + 1) in heard  # the view redraws from the store, which already holds the label
+    wait_for(lambda: ("labels", n + 1) in heard)  # the view redraws from the store, which already holds the label
+    assert ("labels", n) not in heard
     wait_for(lambda: all(x.key != q.key for x in state.queue) and ("suggestions", n + 1) in heard)
     assert state.undo(author="browser-1") == "add"
     assert len(state.session.segments()) == n
@@ -79,6 +80,7 @@ def test_one_broken_view_does_not_stop_the_others(trained: Session) -> None:  # 
         st.subscribe(lambda e: 1 / 0)
         st.subscribe(lambda e: got.set())
         st.notify("labels")
+        assert st.flush()
         assert got.is_set() and any("ZeroDivisionError" in e for e in errors)
     finally:
         st.stop()
@@ -121,22 +123,29 @@ def test_retrain_job_runs_in_the_background_and_reports(state: SharedState) -> N
     wait_for(lambda: state.scores.classifier == state.session.active_model("classifier").id)
 
 
-def test_after_a_retrain_the_logs_on_screen_are_rescored_first(state: SharedState) -> None:
+def test_after_a_retrain_the_logs_on_screen_are_rescored_first(state: SharedState, monkeypatch) -> None:
+    from workbench.ui import state as state_module
+
     logs = state.logs()
     assert len(logs) >= 2
     shown = logs[-1].id
     state.set_viewed("browser-1", shown)
     job = TrainJob(state, hidden=8, predictor_config=TINY, classifier_config=TINY)
-    seen: list[tuple[int | None, tuple[int, ...]]] = []
-    state.subscribe(
-        lambda e: seen.append((state.scores.classifier, tuple(state.scores.scores))) if e == "scores" else None
-    )
+    scored: list[tuple[int | None, tuple[int, ...]]] = []  # (active classifier, logs scored) per scoring pass
+    real = state_module.compute_scores
+
+    def recorded(session, **kw):
+        out = real(session, **kw)
+        scored.append((out.classifier, tuple(out.scores)))
+        return out
+
+    monkeypatch.setattr(state_module, "compute_scores", recorded)
     job.start()
     wait_for(lambda: not job.running, timeout=120)
     new = state.session.active_model("classifier").id
     everything = {x.id for x in logs}
-    wait_for(lambda: any(v == new and set(k) == everything for v, k in seen))
-    fresh = [keys for version, keys in seen if version == new]
+    wait_for(lambda: any(v == new and set(k) == everything for v, k in scored))
+    fresh = [keys for version, keys in scored if version == new]
     assert fresh[0] == (shown,), "the log on screen is scored before the others"
     assert set(fresh[-1]) == everything, "then the whole session"
     state.set_viewed("browser-1", None)

@@ -11,6 +11,7 @@ from sessions import WorkbenchError
 if TYPE_CHECKING:
     from .view import ClientView
 
+NONE_CHOSEN = "(choose a segment)"
 KEYS_HELP = (
     "<div style='font-size:0.78em;color:#555;line-height:1.5'>"
     "<b>B</b>/<b>E</b> range start/end at cursor · <b>1–9</b> terrain · <b>Enter</b> save · <b>P</b> take snap · "
@@ -188,10 +189,12 @@ class LabelPanel:
             else ()
         )
         with view.quiet():
-            current = self.segments.value
-            self.segments.options = opts or ("(none)",)
-            if current in opts:
-                self.segments.value = current
+            # keep the person's choice by its id (another person may have relabelled it meanwhile); when it is gone,
+            # choose nothing rather than let the dropdown fall on another segment that Delete would then remove
+            chosen = self.segments.value.split()[0] + " " if self.segments.value.startswith("#") else None
+            same = [o for o in opts if chosen and o.startswith(chosen)]
+            self.segments.options = (NONE_CHOSEN, *opts) if opts else ("(none)",)
+            self.segments.value = same[0] if same else self.segments.options[0]
         all_segs = state.session.segments()
         per = {}
         for s in all_segs:

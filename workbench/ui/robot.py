@@ -94,6 +94,8 @@ class RobotView:
                 last = time.monotonic()
                 continue
             time.sleep(1.0 / PLAY_FPS)
+            if self._closed.is_set():  # close() wakes the loop to end it
+                return
             now = time.monotonic()
             log = self.view.log
             if log is None:

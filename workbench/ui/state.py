@@ -61,6 +61,11 @@ class SharedState:
         self._stop = threading.Event()
         self._on_error = on_error or (lambda msg: print(msg, flush=True))
         self.busy = ""  # what the worker is doing, for the status line
+        self._pending: dict[Event, None] = {}  # events not yet delivered, in order
+        self._pending_cv = threading.Condition()
+        self._delivering = False
+        self._dispatcher = threading.Thread(target=self._deliver, name="workbench-events", daemon=True)
+        self._dispatcher.start()
         self._worker = threading.Thread(target=self._work, name="workbench-refresh", daemon=True)
         self._dirty.set()
         self._worker.start()
@@ -78,13 +83,41 @@ class SharedState:
         return unsubscribe
 
     def notify(self, event: Event) -> None:
-        with self._lock:
-            listeners = list(self._listeners)
-        for fn in listeners:
-            try:
-                fn(event)
-            except Exception:  # one broken view must not stop the others
-                self._on_error(f"view update failed on {event!r}:\n{traceback.format_exc()}")
+        """Tell every view that ``event`` happened; returns at once.
+
+        One thread delivers events, never the caller: a view's callback holds that view's lock while it changes the
+        state, and delivering to the other views from there took their locks in turn, so two people saving at the
+        same moment deadlocked. An event already waiting is not queued twice: views redraw from the state as it is
+        when the event is delivered, so under load they redraw once per batch of changes, not once per change.
+        """
+        with self._pending_cv:
+            self._pending[event] = None
+            self._pending_cv.notify()
+
+    def flush(self, *, timeout: float = 30.0) -> bool:
+        """Wait until every event notified so far has been delivered; False on timeout."""
+        with self._pending_cv:
+            return self._pending_cv.wait_for(lambda: not self._pending and not self._delivering, timeout)
+
+    def _deliver(self) -> None:
+        while True:
+            with self._pending_cv:
+                self._pending_cv.wait_for(lambda: self._pending or self._stop.is_set())
+                if not self._pending:
+                    return
+                events, self._delivering = list(self._pending), True
+                self._pending.clear()
+            with self._lock:
+                listeners = list(self._listeners)
+            for event in events:
+                for fn in listeners:
+                    try:
+                        fn(event)
+                    except Exception:  # one broken view must not stop the others
+                        self._on_error(f"view update failed on {event!r}:\n{traceback.format_exc()}")
+            with self._pending_cv:
+                self._delivering = False
+                self._pending_cv.notify_all()
 
     def stop(self, *, timeout: float = 30.0) -> None:
         """Stop the refresh worker, waiting for a scoring in progress so the session can close under it."""
@@ -92,6 +125,10 @@ class SharedState:
         self._dirty.set()
         if self._worker is not threading.current_thread():
             self._worker.join(timeout)
+        with self._pending_cv:
+            self._pending_cv.notify_all()
+        if self._dispatcher is not threading.current_thread():
+            self._dispatcher.join(timeout)
 
     # ----------------------------------------------------------------------------------------------- data
     def logs(self) -> list[LogInfo]:
