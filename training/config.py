@@ -71,6 +71,7 @@ class TrainConfig:
         elastic: The elastic-net penalty.
         seed: Seed of every random choice.
         device: "cpu" or "cuda".
+        bf16: On CUDA, run the LSTMs under bfloat16 autocast (losses and weights stay float32); ignored on CPU.
     """
 
     lr: float = 0.005
@@ -88,6 +89,7 @@ class TrainConfig:
     elastic: ElasticNet = ElasticNet()
     seed: int = 0
     device: str = "cpu"
+    bf16: bool = True
 
 
 def to_dict(config: object) -> dict:

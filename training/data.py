@@ -4,8 +4,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
+
+
+class Rows(Protocol):
+    """A ``(T, C)`` log read by rows: a NumPy array, a memory map, or a file read on demand."""
+
+    shape: tuple[int, ...]
+
+    def __len__(self) -> int: ...
+
+    def __getitem__(self, key: slice) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -16,17 +27,21 @@ class Normalizer:
     std: np.ndarray  # (C,) float32
 
     @classmethod
-    def fit(cls, arrays: Sequence[np.ndarray]) -> Normalizer:
-        """Mean and std over every sample of ``arrays`` (each ``(T, C)``), in one streaming pass."""
+    def fit(cls, arrays: Sequence[Rows], *, block: int = 1 << 16) -> Normalizer:
+        """Mean and std over every sample of ``arrays`` (each ``(T, C)``), in one streaming pass.
+
+        Read ``block`` rows at a time, so a memory-mapped or file-backed log is never held whole.
+        """
         n = 0
         total = None
         total_sq = None
         for a in arrays:
-            a64 = np.asarray(a, dtype=np.float64)
-            s, sq = a64.sum(axis=0), np.square(a64).sum(axis=0)
-            total = s if total is None else total + s
-            total_sq = sq if total_sq is None else total_sq + sq
-            n += a64.shape[0]
+            for b0 in range(0, len(a), block):
+                a64 = np.asarray(a[b0 : b0 + block], dtype=np.float64)  # (≤block, C)
+                s, sq = a64.sum(axis=0), np.square(a64).sum(axis=0)
+                total = s if total is None else total + s
+                total_sq = sq if total_sq is None else total_sq + sq
+                n += a64.shape[0]
         if total is None or n == 0:
             raise ValueError("no samples to normalise")
         mean = total / n
@@ -72,8 +87,17 @@ def cut_pieces(lengths: Sequence[int], piece: int) -> list[Piece]:
     return out
 
 
-def stage1_batch(arrays: Sequence[np.ndarray], pieces: Sequence[Piece], length: int) -> tuple[np.ndarray, ...]:
+def stage1_batch(
+    arrays: Sequence[Rows], pieces: Sequence[Piece], length: int, normalizer: Normalizer | None = None
+) -> tuple[np.ndarray, ...]:
     """Inputs, next-sample targets and target mask for stage 1.
+
+    Args:
+        arrays: One ``(T, C)`` log each; anything sliced by rows (an array, a memory map, ``sessions.FileRows``).
+            Only the rows of ``pieces`` are read.
+        pieces: What goes into the batch.
+        length: Padded length ``L``.
+        normalizer: Applied to the rows read (None: the arrays are normalised already).
 
     Returns:
         ``x (B, L, C)``, ``y (B, L, C)`` with ``y[:, t] = x[:, t + 1]`` (continuing past the piece into its log),
@@ -85,10 +109,13 @@ def stage1_batch(arrays: Sequence[np.ndarray], pieces: Sequence[Piece], length: 
     mask = np.zeros((len(pieces), length), bool)
     for i, p in enumerate(pieces):
         a = arrays[p.seq]
+        rows = np.asarray(a[p.start : min(p.stop + 1, len(a))], np.float32)  # the piece and the sample after it
+        if normalizer is not None:
+            rows = normalizer(rows)
         n = p.length
-        x[i, :n] = a[p.start : p.stop]
-        m = min(n, a.shape[0] - p.start - 1)  # the log's last sample has no next one
-        y[i, :m] = a[p.start + 1 : p.start + 1 + m]
+        x[i, :n] = rows[:n]
+        m = len(rows) - 1  # the log's last sample has no next one
+        y[i, :m] = rows[1:]
         mask[i, :m] = True
     return x, y, mask
 

@@ -47,48 +47,83 @@ def train(
     patience: int = 20,
     feature_mode: FeatureMode = "hidden+surprise",
     hidden: int = 200,
+    batch_size: int = 512,
+    bf16: bool = True,
 ) -> None:
     """Train the predictor (stage 1, all logs, no labels) and/or the classifier (stage 2, labelled segments).
 
+    Stage 1 runs unchanged under `torchrun --nproc-per-node N [--nnodes M ...] $(which workbench) train SESSION
+    --stage predictor`: every process trains on its share of each batch (gloo on CPU, nccl on CUDA). It keeps a
+    checkpoint in the session: run the same command again after a kill and it goes on from there.
+
     Args:
-        session: The session folder.
+        session: The session folder (on storage every process can read, for several machines).
         stage: Which stage; "all" trains stage 1, then stage 2 if there are labels of two terrains or more.
         device: Where to train.
         max_epochs: Upper bound on epochs (early stopping on validation loss usually ends sooner).
         patience: Epochs without improvement before stopping.
         feature_mode: What stage 1 hands stage 2.
         hidden: LSTM width of each stage (the paper: 200).
+        batch_size: Sequences per optimiser step, all processes together (the paper: 512).
+        bf16: On CUDA, run the LSTMs under bfloat16 autocast.
     """
-    from . import cycle
+    from training import distributed
 
     if device == "cuda":
         import torch
 
         if not torch.cuda.is_available():
             raise WorkbenchError("--device cuda: no CUDA device is available on this machine")
-    config = TrainConfig(max_epochs=max_epochs, patience=patience, device=device)
-    with Session.open(session) as s:
-        if stage in ("predictor", "all"):
-            bar = _Bar("predictor")
-            try:
-                v = cycle.train_predictor(s, config=config, hidden=hidden, progress=bar)
-            finally:
-                bar.close()
-            print(f"predictor v{v.id}: validation MSE {v.metrics['val_mse']:.4f} (normalised units), "
-                  f"best epoch {v.metrics['best_epoch']} of {v.metrics['epochs']}")  # fmt: skip
-        if stage in ("classifier", "all"):
-            terrains = {seg.terrain for seg in s.segments()}
-            if stage == "all" and len(terrains) < 2:
-                print("classifier: skipped (label segments of at least two terrains first)")
-                return
-            bar = _Bar("classifier")
-            try:
-                v = cycle.train_classifier(s, config=config, feature_mode=feature_mode, hidden=hidden, progress=bar)
-            finally:
-                bar.close()
-            m = v.metrics
-            print(f"classifier v{v.id}: out-of-fold accuracy {m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} "
-                  f"on {m['n_segments']} segments ({m['labelled_seconds']:.0f} s labelled)")  # fmt: skip
+    if distributed.launched() and stage != "predictor":
+        raise WorkbenchError(
+            "under torchrun only the predictor trains (--stage predictor); the classifier learns from a few labels "
+            "in one process: run `workbench train SESSION --stage classifier` without torchrun"
+        )
+    config = TrainConfig(max_epochs=max_epochs, patience=patience, device=device, batch_size=batch_size, bf16=bf16)
+    world = distributed.join(device)
+    try:
+        with Session.open(session) as s:
+            if stage in ("predictor", "all"):
+                _train_predictor(s, config, hidden, world.main)
+            if stage in ("classifier", "all"):
+                _train_classifier(s, config, hidden, feature_mode, stage)
+    finally:
+        distributed.leave()
+
+
+def _train_predictor(s: Session, config: TrainConfig, hidden: int, main: bool) -> None:
+    from . import cycle
+
+    def resumed(epoch: int, batch: int) -> None:
+        where = f"epoch {epoch}" + (f", batch {batch}" if batch else "")
+        print(f"predictor: resuming from the checkpoint at {where}", file=sys.stderr)
+
+    bar = _Bar("predictor") if main else None
+    try:
+        v = cycle.train_predictor(s, config=config, hidden=hidden, progress=bar, on_resume=resumed if main else None)
+    finally:
+        if bar is not None:
+            bar.close()
+    if main:
+        print(f"predictor v{v.id}: validation MSE {v.metrics['val_mse']:.4f} (normalised units), "
+              f"best epoch {v.metrics['best_epoch']} of {v.metrics['epochs']}")  # fmt: skip
+
+
+def _train_classifier(s: Session, config: TrainConfig, hidden: int, feature_mode: FeatureMode, stage: str) -> None:
+    from . import cycle
+
+    terrains = {seg.terrain for seg in s.segments()}
+    if stage == "all" and len(terrains) < 2:
+        print("classifier: skipped (label segments of at least two terrains first)")
+        return
+    bar = _Bar("classifier")
+    try:
+        v = cycle.train_classifier(s, config=config, feature_mode=feature_mode, hidden=hidden, progress=bar)
+    finally:
+        bar.close()
+    m = v.metrics
+    print(f"classifier v{v.id}: out-of-fold accuracy {m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} "
+          f"on {m['n_segments']} segments ({m['labelled_seconds']:.0f} s labelled)")  # fmt: skip
 
 
 def export(session: Pos[Path], out: Path, predictions: bool = False) -> None:

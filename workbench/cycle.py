@@ -10,12 +10,13 @@ import shutil
 import threading
 import uuid
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 
 import numpy as np
 
 from sessions import FileRows, LogInfo, ModelVersion, NpyWriter, Session, WorkbenchError
+from training import distributed
 from training.bundle import ModelBundle, load_bundle, save_bundle
 from training.config import FeatureMode, TrainConfig, to_dict
 from training.fit_classifier import fit_classifier
@@ -65,6 +66,9 @@ def _recorded_run(session: Session, kind: str, params: dict) -> Iterator[dict]:
     session.finish_run(run, "done", result)
 
 
+PREDICTOR_CHECKPOINT = "predictor.safetensors"  # in the session's cache/checkpoints/
+
+
 def train_predictor(
     session: Session,
     *,
@@ -72,24 +76,47 @@ def train_predictor(
     hidden: int = 200,
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
+    on_resume: Callable[[int, int], None] | None = None,
+    checkpoint_every: int = 100,
 ) -> ModelVersion:
-    """Stage 1 on every log of the session's main channel set; saved as a new, active predictor version."""
+    """Stage 1 on every log of the session's main channel set; saved as a new, active predictor version.
+
+    Resumable: training keeps a checkpoint in the session (every ``checkpoint_every`` batches and every epoch), and
+    a run with the same settings on the same logs goes on from it (``on_resume`` hears where). Under ``torchrun``
+    every process trains on its share of each batch and only the first one writes to the session; all of them
+    return the saved version.
+    """
     config = config or TrainConfig()
+    world = distributed.current()
     logs = model_logs(session)
-    params = {"config": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs]}
+    checkpoint = session.cache_dir("checkpoints") / PREDICTOR_CHECKPOINT
+    rows = [session.rows(x.id) for x in logs]  # read a batch at a time, never whole
+    if not world.main:
+        fit_predictor(rows, config=config, hidden=hidden, cancel=cancel, checkpoint=checkpoint,
+                      checkpoint_every=checkpoint_every)  # fmt: skip
+        distributed.barrier()  # the main process saves and registers the version
+        version = session.active_model("predictor")
+        assert version is not None
+        return version
+    params = {"config": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs], "processes": world.size}
     with _recorded_run(session, "predictor", params) as result:
-        fit = fit_predictor([session.array(x.id) for x in logs], config=config, hidden=hidden, progress=progress,
-                            cancel=cancel)  # fmt: skip
+        fit = fit_predictor(rows, config=config, hidden=hidden, progress=progress, cancel=cancel,
+                            checkpoint=checkpoint, checkpoint_every=checkpoint_every, on_resume=on_resume)  # fmt: skip
+        info = {"logs": len(logs), "timesteps": int(sum(x.n_samples for x in logs)), "history": fit.history,
+                "processes": world.size, "resumed_from": fit.resumed_from}  # fmt: skip
         bundle = ModelBundle(
             fit.model, fit.normalizer, logs[0].channel_names, logs[0].rate_hz,
             metrics={"val_mse": min(h["val_loss"] for h in fit.history), "best_epoch": fit.best_epoch,
                      "epochs": len(fit.history)},
-            info={"logs": len(logs), "timesteps": int(sum(x.n_samples for x in logs)), "history": fit.history},
+            info=info,
         )  # fmt: skip
         version = _save_version(
             session, "predictor", bundle, {"train": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs]}
         )
         result["version"] = version.id
+    with contextlib.suppress(OSError):
+        checkpoint.unlink()  # the version holds the result now
+    distributed.barrier()
     return version
 
 

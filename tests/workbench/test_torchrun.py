@@ -1,0 +1,103 @@
+"""Stage 1 under ``torchrun --nproc-per-node 2`` on CPU (gloo), through the real CLI: the loss curve is the one a
+single process draws with the same global batch and seed, and a run killed mid-epoch goes on from its checkpoint
+to the result of a run never killed."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from sessions import Session
+from tests.browser.conftest import free_port
+from training.bundle import load_bundle
+
+EPOCHS = 3
+ROOT = Path(__file__).resolve().parents[2]
+# float sums in another order: DDP adds two half-batch gradients where one process adds them all at once, and Adam
+# carries the difference from epoch to epoch (measured over 3 epochs: 7e-9 to 7e-8 relative)
+REL = 1e-5
+
+
+@pytest.fixture(scope="module")
+def logs_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from workbench.demo import generate_demo_logs
+
+    tmp = tmp_path_factory.mktemp("ddp")
+    logs = generate_demo_logs(tmp / "logs", n_logs=3, minutes=1.0, seed=8)
+    with Session.create(tmp / "s") as s:
+        s.ingest(logs)
+    return tmp / "s"
+
+
+def copy_of(src: Path, dst: Path) -> Path:
+    shutil.copytree(src, dst)
+    return dst
+
+
+def run(args: list[str], *, procs: int = 1, script: str | None = None) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1"}
+    if procs == 1:
+        cmd = [sys.executable, "-m", "workbench.cli", *args]
+    else:
+        launcher = [sys.executable, "-m", "torch.distributed.run", f"--nproc-per-node={procs}",
+                    "--master-addr=127.0.0.1", f"--master-port={free_port()}"]  # fmt: skip
+        cmd = [*launcher, script] if script else [*launcher, "-m", "workbench.cli"]
+        cmd += args
+    return subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+
+
+def train_args(session: Path) -> list[str]:
+    return ["train", str(session), "--stage", "predictor", "--hidden", "8", "--batch-size", "4",
+            "--max-epochs", str(EPOCHS), "--patience", str(EPOCHS)]  # fmt: skip
+
+
+def history(session: Path) -> list[dict[str, float]]:
+    with Session.open(session) as s:
+        (v,) = s.model_versions("predictor")
+        return load_bundle(s.path / v.path).info["history"]
+
+
+def test_two_processes_draw_the_loss_curve_of_one(logs_session: Path, tmp_path: Path) -> None:
+    one = run(train_args(copy_of(logs_session, tmp_path / "one")))
+    assert one.returncode == 0, one.stderr
+    two = run(train_args(copy_of(logs_session, tmp_path / "two")), procs=2)
+    assert two.returncode == 0, two.stderr
+    assert two.stdout.count("predictor v1:") == 1, two.stdout  # the main process reports, once
+    h1, h2 = history(tmp_path / "one"), history(tmp_path / "two")
+    assert len(h1) == len(h2) == EPOCHS
+    for a, b in zip(h1, h2, strict=True):
+        assert b["train_loss"] == pytest.approx(a["train_loss"], rel=REL)
+        assert b["val_loss"] == pytest.approx(a["val_loss"], rel=REL)
+    with Session.open(tmp_path / "two") as s:
+        (v,) = s.model_versions("predictor")
+        assert v.active and load_bundle(s.path / v.path).info["processes"] == 2
+        assert not (s.path / "cache" / "checkpoints" / "predictor.safetensors").exists()  # gone once saved
+
+
+def test_a_run_killed_mid_epoch_resumes_from_its_checkpoint(logs_session: Path, tmp_path: Path) -> None:
+    whole = copy_of(logs_session, tmp_path / "whole")
+    assert run(train_args(whole), procs=2).returncode == 0
+    killed = copy_of(logs_session, tmp_path / "killed")
+    dead = run([str(killed), str(EPOCHS)], procs=2, script="tests/workbench/ddp_kill_worker.py")
+    assert dead.returncode != 0, "the main process was to kill itself"
+    with Session.open(killed) as s:
+        assert s.model_versions("predictor") == []  # nothing half-done is listed
+    assert (killed / "cache" / "checkpoints" / "predictor.safetensors").exists()
+    again = run(train_args(killed), procs=2)
+    assert again.returncode == 0, again.stderr
+    assert "predictor: resuming from the checkpoint at epoch 2, batch " in again.stderr, again.stderr
+    for a, b in zip(history(whole), history(killed), strict=True):
+        assert b["train_loss"] == pytest.approx(a["train_loss"], rel=1e-6)
+        assert b["val_loss"] == pytest.approx(a["val_loss"], rel=1e-6)
+
+
+def test_only_the_predictor_trains_under_torchrun(logs_session: Path, tmp_path: Path) -> None:
+    out = run(["train", str(copy_of(logs_session, tmp_path / "s")), "--stage", "classifier"], procs=2)
+    assert out.returncode != 0
+    assert out.stderr.count("error: under torchrun only the predictor trains (--stage predictor)") == 2  # per process
+    assert "cli_model.py" not in out.stderr  # one line each, no traceback of ours (torchrun prints its own summary)
