@@ -7,6 +7,7 @@ gradients. Without those variables everything here is a no-op and training runs 
 
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass
 
@@ -83,3 +84,18 @@ def barrier() -> None:
     """Wait for every process (nothing to wait for in one)."""
     if dist.is_available() and dist.is_initialized():
         dist.barrier()
+
+
+def broadcast_json(value: object = None, *, device: str = "cpu") -> object:
+    """The main process's ``value`` (JSON-able) on every process; others pass nothing. Sent as UTF-8 bytes, not a
+    pickle (``broadcast_object_list`` would unpickle what arrives)."""
+    if not (dist.is_available() and dist.is_initialized()):
+        return value
+    data = json.dumps(value).encode() if dist.get_rank() == 0 else b""
+    size = torch.tensor([len(data)], dtype=torch.int64, device=device)
+    dist.broadcast(size, 0)
+    buf = torch.zeros(int(size), dtype=torch.uint8, device=device)
+    if dist.get_rank() == 0:
+        buf.copy_(torch.frombuffer(bytearray(data), dtype=torch.uint8))
+    dist.broadcast(buf, 0)
+    return json.loads(bytes(buf.cpu().tolist()).decode())

@@ -69,6 +69,8 @@ def train(
     """
     from training import distributed
 
+    from . import cycle
+
     if device == "cuda":
         import torch
 
@@ -82,31 +84,32 @@ def train(
     config = TrainConfig(max_epochs=max_epochs, patience=patience, device=device, batch_size=batch_size, bf16=bf16)
     world = distributed.join(device)
     try:
+        if not world.main:  # another torchrun process: it reads log files, never the session's database
+            cycle.follow_predictor_training(config=config, hidden=hidden)
+            return
         with Session.open(session) as s:
             if stage in ("predictor", "all"):
-                _train_predictor(s, config, hidden, world.main)
+                _train_predictor(s, config, hidden)
             if stage in ("classifier", "all"):
                 _train_classifier(s, config, hidden, feature_mode, stage)
     finally:
         distributed.leave()
 
 
-def _train_predictor(s: Session, config: TrainConfig, hidden: int, main: bool) -> None:
+def _train_predictor(s: Session, config: TrainConfig, hidden: int) -> None:
     from . import cycle
 
     def resumed(epoch: int, batch: int) -> None:
         where = f"epoch {epoch}" + (f", batch {batch}" if batch else "")
         print(f"predictor: resuming from the checkpoint at {where}", file=sys.stderr)
 
-    bar = _Bar("predictor") if main else None
+    bar = _Bar("predictor")
     try:
-        v = cycle.train_predictor(s, config=config, hidden=hidden, progress=bar, on_resume=resumed if main else None)
+        v = cycle.train_predictor(s, config=config, hidden=hidden, progress=bar, on_resume=resumed)
     finally:
-        if bar is not None:
-            bar.close()
-    if main:
-        print(f"predictor v{v.id}: validation MSE {v.metrics['val_mse']:.4f} (normalised units), "
-              f"best epoch {v.metrics['best_epoch']} of {v.metrics['epochs']}")  # fmt: skip
+        bar.close()
+    print(f"predictor v{v.id}: validation MSE {v.metrics['val_mse']:.4f} (normalised units), "
+          f"best epoch {v.metrics['best_epoch']} of {v.metrics['epochs']}")  # fmt: skip
 
 
 def _train_classifier(s: Session, config: TrainConfig, hidden: int, feature_mode: FeatureMode, stage: str) -> None:

@@ -12,6 +12,7 @@ import uuid
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -83,21 +84,16 @@ def train_predictor(
 
     Resumable: training keeps a checkpoint in the session (every ``checkpoint_every`` batches and every epoch), and
     a run with the same settings on the same logs goes on from it (``on_resume`` hears where). Under ``torchrun``
-    every process trains on its share of each batch and only the first one writes to the session; all of them
-    return the saved version.
+    this runs in the main process, the only one that opens the session; the others run
+    :func:`follow_predictor_training` and train on their share of each batch.
     """
     config = config or TrainConfig()
     world = distributed.current()
     logs = model_logs(session)
     checkpoint = session.cache_dir("checkpoints") / PREDICTOR_CHECKPOINT
     rows = [session.rows(x.id) for x in logs]  # read a batch at a time, never whole
-    if not world.main:
-        fit_predictor(rows, config=config, hidden=hidden, cancel=cancel, checkpoint=checkpoint,
-                      checkpoint_every=checkpoint_every)  # fmt: skip
-        distributed.barrier()  # the main process saves and registers the version
-        version = session.active_model("predictor")
-        assert version is not None
-        return version
+    # the other processes never open the database (SQLite's WAL needs one machine): they are told the files
+    distributed.broadcast_json({"files": [str(session.path / x.file) for x in logs], "checkpoint": str(checkpoint)})
     params = {"config": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs], "processes": world.size}
     with _recorded_run(session, "predictor", params) as result:
         fit = fit_predictor(rows, config=config, hidden=hidden, progress=progress, cancel=cancel,
@@ -116,8 +112,25 @@ def train_predictor(
         result["version"] = version.id
     with contextlib.suppress(OSError):
         checkpoint.unlink()  # the version holds the result now
-    distributed.barrier()
+    distributed.broadcast_json({"version": version.id})
     return version
+
+
+def follow_predictor_training(
+    *, config: TrainConfig | None = None, hidden: int = 200, checkpoint_every: int = 100, cancel: CancelFn = never
+) -> int:
+    """What every ``torchrun`` process but the main one runs beside :func:`train_predictor`: it trains on its share
+    of the logs the main process names, reading their files only, and returns the id of the version the main
+    process saved. It never opens the session's database: on several machines that is a shared file system, where
+    SQLite's write-ahead log would not be safe."""
+    told = distributed.broadcast_json()
+    assert isinstance(told, dict)
+    rows = [FileRows.open_npy(f) for f in told["files"]]
+    fit_predictor(rows, config=config or TrainConfig(), hidden=hidden, cancel=cancel,
+                  checkpoint=Path(told["checkpoint"]), checkpoint_every=checkpoint_every)  # fmt: skip
+    done = distributed.broadcast_json()
+    assert isinstance(done, dict)
+    return int(done["version"])
 
 
 def active_predictor(session: Session) -> tuple[ModelVersion, ModelBundle]:

@@ -20,7 +20,7 @@ from workbench import cycle
 
 def main() -> None:
     path, max_epochs = Path(sys.argv[1]), int(sys.argv[2])
-    distributed.join("cpu")
+    world = distributed.join("cpu")
     # what `workbench train --hidden 8 --batch-size 4 --max-epochs N --patience N` builds, so the checkpoint is its
     config = TrainConfig(max_epochs=max_epochs, patience=max_epochs, device="cpu", batch_size=4)
 
@@ -28,6 +28,9 @@ def main() -> None:
         if p.epoch == 2 and p.steps // 2 <= p.step < p.steps:
             os.kill(os.getpid(), signal.SIGKILL)
 
+    if not world.main:
+        cycle.follow_predictor_training(config=config, hidden=8, checkpoint_every=1)
+        return
     with Session.open(path) as s:
         cycle.train_predictor(s, config=config, hidden=8, progress=progress, checkpoint_every=1)
 
