@@ -71,11 +71,16 @@ def leave() -> None:
         dist.destroy_process_group()
 
 
-def all_sum(values: list[float], *, device: str = "cpu") -> list[float]:
+def _wire() -> torch.device:
+    """Where collectives' tensors must be: nccl moves CUDA tensors only, gloo CPU ones."""
+    return torch.device("cuda", torch.cuda.current_device()) if dist.get_backend() == "nccl" else torch.device("cpu")
+
+
+def all_sum(values: list[float]) -> list[float]:
     """Element-wise sums of ``values`` over every process (the values themselves in one process)."""
     if not (dist.is_available() and dist.is_initialized()):
         return list(values)
-    t = torch.tensor(values, dtype=torch.float64, device=device)
+    t = torch.tensor(values, dtype=torch.float64, device=_wire())
     dist.all_reduce(t)
     return t.tolist()
 
@@ -86,16 +91,16 @@ def barrier() -> None:
         dist.barrier()
 
 
-def broadcast_json(value: object = None, *, device: str = "cpu") -> object:
+def broadcast_json(value: object = None) -> object:
     """The main process's ``value`` (JSON-able) on every process; others pass nothing. Sent as UTF-8 bytes, not a
     pickle (``broadcast_object_list`` would unpickle what arrives)."""
     if not (dist.is_available() and dist.is_initialized()):
         return value
     data = json.dumps(value).encode() if dist.get_rank() == 0 else b""
-    size = torch.tensor([len(data)], dtype=torch.int64, device=device)
+    size = torch.tensor([len(data)], dtype=torch.int64, device=_wire())
     dist.broadcast(size, 0)
-    buf = torch.zeros(int(size), dtype=torch.uint8, device=device)
+    buf = torch.zeros(int(size), dtype=torch.uint8, device=_wire())
     if dist.get_rank() == 0:
-        buf.copy_(torch.frombuffer(bytearray(data), dtype=torch.uint8))
+        buf.copy_(torch.frombuffer(bytearray(data), dtype=torch.uint8).to(buf.device))
     dist.broadcast(buf, 0)
     return json.loads(bytes(buf.cpu().tolist()).decode())
