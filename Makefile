@@ -43,7 +43,7 @@ format: install
 # every promise of issue 7 at full length (200 server kills, the long hostile corpus with a 2 GB line, thousands of
 # fuzz examples); ends with one summary line per promise
 stress: install browser
-	WORKBENCH_FUZZ_EXAMPLES=5000 $(PY) -m pytest -m "slow or fuzz"
+	WORKBENCH_FUZZ_EXAMPLES=5000 $(PY) -m pytest tests/safety -m "slow or not slow"
 
 # every figure beside a reference measured in the same run; the table goes to benchmarks/results/bench-$(DEVICE).md
 DEVICE ?= cpu

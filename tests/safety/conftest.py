@@ -1,11 +1,22 @@
-"""The safety tests' summary: each promise's test reports one line (tries, failures, labels checked), printed at the
-end of the run, so ``make stress`` ends with a line per promise."""
+"""The safety tests' summary: each promise gets a line (tries, failures, labels checked) at the end of the run, so
+``make stress`` ends with a line per promise. Tests that measure report their own line through ``promise``; the
+others are counted here by module."""
 
 from __future__ import annotations
+
+import os
+from pathlib import Path
 
 import pytest
 
 LINES: list[str] = []
+COUNTED = {  # module -> the promise its tests check
+    "test_kill_training": "promise 2 (training killed at any moment)",
+    "test_fuzz_readers": "promise 3 (fuzz targets: the MCAP and CSV readers)",
+    "test_safe_defaults": "promise 5 (safe by default: loopback, upload limit and names, no pickle, newer schema)",
+    "test_disk_full": "promise 6 (full and read-only disk: labels and models, store, CLI and UI)",
+}
+COUNTS: dict[str, list[int]] = {}  # module -> [tests, failures]
 
 
 @pytest.fixture
@@ -14,8 +25,22 @@ def promise():
     return LINES.append
 
 
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    module = Path(report.nodeid.split("::")[0]).stem
+    if module not in COUNTED or report.skipped:
+        return
+    if report.when == "call" or (report.when == "setup" and report.failed):
+        counts = COUNTS.setdefault(module, [0, 0])
+        counts[0] += 1
+        counts[1] += int(report.failed)
+
+
 def pytest_terminal_summary(terminalreporter) -> None:
-    if LINES:
+    lines = list(LINES)
+    for module, (tests, failures) in sorted(COUNTS.items(), key=lambda kv: COUNTED[kv[0]]):
+        extra = f", {os.environ.get('WORKBENCH_FUZZ_EXAMPLES', '40')} examples each" if "fuzz" in module else ""
+        lines.append(f"{COUNTED[module]}: {tests} tests{extra}, {failures} failures")
+    if lines:
         terminalreporter.section("promises (issue 7)")
-        for line in LINES:
+        for line in sorted(lines, key=lambda s: s.split(":")[0]):
             terminalreporter.write_line(line)
