@@ -14,6 +14,7 @@ import pytest
 
 from sessions import Session
 from training.bundle import load_bundle
+from training.config import TrainConfig
 from workbench import cycle
 
 # A training run in its own process, killed by SIGKILL from inside at a chosen point: after N optimiser steps
@@ -50,6 +51,10 @@ CHILD = textwrap.dedent(
         bundle.save_file = half
     if where == "register":
         Session.register_model = lambda *a, **k: die()
+    if where == "epoch":  # start afresh, so the kill comes at the step asked for (resuming: test_checkpoint.py)
+        ckpt = os.path.join(path, "cache", "checkpoints", cycle.PREDICTOR_CHECKPOINT)
+        if os.path.exists(ckpt):
+            os.remove(ckpt)
     config = TrainConfig(max_epochs=3, patience=2, chunk=32, piece=256, batch_size=16, label_piece=64, context=32,
                          k_folds=3)
     with Session.open(path) as s:
@@ -102,6 +107,27 @@ def test_a_training_killed_anywhere_leaves_the_previous_models_working(
     before = state_of(trained_session)
     kill_training(trained_session, where, stage, steps)
     check_after_kill(trained_session, before)
+
+
+def test_a_predictor_killed_while_saving_is_saved_by_the_next_run_without_training_again(tmp_path: Path) -> None:
+    from tests.workbench.test_cycle import build_trained
+    from workbench.demo import generate_demo_logs
+
+    path = tmp_path / "s"
+    build_trained(path, generate_demo_logs(tmp_path / "logs", n_logs=2, minutes=0.5, seed=2)).close()
+    before = state_of(path)
+    kill_training(path, "save", "predictor")
+    check_after_kill(path, before)
+    resumed: list[tuple[int, int]] = []
+    steps: list[object] = []
+    with Session.open(path) as s:
+        config = TrainConfig(max_epochs=3, patience=2, chunk=32, piece=256, batch_size=16, label_piece=64,
+                             context=32, k_folds=3)  # what CHILD trains with  # fmt: skip
+        v = cycle.train_predictor(s, config=config, hidden=8, progress=steps.append,
+                                  on_resume=lambda e, b: resumed.append((e, b)))  # fmt: skip
+        assert v.active and len(s.model_versions("predictor")) == 2
+        load_bundle(s.path / v.path)
+    assert resumed and resumed[0][1] == 0 and steps == []  # the finished run's checkpoint: nothing left to train
 
 
 def run_random_kills(path: Path, kills: int, seed: int) -> int:

@@ -189,12 +189,16 @@ class LabelPanel:
             else ()
         )
         with view.quiet():
-            # keep the person's choice by its id (another person may have relabelled it meanwhile); when it is gone,
-            # choose nothing rather than let the dropdown fall on another segment that Delete would then remove
-            chosen = self.segments.value.split()[0] + " " if self.segments.value.startswith("#") else None
-            same = [o for o in opts if chosen and o.startswith(chosen)]
+            # Viser keeps the value when it is still listed, else falls on the first entry: "(choose a segment)", not
+            # a segment Delete would then remove. A choice whose text changed (another person relabelled it) is
+            # kept by its id. The value is read again after the options change, because the person may choose
+            # while this runs: writing back what was read before would undo that choice.
+            before = self.segments.value
             self.segments.options = (NONE_CHOSEN, *opts) if opts else ("(none)",)
-            self.segments.value = same[0] if same else self.segments.options[0]
+            if self.segments.value == self.segments.options[0] and before.startswith("#"):
+                same = [o for o in opts if o.startswith(before.split()[0] + " ")]
+                if same:
+                    self.segments.value = same[0]
         all_segs = state.session.segments()
         per = {}
         for s in all_segs:
