@@ -3,7 +3,9 @@
 Takes arrays, never sessions: ``workbench`` wires it to the session store.
 """
 
+from . import distributed
 from .bundle import BundleError, ModelBundle, load_bundle, save_bundle
+from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint
 from .config import FEATURE_MODES, ClassifierConfig, ElasticNet, FeatureMode, PredictorConfig, TrainConfig
 from .data import Normalizer
 from .fit_classifier import ClassifierFit, fit_classifier
@@ -19,6 +21,7 @@ __all__ = [
     "FEATURE_MODES",
     "BundleError",
     "Cancelled",
+    "Checkpoint",
     "Classifier",
     "ClassifierConfig",
     "ClassifierFit",
@@ -36,16 +39,19 @@ __all__ = [
     "StreamingClassifier",
     "TrainConfig",
     "classifier_loss",
+    "distributed",
     "elastic_net",
     "ensemble_pass",
     "entropy",
     "fit_classifier",
     "fit_predictor",
     "load_bundle",
+    "load_checkpoint",
     "predictor_loss",
     "predictor_pass",
     "run_classifiers",
     "run_predictor",
     "save_bundle",
+    "save_checkpoint",
     "score_log",
 ]
