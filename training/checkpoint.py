@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import torch
-from safetensors import SafetensorError
+from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
 
 CHECKPOINT_SCHEMA = 1
@@ -102,8 +102,6 @@ def load_checkpoint(path: str | Path, expected: str) -> Checkpoint | None:
     if not path.is_file():
         return None
     try:
-        from safetensors import safe_open
-
         with safe_open(str(path), framework="pt") as f:
             meta = json.loads(f.metadata()["checkpoint"])
         if meta.get("schema") != CHECKPOINT_SCHEMA or meta.get("fingerprint") != expected:

@@ -23,7 +23,7 @@ from . import distributed
 from .checkpoint import Checkpoint, fingerprint, load_checkpoint, save_checkpoint
 from .config import PredictorConfig, TrainConfig, to_dict
 from .data import Normalizer, Piece, Rows, cut_pieces, stage1_batch
-from .losses import elastic_net, lstm_parameters, masked_mse
+from .losses import masked_mse, predictor_loss
 from .models import Predictor
 from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
 
@@ -81,16 +81,15 @@ def _run_batch(
             estimate, _, state = net(x[:, c0 : c0 + chunk], state)  # (B, L, C)
         estimate = estimate.float()
         target = y[:, c0 : c0 + chunk]
-        data = masked_mse(estimate, target, m)
         if optimizer is not None:
             scale = n * world.size / n_all if world.distributed else 1.0
-            loss = data * scale + elastic_net(lstm_parameters(model.lstm), config.elastic)
+            loss = predictor_loss(estimate, target, m, model.lstm, config.elastic, data_scale=scale)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), config.clip)
             optimizer.step()
             state = (state[0].detach(), state[1].detach())  # truncated BPTT: keep the state, cut the graph
-        total += float(data.detach()) * n
+        total += float(masked_mse(estimate.detach(), target, m)) * n
         count += n
     return total, count
 

@@ -53,10 +53,20 @@ def masked_cross_entropy(
 
 
 def predictor_loss(
-    estimate: torch.Tensor, target: torch.Tensor, mask: torch.Tensor, lstm: nn.LSTM, penalty: ElasticNet
+    estimate: torch.Tensor,
+    target: torch.Tensor,
+    mask: torch.Tensor,
+    lstm: nn.LSTM,
+    penalty: ElasticNet,
+    *,
+    data_scale: float = 1.0,
 ) -> torch.Tensor:
-    """Eq. (1): MSE of the next-sample estimate plus the elastic net on the predictor's LSTM."""
-    return masked_mse(estimate, target, mask) + elastic_net(lstm_parameters(lstm), penalty)
+    """Eq. (1): MSE of the next-sample estimate plus the elastic net on the predictor's LSTM.
+
+    ``data_scale`` multiplies the MSE alone: a process of a data-parallel group weighs its share of the batch so
+    that the group's averaged gradient is the one-process gradient (``training.fit_predictor``).
+    """
+    return masked_mse(estimate, target, mask) * data_scale + elastic_net(lstm_parameters(lstm), penalty)
 
 
 def classifier_loss(
