@@ -5,7 +5,8 @@ within one terrain patch each, so every trial has one true terrain), the paper's
 has labelled 4 % of the time and has a trained model; they label up to 5 % and press Retrain.
 
 - **Ours**: what the UI's Retrain does (``TrainJob``): stage 2 warm-started from the active models on the cached
-  stage-1 features for ``WARM_EPOCHS`` epochs (the features already in memory from the setup's training, as after
+  stage-1 features for ``WARM_EPOCHS`` epochs on the labels added since (the last 1 %) with as many older ones
+  replayed, at a fifth of the learning rate (the features already in memory from the setup's training, as after
   any earlier retrain in the same server), then the log on screen rescored and redrawn before the others. Timed
   from ``job.start()`` to the "scores" event that carries the new model's scores of that log; the full rescore is
   timed too.

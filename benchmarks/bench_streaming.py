@@ -28,10 +28,10 @@ from training.fused_step import FusedStep
 C, K, HIDDEN, MEMBERS, RATE_HZ = 22, 6, 200, 5, 500.0
 
 
-def make_bundle(seed: int = 0) -> ModelBundle:
+def make_bundle(seed: int = 0, members: int = MEMBERS) -> ModelBundle:
     torch.manual_seed(seed)
     predictor = Predictor(PredictorConfig(C, HIDDEN)).eval()
-    members = [Classifier(ClassifierConfig(HIDDEN, K, HIDDEN)).eval() for _ in range(MEMBERS)]
+    members = [Classifier(ClassifierConfig(HIDDEN, K, HIDDEN)).eval() for _ in range(members)]
     norm = Normalizer(np.zeros(C, np.float32), np.ones(C, np.float32))
     return ModelBundle(predictor, norm, tuple(f"ch{i}" for i in range(C)), 100.0, members, tuple("abcdef"))
 
@@ -105,6 +105,7 @@ def main() -> None:
                             f"{med_n / med_f:.1f}× faster", f"≥ {RATE_HZ:.0f} Hz per robot",
                             bool(hz >= RATE_HZ), agreement(precision)))  # fmt: skip
     rows.append(products_alone(bundle, rng))
+    rows.append(one_member(rng))
     record("streaming", rows, device=args.device)
 
 
@@ -125,6 +126,21 @@ def products_alone(bundle: ModelBundle, rng: np.random.Generator) -> Row:
     return Row("profile: a 1-stream float32 step's three matrix products alone (median)", fmt_s(t_prod),
                f"the whole step: {fmt_s(t_step)}", f"{t_prod / t_step:.0%} of the step",
                f"{weights / 1e6:.1f} MB of weights read per step: {weights / t_prod / 1e9:.0f} GB/s", None)  # fmt: skip
+
+
+def one_member(rng: np.random.Generator) -> Row:
+    """The profile's other half: the same step with one ensemble member (2.1 MB of weights instead of 7.1 MB)."""
+    single, full = FusedStep(make_bundle(members=1), streams=1), FusedStep(make_bundle(), streams=1)
+    x = rng.normal(size=(1, C)).astype(np.float32)
+    with threadpool_limits(1):
+        t_one = timed(lambda: single(x), repeat=3000, warmup=50)
+        t_all = timed(lambda: full(x), repeat=3000, warmup=50)
+    weights = sum(a.nbytes for a in (single.w1, single.w2, single.u2, single.out_w))
+    return Row("profile: a 1-stream float32 step with one ensemble member instead of five (median / p99)",
+               f"{fmt_s(np.median(t_one))} / {fmt_s(np.percentile(t_one, 99))}",
+               f"five members: {fmt_s(np.median(t_all))} / {fmt_s(np.percentile(t_all, 99))}",
+               f"{np.median(t_all) / np.median(t_one):.1f}× faster",
+               f"{weights / 1e6:.1f} MB of weights read per step", None)  # fmt: skip
 
 
 if __name__ == "__main__":

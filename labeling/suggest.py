@@ -243,6 +243,7 @@ def _clusters(
         ``(0, 1]``: 1 at a cluster centre, falling with distance (0.1 outside the prefiltered set).
     """
     from sklearn.cluster import KMeans
+    from threadpoolctl import threadpool_limits
 
     idx = np.argsort(-weight, kind="stable")[: PREFILTER * n] if prefilter else np.arange(len(emb))
     cluster, typical = np.full(len(emb), -1), np.full(len(emb), 0.1)
@@ -251,7 +252,10 @@ def _clusters(
         typical[idx] = 1.0
         cluster[idx] = 0
         return cluster, typical
-    km = KMeans(k, n_init=3, random_state=seed).fit(emb[idx], sample_weight=np.maximum(weight[idx], 1e-9))
+    # One thread: a few thousand points take milliseconds, while OpenMP's spinning workers, competing with a retrain
+    # on the same cores, took minutes (seen in the simulation with a second job running).
+    with threadpool_limits(1):
+        km = KMeans(k, n_init=3, random_state=seed).fit(emb[idx], sample_weight=np.maximum(weight[idx], 1e-9))
     d = np.linalg.norm(emb[idx] - km.cluster_centers_[km.labels_], axis=1)
     ref = float(np.median(d)) or 1.0
     cluster[idx] = km.labels_

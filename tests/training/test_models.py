@@ -121,3 +121,30 @@ def test_classifier_separates_two_easy_classes_from_sparse_labels() -> None:
     assert probs.shape == (3, 800, 2)
     acc = (probs.mean(0).argmax(-1) == truth[1]).mean()
     assert acc > 0.8
+
+
+def test_length_batches_cover_every_piece_once_in_batches_of_like_length() -> None:
+    from training.fit_classifier import length_batches
+
+    lengths = np.random.default_rng(0).integers(100, 661, 130).astype(np.float64)
+    batches = length_batches(lengths, 32, np.random.default_rng(1))
+    assert sorted(np.concatenate(batches).tolist()) == list(range(130))
+    assert [len(b) for b in sorted(batches, key=len)] == [2, 32, 32, 32, 32]
+    padded = sum(len(b) * lengths[b].max() for b in batches)
+    mixed = sum(len(b) * lengths[b].max() for b in np.array_split(np.random.default_rng(2).permutation(130), 5))
+    assert padded < 0.8 * mixed  # less padding than random batches
+    again = length_batches(lengths, 32, np.random.default_rng(1))
+    assert all(np.array_equal(a, b) for a, b in zip(batches, again, strict=True))
+
+
+def test_a_fine_tune_trains_on_new_segments_with_as_many_old_ones_replayed() -> None:
+    from training.fit_classifier import _epoch_pieces
+
+    cfg = TrainConfig(**{**TINY.__dict__, "label_piece": 50, "context": 0})
+    new = [(0, 0, 100, 1)]  # 2 crops
+    old = [(1, i * 100, i * 100 + 100, 0) for i in range(40)]  # 80 crops
+    rng = np.random.default_rng(0)
+    pieces = _epoch_pieces(new, old, cfg, rng)
+    assert sum(p.seq == 0 for p in pieces) == 2 and sum(p.seq == 1 for p in pieces) == 32  # at least a batch
+    assert len(_epoch_pieces(new * 40, old, cfg, rng)) == 80 + 80
+    assert _epoch_pieces([], old, cfg, rng) == []  # nothing new: nothing to train

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+import torch
 
 from sessions import LabelError, Session, WorkbenchError
 from training.bundle import load_bundle
@@ -184,3 +185,26 @@ def test_cli_evaluate_qcat_on_a_generated_fixture(tmp_path: Path, capsys) -> Non
     assert code == 0
     assert "24 trials, 192 step sequences" in out
     assert "paper's split" in out and "trials held out" in out and "| paper: proposed method (published) | 89.04" in out
+
+
+def test_a_warm_retrain_learns_the_new_and_changed_labels_and_keeps_folds_with_nothing_new(trained: Session) -> None:
+    first = trained.active_model("classifier")
+    assert sorted(first.config["labels"]["ids"]) == sorted(s.id for s in trained.segments())
+    same = cycle.train_classifier(trained, config=TINY, hidden=8, warm_epochs=1)
+    assert same.config["new_labels"] == 0  # nothing new: every fold keeps its model
+    before, after = (load_bundle(trained.path / v.path).classifiers for v in (first, same))
+    for a, b in zip(before, after, strict=True):
+        for (name, x), y in zip(a.state_dict().items(), b.state_dict().values(), strict=True):
+            assert torch.equal(x, y), name
+
+    segs = trained.segments()
+    other = next(t.name for t in trained.terrains() if t.name != segs[0].terrain)
+    trained.change_segment(segs[0].id, author="test", terrain=other)  # a changed label counts as new
+    log = trained.logs()[0]
+    taken = [(s.start, s.stop) for s in trained.segments(log.id)]
+    start = next(a for a in range(0, log.n_samples - 200, 50) if all(a + 100 <= s or a >= e for s, e in taken))
+    trained.add_segment(log.id, start, start + 100, segs[1].terrain, author="test")
+    fresh = cycle.train_classifier(trained, config=TINY, hidden=8, warm_epochs=1)
+    assert fresh.config["new_labels"] == 2 and fresh.config["warm_start"] is True
+    cold = cycle.train_classifier(trained, config=TINY, hidden=8, warm_start=False)
+    assert cold.config["new_labels"] is None  # a full run trains on every label
