@@ -83,8 +83,8 @@ def random_crops(segments: Sequence[Segment], config: TrainConfig, rng: np.rando
 def _epoch_pieces(
     segments: Sequence[Segment], replay: Sequence[Segment], config: TrainConfig, rng: np.random.Generator
 ) -> list[Piece]:
-    """One epoch's crops: of ``segments``, plus as many crops of ``replay`` drawn at random (none without a
-    segment: nothing new to learn)."""
+    """One epoch's crops of ``segments`` plus as many crops of ``replay`` drawn at random (at least a batch); none
+    at all when ``segments`` is empty, since there is nothing new to learn."""
     out = random_crops(segments, config, rng)
     if out and replay:
         old = random_crops(replay, config, rng)
