@@ -129,7 +129,7 @@ def products_alone(bundle: ModelBundle, rng: np.random.Generator) -> Row:
 
 
 def one_member(rng: np.random.Generator) -> Row:
-    """The profile's other half: the same step with one ensemble member (2.1 MB of weights instead of 7.1 MB)."""
+    """The profile's other half: the same step with one ensemble member (about a quarter of the weights)."""
     single, full = FusedStep(make_bundle(members=1), streams=1), FusedStep(make_bundle(), streams=1)
     x = rng.normal(size=(1, C)).astype(np.float32)
     with threadpool_limits(1):
