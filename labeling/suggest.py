@@ -252,8 +252,8 @@ def _clusters(
         typical[idx] = 1.0
         cluster[idx] = 0
         return cluster, typical
-    # One thread: a few thousand points take milliseconds, while OpenMP's spinning workers, competing with a retrain
-    # on the same cores, took minutes (seen in the simulation with a second job running).
+    # One thread: a few thousand points take milliseconds, and OpenMP's workers spin while they wait; with a
+    # retrain on the same 2 cores a stack dump caught the simulation here, with half the CPU time in the kernel.
     with threadpool_limits(1):
         km = KMeans(k, n_init=3, random_state=seed).fit(emb[idx], sample_weight=np.maximum(weight[idx], 1e-9))
     d = np.linalg.norm(emb[idx] - km.cluster_centers_[km.labels_], axis=1)
