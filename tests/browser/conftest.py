@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import socket
@@ -127,3 +128,30 @@ def save_screenshot(page, name: str) -> Path:
     path = ARTIFACTS / f"{name}.png"
     page.screenshot(path=str(path))
     return path
+
+
+def close_notifications(page) -> None:
+    """Close every notification with its close button, as a person does.
+
+    viser shows notifications over the top of the panels, and Mantine pauses a notification's timer while the
+    pointer is over it, so one that covers a tab never leaves while a click waits on that tab.
+    """
+    buttons = page.locator("div.mantine-Notification-root button")
+    for _ in range(20):
+        if buttons.count() == 0:
+            return
+        with contextlib.suppress(Exception):  # it closed by itself between the count and the click
+            buttons.first.click(timeout=1_000)
+
+
+def open_tab(page, name: str) -> None:
+    """Click a tab of the control panel, closing the notifications that cover it first."""
+    tab = page.get_by_role("tab", name=name)
+    for _ in range(5):
+        close_notifications(page)
+        try:
+            tab.click(timeout=3_000)
+            return
+        except Exception:
+            continue  # a new notification arrived over the tab
+    tab.click(timeout=3_000)

@@ -9,7 +9,7 @@ import pytest
 from sessions import Session
 from workbench.cli import main
 
-from .conftest import save_screenshot
+from .conftest import open_tab, save_screenshot
 
 pytestmark = pytest.mark.browser
 
@@ -23,7 +23,7 @@ def test_page_lists_logs_and_refreshes_when_a_log_is_ingested(tmp_path: Path, se
     assert main(["ingest", str(session), str(logs[0]), str(logs[1])]) == 0
     server = serve(session)
     page.goto(server.url)
-    page.get_by_role("tab", name="Data").click()
+    open_tab(page, "Data")
     page.get_by_text("walk_001").first.wait_for(timeout=30_000)
     body = page.inner_text("body")
     assert "Terrain workbench" in body and "walk_000" in body and "2 logs" in body

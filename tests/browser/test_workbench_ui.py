@@ -13,7 +13,7 @@ import pytest
 from sessions import Session
 from training.config import TrainConfig
 
-from .conftest import save_screenshot
+from .conftest import open_tab, save_screenshot
 
 pytestmark = pytest.mark.browser
 TINY = ("--hidden", "8", "--stage1-epochs", "2", "--stage2-epochs", "3")
@@ -120,14 +120,14 @@ def test_label_with_hotkeys_retrain_suggest_and_download(session_path: Path, ser
     save_screenshot(page, "workbench-main")
 
     # Retrain from the Train tab: a new classifier version appears in the page
-    page.get_by_role("tab", name="Train").click()
+    open_tab(page, "Train")
     versions_before = len(Session.open(session_path).model_versions())
     page.get_by_role("button", name="Retrain (R)").click()
     page.get_by_text(f"v{versions_before + 1}", exact=True).first.wait_for(timeout=120_000)
     assert Session.open(session_path).active_model("classifier").id == versions_before + 1
 
     # take a suggestion with its hotkeys: N shows it, A labels it with the model's guess
-    page.get_by_role("tab", name="Suggest").click()
+    open_tab(page, "Suggest")
     page.get_by_text("segments suggested").wait_for(timeout=60_000)
     blur(page)
     page.keyboard.press("n")
@@ -136,7 +136,7 @@ def test_label_with_hotkeys_retrain_suggest_and_download(session_path: Path, ser
     wait_until(lambda: rows(session_path, "s.source = 'suggestion'"), what="the accepted suggestion in SQLite")
 
     # download the label file through the browser
-    page.get_by_role("tab", name="Data").click()
+    open_tab(page, "Data")
     with page.expect_download(timeout=30_000) as info:
         page.get_by_role("button", name="Labels (CSV)").click()
     text = Path(info.value.path()).read_text()
@@ -152,7 +152,7 @@ def test_a_second_browser_sees_the_first_ones_label(session_path: Path, serve, b
         pages.append(ctx.new_page())
         open_workbench(pages[-1], server.url)
     first, second = pages
-    second.get_by_role("tab", name="Label").click()
+    open_tab(second, "Label")
     n = len(rows(session_path))
     second.get_by_text(f"{n} segments labelled").wait_for(timeout=10_000)
     t = free_seconds(session_path, 1, 2.5)
@@ -180,7 +180,7 @@ def test_upload_ingests_a_log_and_refuses_a_broken_file(session_path: Path, serv
     bad.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 100)
     server = serve(session_path, *TINY)
     open_workbench(page, server.url)
-    page.get_by_role("tab", name="Data").click()
+    open_tab(page, "Data")
     upload = page.locator("input[type=file]").first
     upload.set_input_files(str(bad))
     page.get_by_text("Not done").first.wait_for(timeout=30_000)
