@@ -119,12 +119,16 @@ def test_label_with_hotkeys_retrain_suggest_and_download(session_path: Path, ser
     assert added == [(1, round(100 * t), round(100 * t) + 200, "grass", "manual")]
     save_screenshot(page, "workbench-main")
 
-    # Retrain from the Train tab: a new classifier version appears in the page
+    # Retrain from the Train tab: the quick fine-tune's version appears in the page, then the one trained from
+    # scratch in the background replaces it
     open_tab(page, "Train")
     versions_before = len(Session.open(session_path).model_versions())
     page.get_by_role("button", name="Retrain (R)").click()
     page.get_by_text(f"v{versions_before + 1}", exact=True).first.wait_for(timeout=120_000)
-    assert Session.open(session_path).active_model("classifier").id == versions_before + 1
+    page.get_by_text(f"replaced the quick v{versions_before + 1}").wait_for(timeout=120_000)
+    page.get_by_text(f"v{versions_before + 2}", exact=True).first.wait_for(timeout=10_000)
+    assert Session.open(session_path).active_model("classifier").id == versions_before + 2
+    save_screenshot(page, "workbench-train")
 
     # take a suggestion with its hotkeys: N shows it, A labels it with the model's guess
     open_tab(page, "Suggest")

@@ -108,7 +108,7 @@ def test_snap_moves_edges_to_change_points_only_nearby(state: SharedState, monke
 
 
 def test_retrain_job_runs_in_the_background_and_reports(state: SharedState) -> None:
-    job = TrainJob(state, hidden=8, predictor_config=TINY, classifier_config=TINY)
+    job = TrainJob(state, hidden=8, predictor_config=TINY, classifier_config=TINY, refine=False)
     statuses: list[JobStatus] = []
     state.subscribe(lambda e: statuses.append(job.status) if e == "job" else None)
     before = len(state.session.model_versions("classifier"))
@@ -123,6 +123,45 @@ def test_retrain_job_runs_in_the_background_and_reports(state: SharedState) -> N
     wait_for(lambda: state.scores.classifier == state.session.active_model("classifier").id)
 
 
+def test_a_quick_retrain_is_followed_by_one_from_scratch_that_replaces_it(state: SharedState) -> None:
+    job = TrainJob(state, hidden=8, predictor_config=TINY, classifier_config=TINY, warm_epochs=1)
+    statuses: list[JobStatus] = []
+    state.subscribe(lambda e: statuses.append(job.status) if e == "job" else None)
+    before = [v.id for v in state.session.model_versions("classifier")]
+    job.start()
+    wait_for(lambda: not job.running, timeout=120)
+    assert job.status.state == "done", job.status.message
+    quick, full = [v for v in state.session.model_versions("classifier") if v.id not in before]
+    assert quick.config["warm_start"] is True and full.config["warm_start"] is False
+    assert state.session.active_model("classifier").id == full.id
+    assert f"replaced the quick v{quick.id}" in job.status.message
+    seen = [s.state for s in statuses]
+    assert seen.index("running") < seen.index("refining")
+    # the quick model's highlights were drawn before the retrain from scratch began
+    refining = [s for s in statuses if s.state == "refining"]
+    assert refining[0].fraction == 0.0 and any(s.fraction > 0 for s in refining)
+    wait_for(lambda: state.scores.classifier == full.id)
+
+
+def test_retrain_while_refining_stops_the_retrain_from_scratch_and_starts_a_quick_one(state: SharedState) -> None:
+    slow = TINY.__class__(**{**TINY.__dict__, "max_epochs": 500, "patience": 500})
+    job = TrainJob(state, hidden=8, predictor_config=TINY, classifier_config=slow, warm_epochs=1)
+    before = [v.id for v in state.session.model_versions("classifier")]
+    job.start()
+    wait_for(lambda: job.status.state == "refining" and job.status.fraction > 0, timeout=120)
+    assert job.start() == "classifier"  # not refused: the refining phase gives way
+    assert job.status.state == "running"
+    wait_for(lambda: job.status.state == "refining" and job.status.fraction > 0, timeout=120)
+    job.cancel()
+    wait_for(lambda: not job.running, timeout=60)
+    assert job.status.state == "done" and "stopped" in job.status.message
+    added = [v for v in state.session.model_versions("classifier") if v.id not in before]
+    assert [v.config["warm_start"] for v in added] == [True, True]  # two quick ones; neither refining run saved
+    assert state.session.active_model("classifier").id == added[-1].id
+    runs = state.session._read("SELECT kind, status FROM runs ORDER BY id")[-4:]
+    assert runs == [("classifier", "done"), ("classifier", "cancelled")] * 2
+
+
 def test_after_a_retrain_the_logs_on_screen_are_rescored_first(state: SharedState, monkeypatch) -> None:
     from workbench.ui import state as state_module
 
@@ -130,7 +169,7 @@ def test_after_a_retrain_the_logs_on_screen_are_rescored_first(state: SharedStat
     assert len(logs) >= 2
     shown = logs[-1].id
     state.set_viewed("browser-1", shown)
-    job = TrainJob(state, hidden=8, predictor_config=TINY, classifier_config=TINY)
+    job = TrainJob(state, hidden=8, predictor_config=TINY, classifier_config=TINY, refine=False)
     scored: list[tuple[int | None, tuple[int, ...]]] = []  # (active classifier, logs scored) per scoring pass
     real = state_module.compute_scores
 

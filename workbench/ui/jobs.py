@@ -1,4 +1,11 @@
-"""The Retrain job: stage 2 (and stage 1 when needed) in a background thread, with progress, ETA and Cancel."""
+"""The Retrain job: stage 2 (and stage 1 when needed) in a background thread, with progress, ETA and Cancel.
+
+A Retrain after a few more labels runs in two phases. The quick one fine-tunes the active models on what is new, so
+the highlights refresh in seconds. The refining one then trains stage 2 from scratch on every label, in the
+background while the person keeps labelling, because the fine-tune gives up accuracy (QCAT-scale bench: 80.5 %
+after the fine-tune, 84.7 % from scratch); when it finishes its models replace the quick ones. Pressing Retrain
+during the refining phase stops it and starts a new quick one.
+"""
 
 from __future__ import annotations
 
@@ -24,7 +31,10 @@ CLASSIFIER_CONFIG = TrainConfig(max_epochs=100, patience=20)
 
 @dataclass(frozen=True)
 class JobStatus:
-    """What a view shows of the job: ``state`` is idle, running, done, cancelled or failed."""
+    """What a view shows of the job: ``state`` is idle, running, refining, done, cancelled or failed.
+
+    ``refining``: the quick models are active and stage 2 trains from scratch in the background; Retrain is allowed.
+    """
 
     state: str = "idle"
     stages: tuple[str, ...] = ()
@@ -61,11 +71,13 @@ class TrainJob:
         predictor_config: TrainConfig = PREDICTOR_CONFIG,
         classifier_config: TrainConfig = CLASSIFIER_CONFIG,
         warm_epochs: int | None = WARM_EPOCHS,
+        refine: bool = True,
     ) -> None:
         self.state = state
         self.hidden = hidden
         self.predictor_config, self.classifier_config = predictor_config, classifier_config
         self.warm_epochs = warm_epochs  # None: every retrain trains as long as a fresh one
+        self.refine = refine  # after a quick fine-tune, train stage 2 from scratch in the background
         self.status = JobStatus()
         self._cancel = threading.Event()
         self._thread: threading.Thread | None = None
@@ -73,11 +85,15 @@ class TrainJob:
 
     @property
     def running(self) -> bool:
+        """A training run is going, quick or refining."""
         return self._thread is not None and self._thread.is_alive()
 
     def start(self, *, predictor: bool = False) -> str:
         """Start a retrain; returns what it will do, or raises when one runs or labels are missing."""
         with self._lock:
+            if self.running and self.status.state == "refining":
+                self._cancel.set()  # newer labels: stop the retrain from scratch; the new quick one comes first
+                self._thread.join()  # type: ignore[union-attr]
             if self.running:
                 raise WorkbenchError("a training run is already going; cancel it first")
             stages = ("predictor", "classifier") if predictor or needs_predictor(self.state) else ("classifier",)
@@ -103,6 +119,7 @@ class TrainJob:
             elapsed = time.monotonic() - started
             eta = elapsed / fraction * (1 - fraction) if fraction > 0.02 else None
             losses = self.status.losses
+            prefix = "from scratch, " if self.status.state == "refining" else ""
             if p.step == p.steps:  # one point per epoch on the live loss plot
                 losses = (*losses[-199:], p.train_loss)
             self.status = replace(
@@ -113,7 +130,7 @@ class TrainJob:
                 val_loss=p.val_loss,
                 eta_s=eta,
                 losses=losses,
-                message=f"{p.stage}: fold {max(p.fold, 1)}/{p.folds}, epoch {p.epoch}",
+                message=f"{prefix}{p.stage}: fold {max(p.fold, 1)}/{p.folds}, epoch {p.epoch}",
             )
             now = time.monotonic()
             if now - last[0] > 0.5:  # views redraw at most twice a second
@@ -126,6 +143,8 @@ class TrainJob:
         started = time.monotonic()
         progress = self._progress(stages, started)
         predictor_run = "predictor" in stages  # new features: the classifier starts afresh anyway
+        quick = None  # the version a warm fine-tune saved: the refining phase follows it
+        hidden = self.hidden
         try:
             if "predictor" in stages:
                 train_predictor(
@@ -139,14 +158,17 @@ class TrainJob:
             if can_classify:
                 p = self.state.session.active_model("predictor")
                 hidden = int(p.config.get("hidden", self.hidden)) if p is not None else self.hidden
-                train_classifier(
+                warm_epochs = None if predictor_run else self.warm_epochs
+                version = train_classifier(
                     self.state.session,
                     config=self.classifier_config,
-                    warm_epochs=None if predictor_run else self.warm_epochs,
+                    warm_epochs=warm_epochs,
                     hidden=hidden,
                     progress=progress,
                     cancel=self._cancel.is_set,
                 )
+                if warm_epochs is not None and version.config.get("warm_start"):
+                    quick = version
             took = time.monotonic() - started
             self.status = replace(
                 self.status,
@@ -165,4 +187,60 @@ class TrainJob:
         self.state.notify("models")
         self.state.notify("job")
         if self.status.state == "done":
+            self.state.refresh(scores=True, first=self.state.viewed_logs())
+            if quick is not None and self.refine:
+                self._refine(quick.id, hidden)
+
+    def _refine(self, quick: int, hidden: int) -> None:
+        """Stage 2 from scratch on every label once the quick models' highlights are up; its models replace them."""
+        self.status = replace(
+            self.status,
+            state="refining",
+            fraction=0.0,
+            eta_s=None,
+            losses=(),
+            message=f"quick model v{quick} is active; training from scratch once its highlights are drawn",
+        )
+        self.state.notify("job")
+        # the rescore and the training would share 2 cores: the highlights a person waits for go first
+        if not self.state.wait_idle(stop=self._cancel.is_set):
+            self.status = replace(self.status, state="done", message=f"quick model v{quick} is active")
+            self.state.notify("job")
+            return
+        started = time.monotonic()
+        replaced = False
+        try:
+            version = train_classifier(
+                self.state.session,
+                config=self.classifier_config,
+                warm_start=False,
+                hidden=hidden,
+                progress=self._progress(("classifier",), started),
+                cancel=self._cancel.is_set,
+            )
+            took = time.monotonic() - started
+            replaced = True
+            self.status = replace(
+                self.status,
+                state="done",
+                fraction=1.0,
+                eta_s=0.0,
+                message=f"v{version.id}, trained from scratch in {took:.0f} s, replaced the quick v{quick}; "
+                "refreshing highlights",
+            )
+        except Cancelled:
+            self.status = replace(
+                self.status, state="done", message=f"quick model v{quick} is active; the retrain from scratch stopped"
+            )
+        except Exception as exc:
+            if not isinstance(exc, WorkbenchError):
+                traceback.print_exc()
+            self.status = replace(
+                self.status,
+                state="failed",
+                message=f"the retrain from scratch failed ({exc}); quick model v{quick} stays active",
+            )
+        self.state.notify("models")
+        self.state.notify("job")
+        if replaced:
             self.state.refresh(scores=True, first=self.state.viewed_logs())

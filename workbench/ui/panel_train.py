@@ -76,8 +76,8 @@ class TrainPanel:
     def refresh(self, event: str) -> None:
         job, state = self.view.job, self.view.state
         st = job.status
-        running = st.state == "running"
-        self.retrain_button.disabled = running
+        running = st.state in ("running", "refining")
+        self.retrain_button.disabled = st.state == "running"  # while refining, Retrain starts a newer quick one
         self.cancel_button.visible = running
         self.progress.visible = running
         if running:
@@ -88,7 +88,9 @@ class TrainPanel:
             if st.loss is not None and running
             else ""
         )
-        colour = {"failed": "#c62828", "cancelled": "#ef6c00", "done": "#2e7d32"}.get(st.state, "#333")
+        colour = {"failed": "#c62828", "cancelled": "#ef6c00", "done": "#2e7d32", "refining": "#1565c0"}.get(
+            st.state, "#333"
+        )
         text = (
             f"<b style='color:{colour}'>{html.escape(st.state)}</b>: {html.escape(st.message)}{eta}{loss}"
             if st.state != "idle"
@@ -118,6 +120,7 @@ class TrainPanel:
                 what = (
                     f"acc {100 * m.get('accuracy', float('nan')):.1f} %, F1 {m.get('macro_f1', float('nan')):.2f}, "
                     f"{m.get('labelled_seconds', 0):.0f} s labelled"
+                    + (", quick fine-tune" if v.config.get("new_labels") is not None else "")
                 )
             else:
                 what = f"val MSE {m.get('val_mse', float('nan')):.4f}, {m.get('epochs', '?')} epochs"

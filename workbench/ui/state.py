@@ -5,6 +5,7 @@ training job. Views subscribe to its events and redraw; nothing here knows about
 from __future__ import annotations
 
 import threading
+import time
 import traceback
 from collections.abc import Callable, Collection
 from dataclasses import dataclass
@@ -201,6 +202,16 @@ class SharedState:
                 self._viewed.pop(view, None)
             else:
                 self._viewed[view] = log_id
+
+    def wait_idle(self, *, stop: Callable[[], bool], poll_s: float = 0.2) -> bool:
+        """Block until no rescore or queue update is pending or running; False when ``stop()`` said to give up."""
+        quiet = 0
+        while quiet < 2:  # twice in a row: the worker clears its flag a moment before it says it is busy
+            if stop() or self._stop.is_set():
+                return False
+            time.sleep(poll_s)
+            quiet = quiet + 1 if not (self.busy or self._dirty.is_set()) else 0
+        return True
 
     def viewed_logs(self) -> set[int]:
         with self._lock:
