@@ -1,11 +1,15 @@
 """Streaming: latency per sample of both stages for one robot, and throughput for 64 robots batched, on one core.
 
 Reference beside each: the naive runtime that calls ``nn.LSTM`` (and the heads) once per sample, as a first port of
-the offline model would. The paper's sizes: hidden 200 in both stages, a 5-member ensemble, 22 channels, 6 terrains.
-Correctness beside the timing: the streamed probabilities against the offline pass over the same log.
+the offline model would. The paper's sizes: hidden 200 in both stages, a 5-member ensemble, 22 channels, 6 terrains,
+and the workbench's default stage-2 features (``hidden+surprise``: stage 1's hidden state and its per-channel
+surprise). Correctness beside the timing: the streamed probabilities against the offline pass over the same log.
+The one-member rows run ``StreamingClassifier(..., members=1)``, the deployment of a single fold model.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import torch
@@ -23,7 +27,6 @@ from training import (
     run_classifiers,
     run_predictor,
 )
-from training.fused_step import FusedStep
 
 C, K, HIDDEN, MEMBERS, RATE_HZ = 22, 6, 200, 5, 500.0
 
@@ -31,9 +34,10 @@ C, K, HIDDEN, MEMBERS, RATE_HZ = 22, 6, 200, 5, 500.0
 def make_bundle(seed: int = 0, members: int = MEMBERS) -> ModelBundle:
     torch.manual_seed(seed)
     predictor = Predictor(PredictorConfig(C, HIDDEN)).eval()
-    members = [Classifier(ClassifierConfig(HIDDEN, K, HIDDEN)).eval() for _ in range(members)]
+    members = [Classifier(ClassifierConfig(HIDDEN + C, K, HIDDEN)).eval() for _ in range(members)]
     norm = Normalizer(np.zeros(C, np.float32), np.ones(C, np.float32))
-    return ModelBundle(predictor, norm, tuple(f"ch{i}" for i in range(C)), 100.0, members, tuple("abcdef"))
+    return ModelBundle(predictor, norm, tuple(f"ch{i}" for i in range(C)), 100.0, members, tuple("abcdef"),
+                       feature_mode="hidden+surprise")  # fmt: skip
 
 
 class NaiveStream:
@@ -44,15 +48,19 @@ class NaiveStream:
         self.state1 = None
         self.state2 = [None] * len(bundle.classifiers)
         self.streams = streams
+        self.prev = None  # stage 1's estimate of this sample, from the step before
 
     @torch.inference_mode()
     def step(self, x: np.ndarray) -> np.ndarray:
         xt = torch.as_tensor(np.asarray(x, np.float32).reshape(self.streams, 1, -1))  # (B, 1, C)
         z = (xt - torch.from_numpy(self.b.normalizer.mean)) / torch.from_numpy(self.b.normalizer.std)
-        _, hidden, self.state1 = self.b.predictor(z, self.state1)  # (B, 1, H)
+        estimate, hidden, self.state1 = self.b.predictor(z, self.state1)  # (B, 1, C), (B, 1, H)
+        surprise = torch.zeros_like(z) if self.prev is None else (z - self.prev).abs()  # (B, 1, C)
+        self.prev = estimate
+        feats = torch.cat([hidden, surprise], dim=-1)  # (B, 1, H + C)
         probs = []
         for m, member in enumerate(self.b.classifiers):
-            logits, self.state2[m] = member(hidden, self.state2[m])  # (B, 1, K)
+            logits, self.state2[m] = member(feats, self.state2[m])  # (B, 1, K)
             probs.append(torch.softmax(logits, -1))
         return torch.stack(probs).mean(0)[:, 0].numpy()  # (B, K)
 
@@ -75,72 +83,68 @@ def main() -> None:
     log = rng.normal(size=(steps, C)).astype(np.float32)
 
     # correctness: streamed probabilities against the offline pass over the whole log
-    feats = run_predictor(bundle.predictor, bundle.normalizer, [log[:500]])[0].features("hidden")
-    offline = run_classifiers(bundle.classifiers, [feats])[0].mean(0)  # (T, K)
+    feats = run_predictor(bundle.predictor, bundle.normalizer, [log[:500]])[0].features(bundle.feature_mode)
 
-    def agreement(precision: str) -> str:
-        streamed = StreamingClassifier(bundle, precision=precision).run(log[:500])
+    def agreement(precision: str, members: int) -> str:
+        offline = run_classifiers(bundle.classifiers[:members], [feats])[0].mean(0)  # (T, K)
+        streamed = StreamingClassifier(bundle, precision=precision, members=members).run(log[:500])
         agree = float((streamed.argmax(1) == offline.argmax(1)).mean())
         return f"argmax = offline pass on {agree:.2%} of samples, max |Δp| {np.abs(streamed - offline).max():.1e}"
 
     rows = []
-    for streams, precision in ((1, "float32"), (64, "float32"), (64, "bfloat16")):
-        fast = StreamingClassifier(bundle, streams=streams, precision=precision)
-        naive = NaiveStream(bundle, streams)
+    for streams, precision, members in ((1, "float32", MEMBERS), (1, "float32", 1), (64, "float32", MEMBERS),
+                                        (64, "bfloat16", MEMBERS), (64, "bfloat16", 1)):  # fmt: skip
+        fast = StreamingClassifier(bundle, streams=streams, precision=precision, members=members)
+        naive = NaiveStream(replace(bundle, classifiers=bundle.classifiers[:members]), streams)
         batch = rng.normal(size=(steps, streams, C)).astype(np.float32)
         with threadpool_limits(1):  # NumPy's BLAS on one core too
             t_fast, t_naive = step_times(fast, batch), step_times(naive, batch)
         med_f, p99_f, med_n = np.median(t_fast), np.percentile(t_fast, 99), np.median(t_naive)
+        what = f"{precision}, {members} member{'s' if members > 1 else ''}"
         if streams == 1:
-            rows.append(Row(f"streaming latency per sample, 1 stream, both stages, {precision} (median / p99)",
+            rows.append(Row(f"streaming latency per sample, 1 stream, both stages, {what} (median / p99)",
                             f"{fmt_s(med_f)} / {fmt_s(p99_f)}",
                             f"nn.LSTM per sample: {fmt_s(med_n)} / {fmt_s(np.percentile(t_naive, 99))}",
                             f"{med_n / med_f:.1f}× faster", "≤ 50 µs median, p99 ≤ 200 µs",
-                            bool(med_f <= 50e-6 and p99_f <= 200e-6), agreement(precision)))  # fmt: skip
+                            bool(med_f <= 50e-6 and p99_f <= 200e-6), agreement(precision, members)))  # fmt: skip
         else:
             hz = 1.0 / med_f  # steps per second of all streams at once
-            rows.append(Row(f"streaming throughput, {streams} robots batched, 1 core, {precision}",
+            rows.append(Row(f"streaming throughput, {streams} robots batched, 1 core, {what}",
                             f"{hz:.0f} Hz per robot ({streams} × {hz:.0f} samples/s)",
                             f"nn.LSTM per sample: {1.0 / med_n:.0f} Hz per robot",
                             f"{med_n / med_f:.1f}× faster", f"≥ {RATE_HZ:.0f} Hz per robot",
-                            bool(hz >= RATE_HZ), agreement(precision)))  # fmt: skip
+                            bool(hz >= RATE_HZ), agreement(precision, members)))  # fmt: skip
     rows.append(products_alone(bundle, rng))
-    rows.append(one_member(bundle, rng))
+    rows.append(products_alone(bundle, rng, members=1))
     record("streaming", rows, device=args.device)
 
 
-def products_alone(bundle: ModelBundle, rng: np.random.Generator) -> Row:
-    """The profile of a 1-stream float32 step: its three matrix products alone, against the whole step."""
-    step = FusedStep(bundle, streams=1)
+def products_alone(bundle: ModelBundle, rng: np.random.Generator, *, members: int = MEMBERS) -> Row:
+    """The profile of a 1-stream float32 step: its matrix products alone, against the whole step."""
+    step = StreamingClassifier(bundle, members=members)._step
     x = rng.normal(size=(1, C)).astype(np.float32)
-    weights = sum(a.nbytes for a in (step.w1, step.w2, step.u2, step.out_w))
+    if members == 1:
+        weights = sum(a.nbytes for a in (step.w1, step.w2_one))
 
-    def products() -> None:
-        np.matmul(step.u1, step.w1, out=step.g1)
-        np.matmul(step.h, step.w2, out=step.g2in)
-        np.matmul(step.hh2, step.u2, out=step.g2)
+        def products() -> None:
+            np.matmul(step.u1, step.w1, out=step.g1)
+            np.matmul(step.u2in, step.w2_one, out=step.g2[0])
+    else:
+        weights = sum(a.nbytes for a in (step.w1, step.w2, step.u2))
+        feats = np.zeros((1, step.n_feats), np.float32)  # the step builds its features anew each time
+
+        def products() -> None:
+            np.matmul(step.u1, step.w1, out=step.g1)
+            np.matmul(feats, step.w2, out=step.g2in)
+            np.matmul(step.hh2, step.u2, out=step.g2)
 
     with threadpool_limits(1):
-        t_prod = np.median(timed(products, repeat=2000, warmup=50))
-        t_step = np.median(timed(lambda: step(x), repeat=2000, warmup=50))
-    return Row("profile: a 1-stream float32 step's three matrix products alone (median)", fmt_s(t_prod),
+        t_prod = np.median(timed(products, repeat=3000, warmup=50))
+        t_step = np.median(timed(lambda: step(x), repeat=3000, warmup=50))
+    return Row(f"profile: a 1-stream float32 step's LSTM matrix products alone, {members} member"
+               f"{'s' if members > 1 else ''} (median)", fmt_s(t_prod),
                f"the whole step: {fmt_s(t_step)}", f"{t_prod / t_step:.0%} of the step",
                f"{weights / 1e6:.1f} MB of weights read per step: {weights / t_prod / 1e9:.0f} GB/s", None)  # fmt: skip
-
-
-def one_member(bundle: ModelBundle, rng: np.random.Generator) -> Row:
-    """The profile's other half: the same step with one ensemble member (about a quarter of the weights)."""
-    single, full = FusedStep(make_bundle(members=1), streams=1), FusedStep(bundle, streams=1)
-    x = rng.normal(size=(1, C)).astype(np.float32)
-    with threadpool_limits(1):
-        t_one = timed(lambda: single(x), repeat=3000, warmup=50)
-        t_all = timed(lambda: full(x), repeat=3000, warmup=50)
-    weights = sum(a.nbytes for a in (single.w1, single.w2, single.u2, single.out_w))
-    return Row("profile: a 1-stream float32 step with one ensemble member instead of five (median / p99)",
-               f"{fmt_s(np.median(t_one))} / {fmt_s(np.percentile(t_one, 99))}",
-               f"five members: {fmt_s(np.median(t_all))} / {fmt_s(np.percentile(t_all, 99))}",
-               f"{np.median(t_all) / np.median(t_one):.1f}× faster",
-               f"{weights / 1e6:.1f} MB of weights read per step", None)  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -8,7 +8,10 @@ export) to float32 rounding.
 Fusions, each exact up to rounding:
 - stage 1 reads ``[z, h1]`` from one buffer against ``[W_ih; W_hh]``, so input and recurrence are one product;
 - the ``g`` gate's rows are doubled, so one logistic over all gates gives ``tanh(g) = 2·σ(2g) − 1``;
-- every ensemble member's input weights sit side by side: the members' input gates are one product.
+- every ensemble member's input weights sit side by side: the members' input gates are one product;
+- each stage's bias is a row of its weights against a constant 1 in the input buffer;
+- with one member (a single deployed model), stage 2 reads ``[features, h2, 1]`` from one buffer as stage 1 does, and
+  its softmax is the output: the ensemble's gather, bias and mean are skipped.
 """
 
 from __future__ import annotations
@@ -96,16 +99,20 @@ class FusedStep:
         w = fuse_weights(bundle)
         self.w = w  # fields copied onto self below: the hot path reads them once per step without an indirection
         self.mode, self.c, self.h1, self.m, self.h2, self.k, self.b = w.mode, w.c, w.h1, w.m, w.h2, w.k, streams
-        self.mean, self.inv_std, self.w1, self.b1 = w.mean, w.inv_std, w.w1, w.b1
+        self.mean, self.inv_std = w.mean, w.inv_std
+        self.w1 = np.concatenate([w.w1, w.b1[None]])  # (C + H1 + 1, 4H1): the bias against the constant 1
         self.head_w, self.head_b = w.head_w, w.head_b
         self.w2, self.u2, self.b2, self.out_w, self.out_b = w.w2, w.u2, w.b2, w.out_w, w.out_b
+        self.n_feats = w.w2.shape[0]
+        if w.m == 1:  # (F + H2 + 1, 4H2): input, recurrence and bias of the one member in one product
+            self.w2_one = np.concatenate([w.w2, w.u2[0], w.b2])
         self._buffers()
         self.reset()
 
     def _buffers(self) -> None:
         b, c, h1, m, h2, k = self.b, self.c, self.h1, self.m, self.h2, self.k
-        self.u1 = np.zeros((b, c + h1), np.float32)  # [z, h1]: h1 is written in place for the next step
-        self.z, self.h = self.u1[:, :c], self.u1[:, c:]
+        self.u1 = np.zeros((b, c + h1 + 1), np.float32)  # [z, h1, 1]: h1 is written in place for the next step
+        self.z, self.h = self.u1[:, :c], self.u1[:, c : c + h1]
         self.c1 = np.zeros((b, h1), np.float32)
         self.g1 = np.empty((b, 4 * h1), np.float32)
         self.t1 = np.empty((b, h1), np.float32)
@@ -115,16 +122,25 @@ class FusedStep:
         self.started = False
         self.g2in = np.empty((b, m * 4 * h2), np.float32)
         self.g2 = np.empty((m, b, 4 * h2), np.float32)
-        self.hh2 = np.zeros((m, b, h2), np.float32)
         self.c2 = np.zeros((m, b, h2), np.float32)
         self.t2 = np.empty((m, b, h2), np.float32)
         self.logits = np.empty((m, b, k), np.float32)
         self.probs = np.empty((b, k), np.float32)
+        self.rowwise = np.empty((b, 1), np.float32)  # softmax's max and sum per stream
+        if m == 1:
+            nf = self.n_feats
+            self.u2in = np.zeros((b, nf + h2 + 1), np.float32)  # [features, h2, 1]: h2 written in place
+            self.hh2 = self.u2in[None, :, nf : nf + h2]  # (1, B, H2), a view
+        else:
+            self.hh2 = np.zeros((m, b, h2), np.float32)
 
     def reset(self) -> None:
         """Forget every stream's past."""
         for a in (self.u1, self.c1, self.prev, self.hh2, self.c2):
             a[...] = 0.0
+        self.u1[:, -1] = 1.0
+        if self.m == 1:
+            self.u2in[:, -1] = 1.0
         self.started = False
 
     @staticmethod
@@ -145,8 +161,7 @@ class FusedStep:
         """``(B, C)`` raw samples -> ``(B, K)`` ensemble-mean probabilities (a buffer overwritten by the next call)."""
         np.subtract(x, self.mean, out=self.z)
         self.z *= self.inv_std
-        np.matmul(self.u1, self.w1, out=self.g1)  # (B, 4H1): input and recurrence at once
-        self.g1 += self.b1
+        np.matmul(self.u1, self.w1, out=self.g1)  # (B, 4H1): input, recurrence and bias at once
         self._cell(self.g1, self.c1, self.h, self.t1, self.h1)
         if self.mode == "hidden":
             feats = self.h
@@ -161,21 +176,39 @@ class FusedStep:
             if self.mode.endswith("surprise"):
                 np.abs(self.err, out=self.err)
             feats = {"estimate": self.est, "error": self.err, "surprise": self.err}.get(self.mode)
-            if feats is None:
+            if feats is None and self.m == 1:  # hidden+…: straight into stage 2's input buffer
+                self.u2in[:, : self.h1] = self.h
+                self.u2in[:, self.h1 : self.n_feats] = self.err
+            elif feats is None:
                 feats = np.concatenate([self.h, self.err], axis=1)
         self.started = True
-        np.matmul(feats, self.w2, out=self.g2in)  # (B, M·4H2): every member's input gates
-        np.matmul(self.hh2, self.u2, out=self.g2)  # (M, B, 4H2)
-        self.g2 += self.g2in.reshape(self.b, self.m, -1).transpose(1, 0, 2)
-        self.g2 += self.b2[:, None, :]
+        if self.m == 1:
+            if feats is not None:
+                self.u2in[:, : self.n_feats] = feats
+            np.matmul(self.u2in, self.w2_one, out=self.g2[0])  # (B, 4H2): input, recurrence and bias at once
+        else:
+            np.matmul(feats, self.w2, out=self.g2in)  # (B, M·4H2): every member's input gates
+            np.matmul(self.hh2, self.u2, out=self.g2)  # (M, B, 4H2)
+            self.g2 += self.g2in.reshape(self.b, self.m, -1).transpose(1, 0, 2)
+            self.g2 += self.b2[:, None, :]
         self._cell(self.g2, self.c2, self.hh2, self.t2, self.h2)
         np.matmul(self.hh2, self.out_w, out=self.logits)  # (M, B, K)
         self.logits += self.out_b
-        self.logits -= self.logits.max(axis=-1, keepdims=True)
-        np.exp(self.logits, out=self.logits)
-        self.logits /= self.logits.sum(axis=-1, keepdims=True)
+        if self.m == 1:
+            return self._softmax(self.logits[0])
+        for lg in self.logits:
+            self._softmax(lg)
         np.mean(self.logits, axis=0, out=self.probs)
         return self.probs
+
+    def _softmax(self, lg: np.ndarray) -> np.ndarray:
+        """In place over the last axis of ``lg (B, K)``, without allocating."""
+        np.max(lg, axis=-1, keepdims=True, out=self.rowwise)
+        lg -= self.rowwise
+        np.exp(lg, out=lg)
+        np.sum(lg, axis=-1, keepdims=True, out=self.rowwise)
+        lg /= self.rowwise
+        return lg
 
 
 class Bf16Step:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -95,6 +96,27 @@ def test_streaming_equals_the_offline_pass(mode: str) -> None:
     out = np.stack([multi.step(np.stack([logs[0][t], logs[1][t]])) for t in range(n)])  # (T, 2, K)
     np.testing.assert_allclose(out[:, 0], expected[0][:n], atol=1e-5)
     np.testing.assert_allclose(out[:, 1], expected[1][:n], atol=1e-5)
+
+
+@pytest.mark.parametrize("mode", ["hidden", "estimate", "hidden+error", "hidden+surprise"])
+def test_one_member_streams_the_first_fold_models_offline_pass(mode: str) -> None:
+    bundle, logs = tiny_bundle(mode)
+    first = replace(bundle, classifiers=bundle.classifiers[:1])
+    expected = offline(first, logs)
+    assert not np.allclose(expected[0], offline(bundle, logs)[0], atol=1e-3)  # the ensemble's mean differs
+    for log, exp in zip(logs, expected, strict=True):
+        np.testing.assert_allclose(StreamingClassifier(bundle, members=1).run(log), exp, atol=1e-5)
+    multi = StreamingClassifier(bundle, streams=2, members=1)
+    n = min(len(x) for x in logs)
+    out = np.stack([multi.step(np.stack([logs[0][t], logs[1][t]])) for t in range(n)])  # (T, 2, K)
+    np.testing.assert_allclose(out[:, 1], expected[1][:n], atol=1e-5)
+    multi.reset()  # a restarted robot: the same numbers again from its first sample
+    np.testing.assert_allclose(multi.step(np.stack([logs[0][0], logs[1][0]]))[0], expected[0][0], atol=1e-5)
+    two = StreamingClassifier(bundle, members=2).run(logs[0])
+    np.testing.assert_allclose(two, offline(replace(bundle, classifiers=bundle.classifiers[:2]), logs)[0], atol=1e-5)
+    for bad in (0, 4):
+        with pytest.raises(ValueError, match="members must be 1 to 3"):
+            StreamingClassifier(bundle, members=bad)
 
 
 @pytest.mark.parametrize("mode", ["hidden", "hidden+error", "surprise", "hidden+surprise"])
