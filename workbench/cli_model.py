@@ -203,6 +203,7 @@ def evaluate(
     rounds: int = 8,
     batch: int = 4,
     feature_mode: FeatureMode = "hidden+surprise",
+    warm_start: bool = False,
 ) -> None:
     """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
 
@@ -229,12 +230,13 @@ def evaluate(
         rounds: Rounds of labelling, each followed by a retrain.
         batch: Suggestions labelled per round.
         feature_mode: With --simulate: what stage 1 hands stage 2.
+        warm_start: With --simulate: each round fine-tunes the previous round's models instead of training afresh.
     """
     from . import evaluate as ev
 
     if simulate:
         print(ev.simulate(dataset, folder, strategies=strategies, seeds=seeds, rounds=rounds, batch=batch, out=out,
-                          feature_mode=feature_mode))  # fmt: skip
+                          feature_mode=feature_mode, warm_start=warm_start))  # fmt: skip
         return
 
     if dataset == "borealtc":

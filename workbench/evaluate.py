@@ -215,6 +215,7 @@ def simulate(
     batch: int,
     out: Path | None,
     feature_mode: FeatureMode = "hidden+surprise",
+    warm_start: bool = False,
 ) -> str:
     """The label-efficiency simulation on ``folder`` (see :mod:`workbench.simulate`)."""
     from labeling import STRATEGIES
@@ -225,7 +226,12 @@ def simulate(
     if unknown:
         raise WorkbenchError(f"unknown strategy {', '.join(unknown)}; choose from {', '.join(STRATEGIES)}")
     settings = SimSettings(
-        strategies=tuple(strategies), seeds=seeds, rounds=rounds, batch=batch, feature_mode=feature_mode
+        strategies=tuple(strategies),
+        seeds=seeds,
+        rounds=rounds,
+        batch=batch,
+        feature_mode=feature_mode,
+        warm_start=warm_start,
     )
     recs, notes = load_recordings(folder)
     for n in notes:

@@ -1,8 +1,8 @@
 """``workbench evaluate ... --simulate``: label-efficiency curves of the suggestion strategies.
 
 Wires ``labeling.simulate`` (oracle, loop, curves) to the model: stage 1 trains once without labels and its features
-are cached; every round retrains stage 2 (warm-started from the previous round, as the UI's retrain does), rescores
-the pool and measures held-out accuracy.
+are cached; every round retrains stage 2 from scratch on every label so far (the model a UI Retrain ends with, after
+its quick fine-tune), rescores the pool and measures held-out accuracy.
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ class SimSettings:
     stage2_epochs: int = 40
     folds: int = 3  # ensemble members (disagreement needs more than one)
     feature_mode: FeatureMode = "hidden+surprise"  # what stage 1 hands stage 2 (and the suggestions' embeddings)
+    warm_start: bool = False  # start each round from the previous round's models instead of from scratch
 
 
 class FeatureLearner:
@@ -55,18 +56,22 @@ class FeatureLearner:
         hidden: int,
         train_features: Callable[[Sequence[labeling.simulate.Labelled]], tuple[list[np.ndarray], list]],
         test_predict: Callable[[list], tuple[np.ndarray, np.ndarray]],
+        *,
+        warm_start: bool = False,
     ) -> None:
         self.pool_features, self.pool_error = pool_features, pool_error
         self.classes, self.config, self.hidden = classes, config, hidden
         self.train_features, self.test_predict = train_features, test_predict
         self.models = None
+        self.warm_start = warm_start
 
     def __call__(self, labels: Sequence[labeling.simulate.Labelled]) -> labeling.Round:
         if not labels:
             self.models = None
             return labeling.Round([labeling.LogScores(e) for e in self.pool_error], float("nan"))
         feats, segments = self.train_features(labels)
-        fit = fit_classifier(feats, segments, self.classes, config=self.config, hidden=self.hidden, init=self.models)
+        fit = fit_classifier(feats, segments, self.classes, config=self.config, hidden=self.hidden,
+                             init=self.models if self.warm_start else None)  # fmt: skip
         self.models = fit.models
         members = run_classifiers(self.models, self.pool_features, batch=256)  # per log (M, T, K)
         scores = [
@@ -145,7 +150,8 @@ def simulate_logs(
     def learner(seed: int) -> FeatureLearner:
         pool_feats = [feats[i] for i in pool]
         return FeatureLearner(pool_feats, [errors[i] for i in pool], classes, replace(cfg2, seed=seed),
-                              settings.hidden, lambda labels: (pool_feats, list(labels)), test_predict)  # fmt: skip
+                              settings.hidden, lambda labels: (pool_feats, list(labels)), test_predict,
+                              warm_start=settings.warm_start)  # fmt: skip
 
     total = sum(len(t) for t in pool_truth)
     log(f"pool: {len(pool)} logs, {total / rate_hz / 60:.1f} min; held out: {len(test)} logs")
@@ -217,7 +223,8 @@ def simulate_partitions(
             return y_test, np.array([p.mean(0)[-1].argmax() for p in probs])
 
         return FeatureLearner([feats[i] for i in train_idx], [errors[i] for i in train_idx], classes,
-                              replace(cfg2, seed=seed), settings.hidden, train_features, test_predict)  # fmt: skip
+                              replace(cfg2, seed=seed), settings.hidden, train_features, test_predict,
+                              warm_start=settings.warm_start)  # fmt: skip
 
     def truth(seed: int) -> list[np.ndarray]:
         return [np.full(size, y[i]) for i in folds[seed % len(folds)][0]]
