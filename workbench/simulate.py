@@ -105,8 +105,11 @@ def report(curves, *, total: int, rate_hz: float, title: str, out: Path | None) 
                 continue
             s = labeling.savings(curves, method=k)
             x, acc, t, ratio = s["rounds"][-1]
-            lines.append(f"- `{k}` reaches random's final accuracy ({100 * acc:.2f} % at {x / rate_hz:.0f} s "
-                         f"labelled) with {t / rate_hz:.0f} s: {ratio:.2f}× the labelled time")  # fmt: skip
+            target = f"random's final accuracy ({100 * acc:.2f} % at {x / rate_hz:.0f} s labelled)"
+            if np.isfinite(t):
+                lines.append(f"- `{k}` reaches {target} with {t / rate_hz:.0f} s: {ratio:.2f}× the labelled time")
+            else:
+                lines.append(f"- `{k}` does not reach {target} in these rounds")
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         name = title.lower().split()[0]
