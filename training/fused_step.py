@@ -126,7 +126,7 @@ class FusedStep:
         self.t2 = np.empty((m, b, h2), np.float32)
         self.logits = np.empty((m, b, k), np.float32)
         self.probs = np.empty((b, k), np.float32)
-        self.rowwise = np.empty((b, 1), np.float32)  # softmax's max and sum per stream
+        self.rowwise = np.empty((m, b, 1), np.float32)  # softmax's max and sum per member and stream
         if m == 1:
             nf = self.n_feats
             self.u2in = np.zeros((b, nf + h2 + 1), np.float32)  # [features, h2, 1]: h2 written in place
@@ -194,21 +194,16 @@ class FusedStep:
         self._cell(self.g2, self.c2, self.hh2, self.t2, self.h2)
         np.matmul(self.hh2, self.out_w, out=self.logits)  # (M, B, K)
         self.logits += self.out_b
-        if self.m == 1:
-            return self._softmax(self.logits[0])
-        for lg in self.logits:
-            self._softmax(lg)
-        np.mean(self.logits, axis=0, out=self.probs)
-        return self.probs
-
-    def _softmax(self, lg: np.ndarray) -> np.ndarray:
-        """In place over the last axis of ``lg (B, K)``, without allocating."""
-        np.max(lg, axis=-1, keepdims=True, out=self.rowwise)
-        lg -= self.rowwise
+        lg, rw = self.logits, self.rowwise  # softmax in place, (M, B, K), without allocating
+        np.max(lg, axis=-1, keepdims=True, out=rw)
+        lg -= rw
         np.exp(lg, out=lg)
-        np.sum(lg, axis=-1, keepdims=True, out=self.rowwise)
-        lg /= self.rowwise
-        return lg
+        np.sum(lg, axis=-1, keepdims=True, out=rw)
+        lg /= rw
+        if self.m == 1:
+            return lg[0]
+        np.mean(lg, axis=0, out=self.probs)
+        return self.probs
 
 
 class Bf16Step:
