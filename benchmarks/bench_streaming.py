@@ -116,6 +116,7 @@ def main() -> None:
                             bool(hz >= RATE_HZ), agreement(precision, members)))  # fmt: skip
     rows.append(products_alone(bundle, rng))
     rows.append(products_alone(bundle, rng, members=1))
+    rows.append(batched_products(bundle, rng))
     record("streaming", rows, device=args.device)
 
 
@@ -145,6 +146,27 @@ def products_alone(bundle: ModelBundle, rng: np.random.Generator, *, members: in
                f"{'s' if members > 1 else ''} (median)", fmt_s(t_prod),
                f"the whole step: {fmt_s(t_step)}", f"{t_prod / t_step:.0%} of the step",
                f"{weights / 1e6:.1f} MB of weights read per step: {weights / t_prod / 1e9:.0f} GB/s", None)  # fmt: skip
+
+
+def batched_products(bundle: ModelBundle, rng: np.random.Generator, streams: int = 64) -> Row:
+    """The profile of the 64-robot float32 step: its matrix products alone, and the arithmetic rate they reach."""
+    step = StreamingClassifier(bundle, streams=streams)._step
+    x = rng.normal(size=(streams, C)).astype(np.float32)
+    feats = np.zeros((streams, step.n_feats), np.float32)
+    flops = 2 * streams * (step.w1.size + step.w2.size + step.u2.size)  # multiply-adds of the three products
+
+    def products() -> None:
+        np.matmul(step.u1, step.w1, out=step.g1)
+        np.matmul(feats, step.w2, out=step.g2in)
+        np.matmul(step.hh2, step.u2, out=step.g2)
+
+    with threadpool_limits(1):
+        t_prod = np.median(timed(products, repeat=300, warmup=10))
+        t_step = np.median(timed(lambda: step(x), repeat=300, warmup=10))
+    return Row(f"profile: a {streams}-stream float32 step's LSTM matrix products alone, {MEMBERS} members (median)",
+               fmt_s(t_prod), f"the whole step: {fmt_s(t_step)}", f"{t_prod / t_step:.0%} of the step",
+               f"{flops / 1e6:.0f} MFLOP per step at {flops / t_prod / 1e9:.0f} GFLOP/s; {RATE_HZ:.0f} Hz needs "
+               f"{flops * RATE_HZ / 1e9:.0f} GFLOP/s", None)  # fmt: skip
 
 
 if __name__ == "__main__":
