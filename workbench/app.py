@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import html
-import signal
 import threading
 import time
 from collections.abc import Callable
@@ -185,10 +184,7 @@ class WorkbenchApp:
         self.server.stop()
 
     def serve_forever(self) -> None:
-        """Serve until Ctrl+C (SIGINT), then stop the server and the workers."""
         try:
-            if hasattr(signal, "pthread_sigmask"):  # the CLI holds Ctrl+C back while the server starts
-                signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
             while True:
                 time.sleep(3600)
         except KeyboardInterrupt:

@@ -7,7 +7,6 @@ User errors (bad files, bad sessions, refused labels) print one line and exit 2;
 from __future__ import annotations
 
 import os
-import signal
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -147,18 +146,8 @@ def serve(
             "(viser has no authentication); prefer an SSH tunnel, see README",
             file=sys.stderr,
         )
-    # Ctrl+C while the server starts would leave its threads running with nothing to stop them: hold it back until
-    # serve_forever, which unblocks it and stops everything on it
-    hold = hasattr(signal, "pthread_sigmask")
-    if hold:
-        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        app = WorkbenchApp(s, host=host, port=port, hidden=hidden, max_epochs=(stage1_epochs, stage2_epochs))
-        print(f"workbench serving {s.path} at {app.url}", flush=True)
-    except BaseException:
-        if hold:
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-        raise
+    app = WorkbenchApp(s, host=host, port=port, hidden=hidden, max_epochs=(stage1_epochs, stage2_epochs))
+    print(f"workbench serving {s.path} at {app.url}", flush=True)
     app.serve_forever()
 
 
