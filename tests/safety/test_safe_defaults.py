@@ -31,7 +31,9 @@ def test_the_server_binds_loopback_unless_told_and_warns_when_told(session: Sess
     session.close()
     port = free_port()
     argv = [sys.executable, "-m", "workbench.cli", "serve", str(session.path), "--host", "0.0.0.0", "--port", str(port)]
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # Ctrl+C as in a terminal: a run started in the background (`make test &`) passes SIGINT on ignored
+    restore = lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)  # noqa: E731
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=restore)
     try:
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
