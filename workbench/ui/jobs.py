@@ -91,7 +91,7 @@ class TrainJob:
     def start(self, *, predictor: bool = False) -> str:
         """Start a retrain; returns what it will do, or raises when one runs or labels are missing."""
         with self._lock:
-            if self.running and self.status.state == "refining":
+            if self.running and self.status.state in ("done", "refining"):  # "done": the quick phase, about to refine
                 self._cancel.set()  # newer labels: stop the retrain from scratch; the new quick one comes first
                 self._thread.join()  # type: ignore[union-attr]
             if self.running:
