@@ -120,19 +120,19 @@ def main() -> None:
     record("streaming", rows, device=args.device)
 
 
-def products_alone(bundle: ModelBundle, rng: np.random.Generator, *, members: int = MEMBERS) -> Row:
-    """The profile of a 1-stream float32 step: its matrix products alone, against the whole step."""
-    step = StreamingClassifier(bundle, members=members)._step
-    x = rng.normal(size=(1, C)).astype(np.float32)
+def _products_and_step(bundle: ModelBundle, rng: np.random.Generator, *, members: int, streams: int, repeat: int):
+    """Median seconds of a float32 step's LSTM matrix products alone and of the whole step, and the weights read."""
+    step = StreamingClassifier(bundle, streams=streams, members=members)._step
+    x = rng.normal(size=(streams, C)).astype(np.float32)
     if members == 1:
-        weights = sum(a.nbytes for a in (step.w1, step.w2_one))
+        weights = (step.w1, step.w2_one)
 
         def products() -> None:
             np.matmul(step.u1, step.w1, out=step.g1)
             np.matmul(step.u2in, step.w2_one, out=step.g2[0])
     else:
-        weights = sum(a.nbytes for a in (step.w1, step.w2, step.u2))
-        feats = np.zeros((1, step.n_feats), np.float32)  # the step builds its features anew each time
+        weights = (step.w1, step.w2, step.u2)
+        feats = np.zeros((streams, step.n_feats), np.float32)  # the step builds its features anew each time
 
         def products() -> None:
             np.matmul(step.u1, step.w1, out=step.g1)
@@ -140,29 +140,25 @@ def products_alone(bundle: ModelBundle, rng: np.random.Generator, *, members: in
             np.matmul(step.hh2, step.u2, out=step.g2)
 
     with threadpool_limits(1):
-        t_prod = np.median(timed(products, repeat=3000, warmup=50))
-        t_step = np.median(timed(lambda: step(x), repeat=3000, warmup=50))
+        t_prod = np.median(timed(products, repeat=repeat, warmup=10))
+        t_step = np.median(timed(lambda: step(x), repeat=repeat, warmup=10))
+    return t_prod, t_step, weights
+
+
+def products_alone(bundle: ModelBundle, rng: np.random.Generator, *, members: int = MEMBERS) -> Row:
+    """The profile of a 1-stream float32 step: its matrix products alone, against the whole step."""
+    t_prod, t_step, weights = _products_and_step(bundle, rng, members=members, streams=1, repeat=3000)
+    nbytes = sum(a.nbytes for a in weights)
     return Row(f"profile: a 1-stream float32 step's LSTM matrix products alone, {members} member"
                f"{'s' if members > 1 else ''} (median)", fmt_s(t_prod),
                f"the whole step: {fmt_s(t_step)}", f"{t_prod / t_step:.0%} of the step",
-               f"{weights / 1e6:.1f} MB of weights read per step: {weights / t_prod / 1e9:.0f} GB/s", None)  # fmt: skip
+               f"{nbytes / 1e6:.1f} MB of weights read per step: {nbytes / t_prod / 1e9:.0f} GB/s", None)  # fmt: skip
 
 
 def batched_products(bundle: ModelBundle, rng: np.random.Generator, streams: int = 64) -> Row:
     """The profile of the 64-robot float32 step: its matrix products alone, and the arithmetic rate they reach."""
-    step = StreamingClassifier(bundle, streams=streams)._step
-    x = rng.normal(size=(streams, C)).astype(np.float32)
-    feats = np.zeros((streams, step.n_feats), np.float32)
-    flops = 2 * streams * (step.w1.size + step.w2.size + step.u2.size)  # multiply-adds of the three products
-
-    def products() -> None:
-        np.matmul(step.u1, step.w1, out=step.g1)
-        np.matmul(feats, step.w2, out=step.g2in)
-        np.matmul(step.hh2, step.u2, out=step.g2)
-
-    with threadpool_limits(1):
-        t_prod = np.median(timed(products, repeat=300, warmup=10))
-        t_step = np.median(timed(lambda: step(x), repeat=300, warmup=10))
+    t_prod, t_step, weights = _products_and_step(bundle, rng, members=MEMBERS, streams=streams, repeat=300)
+    flops = 2 * streams * sum(a.size for a in weights)  # multiply-adds of the products
     return Row(f"profile: a {streams}-stream float32 step's LSTM matrix products alone, {MEMBERS} members (median)",
                fmt_s(t_prod), f"the whole step: {fmt_s(t_step)}", f"{t_prod / t_step:.0%} of the step",
                f"{flops / 1e6:.0f} MFLOP per step at {flops / t_prod / 1e9:.0f} GFLOP/s; {RATE_HZ:.0f} Hz needs "
