@@ -204,6 +204,7 @@ def evaluate(
     batch: int = 4,
     feature_mode: FeatureMode = "hidden+surprise",
     warm_start: bool = False,
+    segment_s: float | None = None,
 ) -> None:
     """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
 
@@ -231,12 +232,14 @@ def evaluate(
         batch: Suggestions labelled per round.
         feature_mode: With --simulate: what stage 1 hands stage 2.
         warm_start: With --simulate: each round fine-tunes the previous round's models instead of training afresh.
+        segment_s: With --simulate: length of one suggestion in seconds (default: the UI's 1 s on demo logs, a whole
+            5 s partition on borealtc, which then labels 5 / segment_s equal pieces of a partition).
     """
     from . import evaluate as ev
 
     if simulate:
         print(ev.simulate(dataset, folder, strategies=strategies, seeds=seeds, rounds=rounds, batch=batch, out=out,
-                          feature_mode=feature_mode, warm_start=warm_start))  # fmt: skip
+                          feature_mode=feature_mode, warm_start=warm_start, segment_s=segment_s))  # fmt: skip
         return
 
     if dataset == "borealtc":

@@ -216,6 +216,7 @@ def simulate(
     out: Path | None,
     feature_mode: FeatureMode = "hidden+surprise",
     warm_start: bool = False,
+    segment_s: float | None = None,
 ) -> str:
     """The label-efficiency simulation on ``folder`` (see :mod:`workbench.simulate`)."""
     from labeling import STRATEGIES
@@ -232,6 +233,7 @@ def simulate(
         batch=batch,
         feature_mode=feature_mode,
         warm_start=warm_start,
+        segment_s=segment_s,
     )
     recs, notes = load_recordings(folder)
     for n in notes:

@@ -22,6 +22,8 @@ from training.fit_predictor import fit_predictor
 from training.inference import run_classifiers, run_predictor
 from training.metrics import classification_metrics
 
+from .live_scores import SUGGESTION_S
+
 
 @dataclass(frozen=True)
 class SimSettings:
@@ -41,6 +43,9 @@ class SimSettings:
     folds: int = 3  # ensemble members (disagreement needs more than one)
     feature_mode: FeatureMode = "hidden+surprise"  # what stage 1 hands stage 2 (and the suggestions' embeddings)
     warm_start: bool = False  # start each round from the previous round's models instead of from scratch
+    # Length of one suggestion, s; None: the UI's (workbench.live_scores.SUGGESTION_S) on demo logs, a whole 5 s
+    # partition on BorealTC (the protocol's unit; 5 / segment_s equal pieces of each when given).
+    segment_s: float | None = None
 
 
 class FeatureLearner:
@@ -132,7 +137,8 @@ def simulate_logs(
     out: Path | None = None,
     log=print,
 ) -> str:
-    """Demo-style logs with per-sample truth: a third of the logs held out, suggestions of 1–5 s on the rest."""
+    """Demo-style logs with per-sample truth: a third of the logs held out, suggestions on the rest as long as the
+    UI's (half to all of ``segment_s``)."""
     cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0)
     pfit = fit_predictor(list(logs), config=cfg1, hidden=settings.hidden)
     log(f"stage 1 on {len(logs)} logs (no labels): {len(pfit.history)} epochs; stage 2 on {settings.feature_mode}")
@@ -161,10 +167,11 @@ def simulate_logs(
                               warm_start=settings.warm_start)  # fmt: skip
 
     total = sum(len(t) for t in pool_truth)
-    log(f"pool: {len(pool)} logs, {total / rate_hz / 60:.1f} min; held out: {len(test)} logs")
-    curves = _run(learner, lambda s: pool_truth, classes, settings, max_len=round(5 * rate_hz),
-                  min_len=round(1 * rate_hz), change_points=lambda s: cps,
-                  embeddings=lambda s: [feats[i] for i in pool], log=log)  # fmt: skip
+    seg = round((settings.segment_s or SUGGESTION_S) * rate_hz)
+    log(f"pool: {len(pool)} logs, {total / rate_hz / 60:.1f} min; held out: {len(test)} logs; "
+        f"suggestions of {seg / 2 / rate_hz:g}–{seg / rate_hz:g} s")  # fmt: skip
+    curves = _run(learner, lambda s: pool_truth, classes, settings, max_len=seg, min_len=max(1, seg // 2),
+                  change_points=lambda s: cps, embeddings=lambda s: [feats[i] for i in pool], log=log)  # fmt: skip
     return report(curves, total=total, rate_hz=rate_hz, title="Demo logs (held-out logs)", out=out)
 
 
@@ -178,9 +185,16 @@ def simulate_partitions(
     out: Path | None = None,
     log=print,
 ) -> str:
-    """BorealTC's protocol: the pool is a fold's training partitions (one suggestion = one 5 s partition), accuracy
-    on the test partitions' 1.7 s windows; seed ``s`` uses outer fold ``s + 1``."""
+    """BorealTC's protocol: the pool is a fold's training partitions (one suggestion = one 5 s partition, or one of
+    its ``5 / segment_s`` equal pieces), accuracy on the test partitions' 1.7 s windows; seed ``s`` uses outer fold
+    ``s + 1``.
+
+    Each piece goes through stage 1 from a zero state, as the test windows do: a piece read from a pass over its
+    whole partition would carry the partition's start-up transient in its first piece only, and the suggestions'
+    embeddings would then sort pieces by their place in the partition rather than by terrain.
+    """
     size, win = round(5 * rate_hz), round(1.7 * rate_hz)
+    pieces = max(1, round(5 / settings.segment_s)) if settings.segment_s else 1
     parts, y, _ = partitions(runs, labels, size)
     cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, piece=size)
     pfit = fit_predictor(parts, config=cfg1, hidden=settings.hidden)
@@ -188,20 +202,26 @@ def simulate_partitions(
         f"stage 1 on all {len(parts)} partitions (no labels): {len(pfit.history)} epochs; "
         f"stage 2 on {settings.feature_mode}"
     )
-    outs = run_predictor(pfit.model, pfit.normalizer, parts, batch=512)
+    cuts = labeling.spans(size, np.zeros(0, np.int64), max_len=-(-size // pieces))
+    units = [(i, a, b) for i in range(len(parts)) for a, b in cuts]  # the pool's "logs": pieces of partitions
+    outs = run_predictor(pfit.model, pfit.normalizer, [parts[i][a:b] for i, a, b in units], batch=512)
     feats = [o.features(settings.feature_mode) for o in outs]
     errors = [np.square(o.error).mean(1) for o in outs]
     folds = list(StratifiedKFold(5, shuffle=True, random_state=0).split(np.zeros(len(y)), y))
+    in_fold = [np.isin([i for i, _, _ in units], folds[f][0]).nonzero()[0] for f in range(len(folds))]
     cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=settings.stage2_patience,
                        k_folds=settings.folds, context=0, label_piece=win)  # fmt: skip
-    window_cache: dict[int, list[np.ndarray]] = {}
+    window_cache: dict[tuple[int, int, int], list[np.ndarray]] = {}
 
-    def window_features(i: int) -> list[np.ndarray]:
-        # zero-state windows, as the test windows are classified (see training.evaluate)
-        if i not in window_cache:
-            w, _ = windows([parts[i]], win, round(0.5 * rate_hz))
-            window_cache[i] = [o.features(settings.feature_mode) for o in run_predictor(pfit.model, pfit.normalizer, w)]
-        return window_cache[i]
+    def window_features(u: int, a: int, b: int) -> list[np.ndarray]:
+        # zero-state windows of the labelled stretch, as the test windows are classified (see training.evaluate); a
+        # stretch shorter than a window is one window
+        if (u, a, b) not in window_cache:
+            i, start, _ = units[u]
+            w, _ = windows([parts[i][start + a : start + b]], min(win, b - a), round(0.5 * rate_hz))
+            outs_w = run_predictor(pfit.model, pfit.normalizer, w)
+            window_cache[u, a, b] = [o.features(settings.feature_mode) for o in outs_w]
+        return window_cache[u, a, b]
 
     test_cache: dict[int, tuple[list[np.ndarray], np.ndarray]] = {}
 
@@ -214,13 +234,13 @@ def simulate_partitions(
         return test_cache[fold]
 
     def learner(seed: int) -> FeatureLearner:
-        train_idx, _ = folds[seed % len(folds)]
+        pool = in_fold[seed % len(folds)]
         test_feats, y_test = test_windows(seed % len(folds))
 
         def train_features(lab):
             f, segs = [], []
-            for log_i, _, _, cls in lab:
-                for w in window_features(int(train_idx[log_i])):
+            for log_i, a, b, cls in lab:
+                for w in window_features(int(pool[log_i]), a, b):
                     f.append(w)
                     segs.append((len(f) - 1, 0, len(w), cls))
             return f, segs
@@ -229,15 +249,18 @@ def simulate_partitions(
             probs = run_classifiers(models, test_feats, batch=512)
             return y_test, np.array([p.mean(0)[-1].argmax() for p in probs])
 
-        return FeatureLearner([feats[i] for i in train_idx], [errors[i] for i in train_idx], classes,
+        return FeatureLearner([feats[u] for u in pool], [errors[u] for u in pool], classes,
                               replace(cfg2, seed=seed), settings.hidden, train_features, test_predict,
                               warm_start=settings.warm_start)  # fmt: skip
 
     def truth(seed: int) -> list[np.ndarray]:
-        return [np.full(size, y[i]) for i in folds[seed % len(folds)][0]]
+        return [np.full(units[u][2] - units[u][1], y[units[u][0]]) for u in in_fold[seed % len(folds)]]
 
-    total = len(folds[0][0]) * size
-    log(f"pool: {len(folds[0][0])} training partitions ({total / rate_hz / 60:.1f} min) per fold")
-    curves = _run(learner, truth, classes, settings, max_len=size, min_len=size, change_points=lambda s: None,
-                  embeddings=lambda s: [feats[i] for i in folds[s % len(folds)][0]], log=log)  # fmt: skip
-    return report(curves, total=total, rate_hz=rate_hz, title="BorealTC (partition protocol)", out=out)
+    total = sum(units[u][2] - units[u][1] for u in in_fold[0])
+    longest, shortest = max(b - a for a, b in cuts), min(b - a for a, b in cuts)
+    log(f"pool: {len(folds[0][0])} training partitions ({total / rate_hz / 60:.1f} min) per fold, "
+        f"{pieces} suggestion(s) of {longest / rate_hz:.2f} s in each")  # fmt: skip
+    curves = _run(learner, truth, classes, settings, max_len=longest, min_len=shortest, change_points=lambda s: None,
+                  embeddings=lambda s: [feats[u] for u in in_fold[s % len(folds)]], log=log)  # fmt: skip
+    title = "BorealTC (partition protocol" + (f", {pieces} suggestions a partition)" if pieces > 1 else ")")
+    return report(curves, total=total, rate_hz=rate_hz, title=title, out=out)

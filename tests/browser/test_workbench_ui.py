@@ -136,8 +136,12 @@ def test_label_with_hotkeys_retrain_suggest_and_download(session_path: Path, ser
     blur(page)
     page.keyboard.press("n")
     page.get_by_text("model's guess").wait_for(timeout=10_000)
+    save_screenshot(page, "workbench-suggest")
     page.keyboard.press("a")
     wait_until(lambda: rows(session_path, "s.source = 'suggestion'"), what="the accepted suggestion in SQLite")
+    # suggestions are half to all of SUGGESTION_S (1 s = 100 samples here)
+    ((_, start, stop, _, _),) = rows(session_path, "s.source = 'suggestion'")
+    assert 50 <= stop - start <= 100
 
     # download the label file through the browser
     open_tab(page, "Data")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -23,16 +25,32 @@ def test_simulate_logs_reports_both_strategies(tmp_path: Path) -> None:
     text = simulate_logs(logs, truth, ["a", "b", "c"], rate_hz=20.0, settings=TINY, out=tmp_path, log=lines.append)
     assert "| round | random: labelled s (%)" in text and "`combined` reaches random's final accuracy" in text
     assert sum("round 2" in s for s in lines) == 2  # both strategies ran both rounds
+    # suggestions as long as the UI's (1 s = 20 samples here, pieces of half to all of it): 2 per round
+    done = [int(m.group(1)) for s in lines if (m := re.search(r"round 2: (\d+) samples", s))]
+    assert done and all(4 * 10 <= n <= 4 * 20 for n in done), done
     assert (tmp_path / "simulate-demo.png").read_bytes()[:4] == b"\x89PNG"
 
 
-def test_simulate_partitions_labels_whole_partitions(tmp_path: Path) -> None:
+def _runs() -> list[np.ndarray]:
     rng = np.random.default_rng(1)
-    runs = [(rng.normal(size=(400, 2)) * (0.5 + r % 2)).astype(np.float32) for r in range(6)]
+    return [(rng.normal(size=(400, 2)) * (0.5 + r % 2)).astype(np.float32) for r in range(6)]
+
+
+def test_simulate_partitions_labels_whole_partitions(tmp_path: Path) -> None:
     lines: list[str] = []
-    text = simulate_partitions(runs, [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=TINY, out=tmp_path,
-                               log=lines.append)  # fmt: skip
+    text = simulate_partitions(_runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=TINY,
+                               out=tmp_path, log=lines.append)  # fmt: skip
     assert "BorealTC" in text
     # two partitions of 5 s (100 samples at 20 Hz) per round
     assert any("random seed 0 round 2: 400 samples labelled" in s for s in lines)
     assert (tmp_path / "simulate-borealtc.png").exists()
+
+
+def test_simulate_partitions_can_label_thirds_of_partitions(tmp_path: Path) -> None:
+    lines: list[str] = []
+    simulate_partitions(_runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0,
+                        settings=replace(TINY, segment_s=5 / 3), out=tmp_path, log=lines.append)  # fmt: skip
+    assert any("3 suggestion(s) of 1.70 s in each" in s for s in lines), lines
+    # two thirds of a partition (pieces of 33 or 34 samples) per round
+    done = [int(m.group(1)) for s in lines if (m := re.search(r"seed 0 round 2: (\d+) samples", s))]
+    assert len(done) == 2 and all(4 * 33 <= n <= 4 * 34 for n in done), done

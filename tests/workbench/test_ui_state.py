@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from sessions import Session, WorkbenchError
+from workbench.live_scores import SUGGESTION_S
 from workbench.seed import seed_labels
 from workbench.ui.jobs import JobStatus, TrainJob, needs_predictor
 from workbench.ui.state import SharedState
@@ -40,7 +41,7 @@ def test_scores_and_a_queue_that_avoids_labelled_time(state: SharedState) -> Non
     for q in state.queue:
         assert not any(g == q.log.id and a < q.stop and q.start < b for g, a, b in labelled)
         assert q.guess in [t.name for t in state.terrains()]
-        assert 1.0 <= (q.stop - q.start) / q.log.rate_hz <= 5.0
+        assert SUGGESTION_S / 2 <= (q.stop - q.start) / q.log.rate_hz <= SUGGESTION_S
     keys = [q.key for q in state.queue]
     assert len(set(keys)) == len(keys)
 
