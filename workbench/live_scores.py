@@ -102,6 +102,12 @@ def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[in
 SUGGESTION_S = 1.0
 
 
+def suggestion_lengths(rate_hz: float, *, seconds: float = SUGGESTION_S) -> tuple[int, int]:
+    """``(max_len, min_len)`` in samples of suggestions ``seconds`` long: pieces of half to all of it."""
+    longest = round(seconds * rate_hz)
+    return longest, max(1, longest // 2)
+
+
 def log_change_points(samples: np.ndarray, surprise: np.ndarray | None, *, rate_hz: float) -> np.ndarray:
     """Change points (sample indices) of one log over its z-scored channels and, when known, its surprise."""
     x = np.asarray(samples, np.float32)
@@ -133,7 +139,7 @@ def suggest_for_session(
     for s in session.segments():
         if s.terrain in classes:
             counts[classes.index(s.terrain)] += s.length
-    rate = logs[0].rate_hz
+    max_len, min_len = suggestion_lengths(logs[0].rate_hz)
     out = labeling.suggest(
         [scores.scores[x.id] for x in logs],
         labelled=labelled,
@@ -142,8 +148,8 @@ def suggest_for_session(
         classes=classes,
         strategy=strategy,
         n=n,
-        max_len=round(SUGGESTION_S * rate),
-        min_len=max(1, round(SUGGESTION_S * rate) // 2),
+        max_len=max_len,
+        min_len=min_len,
         embeddings=[scores.embeddings[x.id] for x in logs],
     )
     return [(logs[s.log], s) for s in out]

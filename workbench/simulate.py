@@ -22,7 +22,7 @@ from training.fit_predictor import fit_predictor
 from training.inference import run_classifiers, run_predictor
 from training.metrics import classification_metrics
 
-from .live_scores import SUGGESTION_S
+from .live_scores import SUGGESTION_S, suggestion_lengths
 
 
 @dataclass(frozen=True)
@@ -167,10 +167,10 @@ def simulate_logs(
                               warm_start=settings.warm_start)  # fmt: skip
 
     total = sum(len(t) for t in pool_truth)
-    seg = round((settings.segment_s or SUGGESTION_S) * rate_hz)
+    longest, shortest = suggestion_lengths(rate_hz, seconds=settings.segment_s or SUGGESTION_S)
     log(f"pool: {len(pool)} logs, {total / rate_hz / 60:.1f} min; held out: {len(test)} logs; "
-        f"suggestions of {seg / 2 / rate_hz:g}–{seg / rate_hz:g} s")  # fmt: skip
-    curves = _run(learner, lambda s: pool_truth, classes, settings, max_len=seg, min_len=max(1, seg // 2),
+        f"suggestions of {shortest / rate_hz:g}–{longest / rate_hz:g} s")  # fmt: skip
+    curves = _run(learner, lambda s: pool_truth, classes, settings, max_len=longest, min_len=shortest,
                   change_points=lambda s: cps, embeddings=lambda s: [feats[i] for i in pool], log=log)  # fmt: skip
     return report(curves, total=total, rate_hz=rate_hz, title="Demo logs (held-out logs)", out=out)
 
