@@ -3,6 +3,7 @@ label file, and see another browser's label appear. Tiny models (hidden 8, a few
 
 from __future__ import annotations
 
+import re
 import shutil
 import sqlite3
 import time
@@ -136,6 +137,10 @@ def test_label_with_hotkeys_retrain_suggest_and_download(session_path: Path, ser
     blur(page)
     page.keyboard.press("n")
     page.get_by_text("model's guess").wait_for(timeout=10_000)
+    # the 1 s piece sits in a window of CONTEXT_S (10 s), clipped only at the ends of the log
+    shown = re.search(r"([\d.]+)–([\d.]+) s of (\d+) s", page.get_by_text(" s of ").first.inner_text())
+    a, b, duration = (float(x) for x in shown.groups())
+    assert abs(b - a - 10.0) < 0.15 or a == 0.0 or b >= duration - 0.5, shown.group(0)
     save_screenshot(page, "workbench-suggest")
     page.keyboard.press("a")
     wait_until(lambda: rows(session_path, "s.source = 'suggestion'"), what="the accepted suggestion in SQLite")

@@ -26,6 +26,10 @@ if TYPE_CHECKING:
 
 WIDTHS_S = (2.0, 5.0, 10.0, 20.0, 30.0, 60.0, 120.0, 300.0, 600.0, 1800.0, 3600.0)
 PIXELS = 1100  # chart width the server decimates for; about a laptop screen's traces panel
+# A jump to a range (a suggestion, a saved label) shows at least this much: a 1 s suggestion alone is a couple of
+# gait cycles, too little to tell whether it sits inside one terrain or across a change; 10 s keeps the piece about a
+# tenth of the chart (110 px) while showing the stretch around it.
+CONTEXT_S = 10.0
 
 
 class ClientView:
@@ -199,7 +203,8 @@ class ClientView:
         self.show(self.state.log(int(value.split(":")[0])))
 
     def show(self, log: LogInfo, *, start_s: float | None = None, stop_s: float | None = None) -> None:
-        """Show a log; with a range, zoom so the range fills the middle of the window and put the cursor on it."""
+        """Show a log; with a range, centre it in a window of 2.5 times its length (at least ``CONTEXT_S``) and put
+        the cursor on it."""
         changed = self.log is None or log.id != self.log.id
         self.log = log
         self.state.set_viewed(self.author, log.id)
@@ -208,7 +213,7 @@ class ClientView:
             self.set_widget(self.log_dropdown, f"{log.id}: {log.name}")
         if start_s is not None and stop_s is not None:
             span = stop_s - start_s
-            self.width_s = next((w for w in WIDTHS_S if w >= 2.5 * span), WIDTHS_S[-1])
+            self.width_s = next((w for w in WIDTHS_S if w >= max(2.5 * span, CONTEXT_S)), WIDTHS_S[-1])
             self.set_widget(self.zoom, _fmt_width(self.width_s))
             self.start_s = start_s + span / 2 - self.width_s / 2
             self.cursor_s = start_s
