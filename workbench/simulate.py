@@ -168,7 +168,11 @@ def simulate_logs(
 
     total = sum(len(t) for t in pool_truth)
     longest, shortest = suggestion_lengths(rate_hz, seconds=settings.segment_s or SUGGESTION_S)
-    log(f"pool: {len(pool)} logs, {total / rate_hz / 60:.1f} min; held out: {len(test)} logs; "
+    # Accuracy moves in steps of whole terrain patches: with few held-out patches one patch is several points
+    held = [truth[i] for i in test]
+    patches = sum(int((t[np.r_[True, np.diff(t) != 0]] >= 0).sum()) for t in held if len(t))  # runs of a known class
+    log(f"pool: {len(pool)} logs, {total / rate_hz / 60:.1f} min; held out: {len(test)} logs, "
+        f"{sum(map(len, held)) / rate_hz / 60:.1f} min, {patches} terrain patches; "
         f"suggestions of {shortest / rate_hz:g}–{longest / rate_hz:g} s")  # fmt: skip
     curves = _run(learner, lambda s: pool_truth, classes, settings, max_len=longest, min_len=shortest,
                   change_points=lambda s: cps, embeddings=lambda s: [feats[i] for i in pool], log=log)  # fmt: skip

@@ -25,6 +25,7 @@ def test_simulate_logs_reports_both_strategies(tmp_path: Path) -> None:
     text = simulate_logs(logs, truth, ["a", "b", "c"], rate_hz=20.0, settings=TINY, out=tmp_path, log=lines.append)
     assert "| round | random: labelled s (%)" in text and "`combined` reaches random's final accuracy" in text
     assert sum("round 2" in s for s in lines) == 2  # both strategies ran both rounds
+    assert any("held out: 1 logs, 0.2 min, 3 terrain patches" in s for s in lines), lines[:2]
     # suggestions as long as the UI's (1 s = 20 samples here, pieces of half to all of it): 2 per round
     done = [int(m.group(1)) for s in lines if (m := re.search(r"round 2: (\d+) samples", s))]
     assert done and all(4 * 10 <= n <= 4 * 20 for n in done), done
