@@ -4,7 +4,19 @@ NumPy in, NumPy out: no torch, no UI, no session (``workbench`` wires it to the 
 """
 
 from .changepoints import Snap, block_summary, change_points, snap_range, spans
-from .simulate import CurvePoint, Learner, Round, mean_curve, oracle, plot, savings, simulate, table, time_to_reach
+from .simulate import (
+    CurvePoint,
+    Learner,
+    Round,
+    bootstrap_final_ratio,
+    mean_curve,
+    oracle,
+    plot,
+    savings,
+    simulate,
+    table,
+    time_to_reach,
+)
 from .suggest import STRATEGIES, Strategy, Suggestion, candidates, class_weights, coverage, suggest
 from .tracks import (
     KINDS,
@@ -34,6 +46,7 @@ __all__ = [
     "Strategy",
     "Suggestion",
     "block_summary",
+    "bootstrap_final_ratio",
     "candidates",
     "change_points",
     "class_weights",

@@ -141,6 +141,30 @@ def savings(curves: dict[str, Sequence[Sequence[CurvePoint]]], *, method: str, r
     return {"rounds": rows, "final_ratio": rows[-1][3] if rows else float("nan")}
 
 
+def bootstrap_final_ratio(
+    curves: dict[str, Sequence[Sequence[CurvePoint]]],
+    *,
+    method: str,
+    reference: str = "random",
+    draws: int = 2000,
+    seed: int = 0,
+) -> np.ndarray:
+    """``(draws,)`` final ratios of :func:`savings` over seeds resampled with replacement (``inf``: never reached).
+
+    Seeds are resampled in pairs: seed ``i`` of ``method`` goes with seed ``i`` of ``reference``, because a seed fixes
+    what both strategies share (pool, held-out data, fold). With a handful of seeds and single fits that swing by
+    several points, the mean ratio alone says little; its spread says how far to trust it.
+    """
+    n = min(len(curves[method]), len(curves[reference]))
+    rng = np.random.default_rng(seed)
+    out = np.empty(draws)
+    for d in range(draws):
+        idx = rng.integers(0, n, n)
+        pick = {k: [curves[k][i] for i in idx] for k in (reference, method)}
+        out[d] = savings(pick, method=method, reference=reference)["final_ratio"]
+    return out
+
+
 def table(curves: dict[str, Sequence[Sequence[CurvePoint]]], *, total_samples: int, rate_hz: float) -> str:
     """Markdown: labelled time (s and % of all time) and mean ± std accuracy per round, one column per strategy."""
     names = list(curves)

@@ -105,6 +105,10 @@ def _run(learner_for_seed, truth, classes, settings: SimSettings, *, max_len, mi
     return curves
 
 
+def _ratio(r: float) -> str:
+    return f"{r:.2f}×" if np.isfinite(r) else "never"
+
+
 def report(curves, *, total: int, rate_hz: float, title: str, out: Path | None) -> str:
     """Table, the savings of each strategy against random, and the plot (when ``out`` is given)."""
     lines = [f"### {title}", "", labeling.table(curves, total_samples=total, rate_hz=rate_hz), ""]
@@ -119,6 +123,14 @@ def report(curves, *, total: int, rate_hz: float, title: str, out: Path | None) 
                 lines.append(f"- `{k}` reaches {target} with {t / rate_hz:.0f} s: {ratio:.2f}× the labelled time")
             else:
                 lines.append(f"- `{k}` does not reach {target} in these rounds")
+            lines.append("  - against each of random's rounds: " + ", ".join(_ratio(r[3]) for r in s["rounds"]))
+            if len(curves[k]) > 1:
+                boot = labeling.bootstrap_final_ratio(curves, method=k)
+                lo, hi = (np.quantile(boot, q, method="nearest") for q in (0.05, 0.95))
+                lines.append(
+                    f"  - seeds resampled (paired bootstrap, {len(boot)} draws): median {_ratio(np.median(boot))}, "
+                    f"5–95 % {_ratio(lo)} to {_ratio(hi)}; at most 0.5× in {np.mean(boot <= 0.5):.0%} of draws"
+                )
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         name = title.lower().split()[0]

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from labeling import CurvePoint, LogScores, Round, savings, simulate, table, time_to_reach
+from labeling import CurvePoint, LogScores, Round, bootstrap_final_ratio, savings, simulate, table, time_to_reach
 from labeling import plot as plot_curves
 
 
@@ -56,6 +56,24 @@ def test_time_to_reach_and_savings_by_hand() -> None:
     s = savings({"random": slow, "fast": [curve]}, method="fast")
     assert s["final_ratio"] == pytest.approx(0.5)
     assert [r[3] for r in s["rounds"]] == pytest.approx([0.5, 0.5, 0.5])
+
+
+def test_bootstrap_final_ratio_resamples_seeds_in_pairs() -> None:
+    def c(*pts: tuple[int, float]) -> list[CurvePoint]:
+        return [CurvePoint(x, y, 0.0) for x, y in pts]
+
+    # seed 0: fast needs half the time; seed 1: fast never reaches random's final accuracy
+    curves = {
+        "random": [c((200, 0.5), (400, 0.7)), c((200, 0.5), (400, 0.9))],
+        "fast": [c((100, 0.5), (200, 0.7)), c((100, 0.5), (200, 0.6))],
+    }
+    boot = bootstrap_final_ratio(curves, method="fast", draws=2000, seed=3)
+    assert boot.shape == (2000,)
+    assert set(np.unique(boot)) == {0.5, np.inf}  # only the draw of seed 0 twice reaches it
+    assert np.mean(boot == 0.5) == pytest.approx(0.25, abs=0.04)
+    assert np.array_equal(boot, bootstrap_final_ratio(curves, method="fast", draws=2000, seed=3))
+    same = {"random": [curves["random"][0]] * 3, "fast": [curves["fast"][0]] * 3}
+    assert np.all(bootstrap_final_ratio(same, method="fast", draws=50) == pytest.approx(0.5))
 
 
 def test_table_and_plot(tmp_path: Path) -> None:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.simulate import SimSettings, simulate_logs, simulate_partitions
+from workbench.simulate import SimSettings, report, simulate_logs, simulate_partitions
 
 TINY = SimSettings(strategies=("random", "combined"), seeds=1, rounds=2, batch=2, hidden=8, stage1_epochs=1,
                    stage2_epochs=2, folds=2)  # fmt: skip
@@ -55,3 +55,14 @@ def test_simulate_partitions_can_label_thirds_of_partitions(tmp_path: Path) -> N
     # two thirds of a partition (pieces of 33 or 34 samples) per round
     done = [int(m.group(1)) for s in lines if (m := re.search(r"seed 0 round 2: (\d+) samples", s))]
     assert len(done) == 2 and all(4 * 33 <= n <= 4 * 34 for n in done), done
+
+
+def test_report_gives_the_ratio_per_round_and_its_spread_over_seeds() -> None:
+    from labeling import CurvePoint
+
+    random = [[CurvePoint(200, 0.5, 0.0), CurvePoint(400, 0.7, 0.0)]] * 3
+    fast = [[CurvePoint(100, 0.5, 0.0), CurvePoint(200, 0.7, 0.0)]] * 3
+    text = report({"random": random, "combined": fast}, total=1000, rate_hz=100.0, title="Demo", out=None)
+    assert "`combined` reaches random's final accuracy (70.00 % at 4 s labelled) with 2 s: 0.50×" in text
+    assert "against each of random's rounds: 0.50×, 0.50×" in text
+    assert "median 0.50×, 5–95 % 0.50× to 0.50×; at most 0.5× in 100% of draws" in text
