@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from labeling import CurvePoint
 from workbench.simulate import SimSettings, report, simulate_logs, simulate_partitions
 
 TINY = SimSettings(strategies=("random", "combined"), seeds=1, rounds=2, batch=2, hidden=8, stage1_epochs=1,
@@ -58,8 +59,6 @@ def test_simulate_partitions_can_label_thirds_of_partitions(tmp_path: Path) -> N
 
 
 def test_report_gives_the_ratio_per_round_and_its_spread_over_seeds() -> None:
-    from labeling import CurvePoint
-
     random = [[CurvePoint(200, 0.5, 0.0), CurvePoint(400, 0.7, 0.0)]] * 3
     fast = [[CurvePoint(100, 0.5, 0.0), CurvePoint(200, 0.7, 0.0)]] * 3
     text = report({"random": random, "combined": fast}, total=1000, rate_hz=100.0, title="Demo", out=None)
