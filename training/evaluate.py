@@ -79,13 +79,15 @@ def labelled_subset(train_idx: np.ndarray, y: np.ndarray, labelled: float, *, se
     return np.asarray(chosen)
 
 
-def classify_windows(pfit, cfit, feature_mode: FeatureMode, wins: Sequence[np.ndarray]) -> np.ndarray:
+def classify_windows(
+    pfit, cfit, feature_mode: FeatureMode, wins: Sequence[np.ndarray], *, device: str = "cpu"
+) -> np.ndarray:
     """Each window through both stages from a zero state; the class at its last step. ``(N,)``"""
     preds = []
     for i in range(0, len(wins), 2048):
         chunk = wins[i : i + 2048]
-        outs = run_predictor(pfit.model, pfit.normalizer, chunk, batch=512)
-        probs = run_classifiers(cfit.models, [o.features(feature_mode) for o in outs], batch=512)
+        outs = run_predictor(pfit.model, pfit.normalizer, chunk, batch=512, device=device)
+        probs = run_classifiers(cfit.models, [o.features(feature_mode) for o in outs], batch=512, device=device)
         preds.extend(p.mean(0)[-1].argmax() for p in probs)
     return np.asarray(preds)
 
@@ -152,13 +154,13 @@ def borealtc_protocol(
             # of a whole partition carry a warmed-up stage-1 state that no test window has.
             train_seqs, owner = windows([parts[i] for i in chosen], win, round(protocol.train_stride_s * rate))
             train_y = y[chosen][owner]
-        outs = run_predictor(pfit.model, pfit.normalizer, train_seqs, batch=512)
+        outs = run_predictor(pfit.model, pfit.normalizer, train_seqs, batch=512, device=stage1.device)
         feats = [o.features(feature_mode) for o in outs]
         segments = [(j, 0, len(s), int(c)) for j, (s, c) in enumerate(zip(train_seqs, train_y, strict=True))]
         cfit = fit_classifier(feats, segments, classes, config=stage2, hidden=hidden)
         test_wins, owner = windows([parts[i] for i in test_idx], win, stride)
         y_true = y[test_idx][owner]
-        y_pred = classify_windows(pfit, cfit, feature_mode, test_wins)
+        y_pred = classify_windows(pfit, cfit, feature_mode, test_wins, device=stage2.device)
         m = classification_metrics(y_true, y_pred, classes)
         results.append(
             FoldResult(fold, m["accuracy"], m["macro_f1"], len(test_wins), len(chosen), time.monotonic() - t0, m)

@@ -55,11 +55,13 @@ def qcat_protocol(
         rng = np.random.default_rng(seed + fold)
         unl, lab, test = _split_groups(g, (0.9, 0.05, 0.05), rng)
         pfit = fit_predictor([sequences[i] for i in unl], config=replace(stage1, piece=longest), hidden=hidden)
-        outs = run_predictor(pfit.model, pfit.normalizer, [sequences[i] for i in np.r_[lab, test]], batch=512)
+        outs = run_predictor(
+            pfit.model, pfit.normalizer, [sequences[i] for i in np.r_[lab, test]], batch=512, device=stage1.device
+        )
         feats = [o.features(feature_mode) for o in outs]
         segments = [(j, 0, len(sequences[i]), int(y[i])) for j, i in enumerate(lab)]
         cfit = fit_classifier(feats[: len(lab)], segments, classes, config=stage2, hidden=hidden)
-        probs = run_classifiers(cfit.models, feats[len(lab) :], batch=512)
+        probs = run_classifiers(cfit.models, feats[len(lab) :], batch=512, device=stage2.device)
         pred = np.array([p.mean(0)[-1].argmax() for p in probs])
         m = classification_metrics(y[test], pred, classes)
         m.update(fold=fold, sequences=(len(unl), len(lab), len(test)), seconds=time.monotonic() - t0)
@@ -93,7 +95,7 @@ def held_out_logs_protocol(
     stage2 = stage2 or TrainConfig(max_epochs=150, patience=15, seed=seed)
     pfit = fit_predictor(list(logs), config=stage1, hidden=hidden)
     log(f"stage 1 on {len(logs)} logs: {len(pfit.history)} epochs")
-    outs = run_predictor(pfit.model, pfit.normalizer, list(logs))
+    outs = run_predictor(pfit.model, pfit.normalizer, list(logs), device=stage1.device)
     rng = np.random.default_rng(seed)
     order = rng.permutation(len(logs))
     splits = np.array_split(order, min(folds, len(logs)))
@@ -113,7 +115,7 @@ def held_out_logs_protocol(
         for mode in modes:
             feats = [outs[i].features(mode) for i in train]
             cfit = fit_classifier(feats, segments, classes, config=replace(stage2, seed=seed + fold), hidden=hidden)
-            probs = run_classifiers(cfit.models, [outs[i].features(mode) for i in test])
+            probs = run_classifiers(cfit.models, [outs[i].features(mode) for i in test], device=stage2.device)
             y_true = np.concatenate([truth[i] for i in test])
             y_pred = np.concatenate([p.mean(0).argmax(-1) for p in probs])
             known = y_true >= 0

@@ -39,6 +39,14 @@ class _Bar:
         self.bar.close()
 
 
+def _check_device(device: str) -> None:
+    if device == "cuda":
+        import torch
+
+        if not torch.cuda.is_available():
+            raise WorkbenchError("--device cuda: no CUDA device is available on this machine")
+
+
 def train(
     session: Pos[Path],
     stage: Literal["predictor", "classifier", "all"] = "all",
@@ -71,11 +79,7 @@ def train(
 
     from . import cycle
 
-    if device == "cuda":
-        import torch
-
-        if not torch.cuda.is_available():
-            raise WorkbenchError("--device cuda: no CUDA device is available on this machine")
+    _check_device(device)
     if distributed.launched() and stage != "predictor":
         raise WorkbenchError(
             "under torchrun only the predictor trains (--stage predictor); the classifier learns from a few labels "
@@ -205,6 +209,8 @@ def evaluate(
     feature_mode: FeatureMode = "hidden+surprise",
     warm_start: bool = False,
     segment_s: float | None = None,
+    members: int = 3,
+    device: Literal["cpu", "cuda"] = "cpu",
 ) -> None:
     """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
 
@@ -234,21 +240,26 @@ def evaluate(
         warm_start: With --simulate: each round fine-tunes the previous round's models instead of training afresh.
         segment_s: With --simulate: length of one suggestion in seconds (default: the UI's 1 s on demo logs, a whole
             5 s partition on borealtc, which then labels 5 / segment_s equal pieces of a partition).
+        members: With --simulate: stage-2 ensemble members per retrain (the UI's Retrain trains 5).
+        device: Where both stages train and run.
     """
     from . import evaluate as ev
 
+    _check_device(device)
     if simulate:
         print(ev.simulate(dataset, folder, strategies=strategies, seeds=seeds, rounds=rounds, batch=batch, out=out,
-                          feature_mode=feature_mode, warm_start=warm_start, segment_s=segment_s))  # fmt: skip
+                          feature_mode=feature_mode, warm_start=warm_start, segment_s=segment_s, members=members,
+                          device=device))  # fmt: skip
         return
 
     if dataset == "borealtc":
         report = ev.evaluate_borealtc(folder, labelled=labelled, variant=variant, hidden=hidden, seed=seed,
-                                      stage1_epochs=stage1_epochs, stage2_epochs=stage2_epochs, out=out)  # fmt: skip
+                                      stage1_epochs=stage1_epochs, stage2_epochs=stage2_epochs, out=out,
+                                      device=device)  # fmt: skip
     elif dataset == "qcat":
-        report = ev.evaluate_qcat(folder, hidden=hidden, seed=seed, folds=folds, epochs=(stage1_epochs, stage2_epochs))
+        report = ev.evaluate_qcat(folder, hidden=hidden, seed=seed, folds=folds, epochs=(stage1_epochs, stage2_epochs),
+                                  device=device)  # fmt: skip
     else:
-        report = ev.evaluate_demo(
-            folder, labelled=labelled, hidden=hidden, seed=seed, folds=folds, epochs=(stage1_epochs, stage2_epochs)
-        )
+        report = ev.evaluate_demo(folder, labelled=labelled, hidden=hidden, seed=seed, folds=folds,
+                                  epochs=(stage1_epochs, stage2_epochs), device=device)  # fmt: skip
     print(report)

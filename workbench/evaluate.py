@@ -93,6 +93,7 @@ def evaluate_borealtc(
     stage1_epochs: int = 40,
     stage2_epochs: int = 150,
     out: Path | None = None,
+    device: str = "cpu",
 ) -> str:
     """Run the BorealTC protocol and return the report (Markdown)."""
     runs, terrains, notes = load_runs(folder)
@@ -109,8 +110,8 @@ def evaluate_borealtc(
         )
         res = borealtc_protocol(
             runs, labels, classes, rate_hz=100.0, labelled=labelled, strict=v == "strict", hidden=hidden, seed=seed,
-            stage1=TrainConfig(max_epochs=stage1_epochs, patience=5, seed=seed),
-            stage2=TrainConfig(max_epochs=stage2_epochs, patience=15, seed=seed),
+            stage1=TrainConfig(max_epochs=stage1_epochs, patience=5, seed=seed, device=device),
+            stage2=TrainConfig(max_epochs=stage2_epochs, patience=15, seed=seed, device=device),
         )  # fmt: skip
         a, a_sd, f, f_sd = summarize(res)
         name = f"this work, {labelled:.0%} labels, stage 1 " + ("strict" if v == "strict" else "on all signals")
@@ -149,6 +150,7 @@ def evaluate_qcat(
     steps: int = 8,
     folds: int = 5,
     epochs: tuple[int, int] = (60, 150),
+    device: str = "cpu",
 ) -> str:
     """The paper's QCAT protocol, and a leak-free variant holding out whole trials."""
     from training.evaluate_sequences import qcat_protocol
@@ -170,8 +172,8 @@ def evaluate_qcat(
         print("--- " + ("whole trials held out" if leak_free else "the paper's random split of sequences"))
         res = qcat_protocol(
             seqs, labels, groups, classes, leak_free=leak_free, folds=folds, hidden=hidden, seed=seed,
-            stage1=TrainConfig(max_epochs=epochs[0], patience=8, seed=seed),
-            stage2=TrainConfig(max_epochs=epochs[1], patience=15, seed=seed),
+            stage1=TrainConfig(max_epochs=epochs[0], patience=8, seed=seed, device=device),
+            stage2=TrainConfig(max_epochs=epochs[1], patience=15, seed=seed, device=device),
         )  # fmt: skip
         rows.append(("this work, trials held out" if leak_free else "this work, paper's split (steps of a trial on "
                      "both sides)", res))  # fmt: skip
@@ -187,6 +189,7 @@ def evaluate_demo(
     folds: int = 5,
     epochs: tuple[int, int] = (40, 150),
     modes: tuple[str, ...] = FEATURE_MODES,
+    device: str = "cpu",
 ) -> str:
     """Leave-logs-out on demo logs against their sidecar truth, for each way stage 1 can feed stage 2."""
     from training.evaluate_sequences import held_out_logs_protocol
@@ -199,8 +202,8 @@ def evaluate_demo(
     print(f"{len(recs)} logs, {sum(len(r.data) for r in recs) / 6000:.1f} min, {labelled:.0%} labelled")
     res = held_out_logs_protocol(
         [r.data for r in recs], truth, classes, labelled=labelled, modes=modes, hidden=hidden, seed=seed, folds=folds,
-        stage1=TrainConfig(max_epochs=epochs[0], patience=5, seed=seed),
-        stage2=TrainConfig(max_epochs=epochs[1], patience=15, seed=seed),
+        stage1=TrainConfig(max_epochs=epochs[0], patience=5, seed=seed, device=device),
+        stage2=TrainConfig(max_epochs=epochs[1], patience=15, seed=seed, device=device),
     )  # fmt: skip
     return _table([(f"stage 2 on `{m}` features, {labelled:.0%} labels", r) for m, r in res.items()])
 
@@ -217,6 +220,8 @@ def simulate(
     feature_mode: FeatureMode = "hidden+surprise",
     warm_start: bool = False,
     segment_s: float | None = None,
+    members: int = 3,
+    device: str = "cpu",
 ) -> str:
     """The label-efficiency simulation on ``folder`` (see :mod:`workbench.simulate`)."""
     from labeling import STRATEGIES
@@ -234,6 +239,8 @@ def simulate(
         feature_mode=feature_mode,
         warm_start=warm_start,
         segment_s=segment_s,
+        folds=members,
+        device=device,
     )
     recs, notes = load_recordings(folder)
     for n in notes:

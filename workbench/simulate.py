@@ -46,6 +46,7 @@ class SimSettings:
     # Length of one suggestion, s; None: the UI's (workbench.live_scores.SUGGESTION_S) on demo logs, a whole 5 s
     # partition on BorealTC (the protocol's unit; 5 / segment_s equal pieces of each when given).
     segment_s: float | None = None
+    device: str = "cpu"  # where both stages train and run ("cuda": every fit and pass on the GPU)
 
 
 class FeatureLearner:
@@ -82,7 +83,8 @@ class FeatureLearner:
         fit = fit_classifier(feats, segments, self.classes, config=self.config, hidden=self.hidden,
                              init=self.models if self.warm_start else None)  # fmt: skip
         self.models = fit.models
-        members = run_classifiers(self.models, self.pool_features, batch=256)  # per log (M, T, K)
+        # per log (M, T, K)
+        members = run_classifiers(self.models, self.pool_features, batch=256, device=self.config.device)
         scores = [
             labeling.LogScores(e, m.mean(0), labeling.mutual_information(m))
             for e, m in zip(self.pool_error, members, strict=True)
@@ -151,10 +153,10 @@ def simulate_logs(
 ) -> str:
     """Demo-style logs with per-sample truth: a third of the logs held out, suggestions on the rest as long as the
     UI's (half to all of ``segment_s``)."""
-    cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0)
+    cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, device=settings.device)
     pfit = fit_predictor(list(logs), config=cfg1, hidden=settings.hidden)
     log(f"stage 1 on {len(logs)} logs (no labels): {len(pfit.history)} epochs; stage 2 on {settings.feature_mode}")
-    outs = run_predictor(pfit.model, pfit.normalizer, list(logs))
+    outs = run_predictor(pfit.model, pfit.normalizer, list(logs), device=settings.device)
     feats = [o.features(settings.feature_mode) for o in outs]
     errors = [np.square(o.error).mean(1) for o in outs]
     order = np.random.default_rng(0).permutation(len(logs))
@@ -163,10 +165,11 @@ def simulate_logs(
     pool_truth = [truth[i] for i in pool]
     # change points on the signals and the surprise together, as the UI computes them
     cps = [labeling.change_points(np.column_stack([pfit.normalizer(logs[i]), errors[i]]), block=25) for i in pool]
-    cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=settings.stage2_patience, k_folds=settings.folds)
+    cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=settings.stage2_patience, k_folds=settings.folds,
+                       device=settings.device)  # fmt: skip
 
     def test_predict(models):
-        probs = run_classifiers(models, [feats[i] for i in test], batch=256)
+        probs = run_classifiers(models, [feats[i] for i in test], batch=256, device=settings.device)
         y_true = np.concatenate([truth[i] for i in test])
         y_pred = np.concatenate([p.mean(0).argmax(-1) for p in probs])
         known = y_true >= 0
@@ -212,7 +215,7 @@ def simulate_partitions(
     size, win = round(5 * rate_hz), round(1.7 * rate_hz)
     pieces = max(1, round(5 / settings.segment_s)) if settings.segment_s else 1
     parts, y, _ = partitions(runs, labels, size)
-    cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, piece=size)
+    cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, piece=size, device=settings.device)
     pfit = fit_predictor(parts, config=cfg1, hidden=settings.hidden)
     log(
         f"stage 1 on all {len(parts)} partitions (no labels): {len(pfit.history)} epochs; "
@@ -220,13 +223,14 @@ def simulate_partitions(
     )
     cuts = labeling.spans(size, np.zeros(0, np.int64), max_len=-(-size // pieces))
     units = [(i, a, b) for i in range(len(parts)) for a, b in cuts]  # the pool's "logs": pieces of partitions
-    outs = run_predictor(pfit.model, pfit.normalizer, [parts[i][a:b] for i, a, b in units], batch=512)
+    outs = run_predictor(pfit.model, pfit.normalizer, [parts[i][a:b] for i, a, b in units], batch=512,
+                         device=settings.device)  # fmt: skip
     feats = [o.features(settings.feature_mode) for o in outs]
     errors = [np.square(o.error).mean(1) for o in outs]
     folds = list(StratifiedKFold(5, shuffle=True, random_state=0).split(np.zeros(len(y)), y))
     in_fold = [np.isin([i for i, _, _ in units], folds[f][0]).nonzero()[0] for f in range(len(folds))]
     cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=settings.stage2_patience,
-                       k_folds=settings.folds, context=0, label_piece=win)  # fmt: skip
+                       k_folds=settings.folds, context=0, label_piece=win, device=settings.device)  # fmt: skip
     window_cache: dict[tuple[int, int, int], list[np.ndarray]] = {}
 
     def window_features(u: int, a: int, b: int) -> list[np.ndarray]:
@@ -235,7 +239,7 @@ def simulate_partitions(
         if (u, a, b) not in window_cache:
             i, start, _ = units[u]
             w, _ = windows([parts[i][start + a : start + b]], min(win, b - a), round(0.5 * rate_hz))
-            outs_w = run_predictor(pfit.model, pfit.normalizer, w)
+            outs_w = run_predictor(pfit.model, pfit.normalizer, w, device=settings.device)
             window_cache[u, a, b] = [o.features(settings.feature_mode) for o in outs_w]
         return window_cache[u, a, b]
 
@@ -245,7 +249,7 @@ def simulate_partitions(
         # every strategy of a seed shares the fold: its test windows go through stage 1 once
         if fold not in test_cache:
             test_w, owner = windows([parts[i] for i in folds[fold][1]], win, round(0.5 * rate_hz))
-            outs_w = run_predictor(pfit.model, pfit.normalizer, test_w, batch=512)
+            outs_w = run_predictor(pfit.model, pfit.normalizer, test_w, batch=512, device=settings.device)
             test_cache[fold] = [o.features(settings.feature_mode) for o in outs_w], y[folds[fold][1]][owner]
         return test_cache[fold]
 
@@ -262,7 +266,7 @@ def simulate_partitions(
             return f, segs
 
         def test_predict(models):
-            probs = run_classifiers(models, test_feats, batch=512)
+            probs = run_classifiers(models, test_feats, batch=512, device=settings.device)
             return y_test, np.array([p.mean(0)[-1].argmax() for p in probs])
 
         return FeatureLearner([feats[u] for u in pool], [errors[u] for u in pool], classes,

@@ -116,3 +116,13 @@ def test_bad_arguments_exit_2(argv: list[str]) -> None:
     proc = subprocess.run([sys.executable, "-m", "workbench.cli", *argv], capture_output=True, text=True, check=False)
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
+
+
+def test_device_cuda_without_a_gpu_is_one_clear_line(tmp_path: Path, capsys) -> None:
+    import torch
+
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a CUDA device")
+    assert run("evaluate", "demo", tmp_path, "--simulate", "--device", "cuda") == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --device cuda: no CUDA device") and "Traceback" not in err

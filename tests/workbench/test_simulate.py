@@ -65,3 +65,35 @@ def test_report_gives_the_ratio_per_round_and_its_spread_over_seeds() -> None:
     assert "`combined` reaches random's final accuracy (70.00 % at 4 s labelled) with 2 s: 0.50×" in text
     assert "against each of random's rounds: 0.50×, 0.50×" in text
     assert "median 0.50×, 5–95 % 0.50× to 0.50×; at most 0.5× in 100% of draws" in text
+
+
+def test_device_reaches_every_fit_and_pass(monkeypatch, tmp_path: Path) -> None:
+    """``--device cuda`` must move all of the simulation: a pass left on the CPU would be silently slow."""
+    import workbench.simulate as ws
+
+    seen: list[tuple[str, str]] = []
+
+    def spy(name, fn, *, config: bool):
+        def wrapped(*args, **kwargs):
+            if config:
+                seen.append((name, kwargs["config"].device))
+                kwargs["config"] = replace(kwargs["config"], device="cpu")
+            else:
+                seen.append((name, kwargs.get("device", "cpu")))
+                kwargs["device"] = "cpu"
+            return fn(*args, **kwargs)
+
+        monkeypatch.setattr(ws, name, wrapped)
+
+    for name, config in [("fit_predictor", True), ("fit_classifier", True), ("run_predictor", False),
+                         ("run_classifiers", False)]:  # fmt: skip
+        spy(name, getattr(ws, name), config=config)
+    gpu = replace(TINY, device="cuda")
+    simulate_partitions(_runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=gpu, out=None,
+                        log=lambda s: None)  # fmt: skip
+    rng = np.random.default_rng(0)
+    logs = [rng.normal(size=(300, 2)).astype(np.float32) for _ in range(3)]
+    truth = [np.repeat(rng.permutation(3), 100) for _ in range(3)]
+    simulate_logs(logs, truth, ["a", "b", "c"], rate_hz=20.0, settings=gpu, out=None, log=lambda s: None)
+    assert {name for name, _ in seen} == {"fit_predictor", "fit_classifier", "run_predictor", "run_classifiers"}
+    assert [s for s in seen if s[1] != "cuda"] == []
