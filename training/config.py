@@ -68,6 +68,11 @@ class TrainConfig:
             weights' labelled-step mean is 1), so a terrain labelled less does not lose to one labelled more. Off by
             default: on BorealTC's label-efficiency simulation (3 seeds) it left random labelling's curve where it
             was and lowered the suggested labels' middle rounds by 3 points (benchmarks/results/label-efficiency.md).
+        consistency: Stage 2: weight of the consistency term on unlabelled neighbour pairs (``fit_classifier``'s
+            ``pairs``): the squared distance between the class probabilities the model gives two windows of one log
+            a few seconds apart, with no change point between them. It lets the unlabelled logs shape the
+            classifier, which counts most when labels are few: on BorealTC, 40 partitions chosen by ``combined`` went
+            from 78.7 to 83.7 % with weight 3 (fold 2; benchmarks/results/label-efficiency.md). Ignored without pairs.
         elastic: The elastic-net penalty.
         seed: Seed of every random choice.
         device: "cpu" or "cuda".
@@ -86,6 +91,7 @@ class TrainConfig:
     clip: float = 1.0
     k_folds: int = 5
     class_balance: bool = False
+    consistency: float = 3.0
     elastic: ElasticNet = ElasticNet()
     seed: int = 0
     device: str = "cpu"

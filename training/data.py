@@ -147,3 +147,43 @@ def stage2_batch(features: Sequence[np.ndarray], pieces: Sequence[Piece]) -> tup
         labels[i, a : p.length] = p.label
         mask[i, a : p.length] = True
     return f, labels, mask
+
+
+def neighbour_pairs(
+    lengths: Sequence[int],
+    *,
+    window: int,
+    gap: int,
+    stride: int,
+    boundaries: Sequence[np.ndarray] | None = None,
+) -> list[tuple[Piece, Piece]]:
+    """Pairs of unlabelled windows ``gap`` samples apart in one log, with no boundary between them.
+
+    Terrain changes seldom within a few seconds, so the classifier should say the same at the end of both windows
+    (``fit_classifier``'s consistency term). A boundary (a change point) inside ``(start, start + gap + window)``
+    drops the pair: across it the terrain may differ.
+
+    Args:
+        lengths: Samples in each log.
+        window: Samples in each window.
+        gap: Start of the second window minus start of the first.
+        stride: Samples between the starts of consecutive pairs.
+        boundaries: Per log, sorted sample indices where the terrain may change (None: none known).
+
+    Returns:
+        ``(first, second)`` pieces, unlabelled, in log order.
+    """
+    if window < 1 or gap < 1 or stride < 1:
+        raise ValueError(f"window, gap and stride must be positive, got {window}, {gap}, {stride}")
+    out = []
+    for seq, n in enumerate(lengths):
+        starts = np.arange(0, n - gap - window + 1, stride)  # (P,)
+        if boundaries is not None and len(starts):
+            b = np.sort(np.asarray(boundaries[seq], np.int64))
+            # a boundary strictly inside the pair's span splits it
+            first = np.searchsorted(b, starts, side="right")
+            last = np.searchsorted(b, starts + gap + window, side="left")
+            starts = starts[last == first]
+        out += [(Piece(seq, int(s), int(s) + window, int(s)), Piece(seq, int(s) + gap, int(s) + gap + window,
+                 int(s) + gap)) for s in starts]  # fmt: skip
+    return out

@@ -14,7 +14,7 @@ from sklearn.model_selection import KFold, StratifiedKFold
 
 from .config import ClassifierConfig, TrainConfig
 from .data import Piece, labelled_pieces, stage2_batch
-from .losses import classifier_loss, masked_cross_entropy
+from .losses import classifier_loss, consistency_loss, masked_cross_entropy
 from .metrics import classification_metrics
 from .models import Classifier, feature_moments
 from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
@@ -52,6 +52,7 @@ def fold_indices(labels: Sequence[int], k: int, seed: int) -> list[tuple[np.ndar
 
 MIN_BATCH = 32
 MAX_STEPS = 4
+CONSISTENCY_PAIRS = 32  # unlabelled pairs per optimiser step: the term costs about as much as the labelled batch
 
 
 def length_batches(lengths: np.ndarray, batch: int, rng: np.random.Generator) -> list[np.ndarray]:
@@ -127,6 +128,22 @@ def _ce(
     return total / max(count, 1e-12)
 
 
+def _consistency(
+    model: Classifier,
+    features: Sequence[np.ndarray],
+    pairs: Sequence[tuple[Piece, Piece]],
+    rng: np.random.Generator,
+    dev: str,
+) -> torch.Tensor:
+    """The consistency term on ``CONSISTENCY_PAIRS`` pairs drawn at random (all of them when fewer)."""
+    take = rng.choice(len(pairs), min(len(pairs), CONSISTENCY_PAIRS), replace=False)
+    group = [pairs[i][0] for i in take] + [pairs[i][1] for i in take]
+    f = torch.from_numpy(stage2_batch(features, group)[0]).to(dev)  # (2P, T, F)
+    logits, _ = model(f)  # (2P, T, K)
+    last = torch.as_tensor([p.length - 1 for p in group], device=dev)  # (2P,)
+    return consistency_loss(logits, last)
+
+
 def _predict_whole_logs(
     model: Classifier, features: Sequence[np.ndarray], segments: Sequence[Segment], dev: str
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -151,6 +168,7 @@ def fit_classifier(
     dropout: float = 0.2,
     init: Sequence[Classifier] | None = None,
     new: Sequence[int] | None = None,
+    pairs: Sequence[tuple[Piece, Piece]] = (),
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
 ) -> ClassifierFit:
@@ -169,6 +187,9 @@ def fit_classifier(
             then trains on the new segments and as many old ones drawn at random (replay), not on every label: the
             old models already fit the old labels, and a fine-tune's time follows the new ones. A fold with no new
             segment in its training part keeps its previous model.
+        pairs: Unlabelled windows of ``features`` that should get the same class (``data.neighbour_pairs``). Every
+            step adds ``config.consistency`` × ``losses.consistency_loss`` over ``CONSISTENCY_PAIRS`` of them drawn
+            at random. Empty: labels alone.
         progress: Called after every optimiser step.
         cancel: Polled after every step.
 
@@ -225,6 +246,8 @@ def fit_classifier(
                 f, labels, mask = (torch.from_numpy(a).to(dev) for a in stage2_batch(features, group))
                 logits, _ = model(f)  # (B, T, K)
                 loss = classifier_loss(logits, labels, mask, model.lstm, config.elastic, weight)
+                if pairs and config.consistency > 0:
+                    loss = loss + config.consistency * _consistency(model, features, pairs, rng, dev)
                 optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 torch.nn.utils.clip_grad_norm_(model.parameters(), config.clip)

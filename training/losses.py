@@ -80,3 +80,18 @@ def classifier_loss(
     """Eq. (2): cross-entropy (class-weighted when ``weight`` is given) plus the elastic net on the classifier's
     LSTM."""
     return masked_cross_entropy(logits, labels, mask, weight) + elastic_net(lstm_parameters(lstm), penalty)
+
+
+def consistency_loss(logits: torch.Tensor, last: torch.Tensor) -> torch.Tensor:
+    """Mean squared distance between the class probabilities at the last step of paired sequences.
+
+    Args:
+        logits: ``(2P, T, K)``: the first sequence of every pair, then the second of every pair in the same order.
+        last: ``(2P,)`` index of each sequence's last step (sequences may be padded).
+
+    Returns:
+        ``mean_p ‖softmax(a_p) − softmax(b_p)‖²``, between 0 and 2.
+    """
+    probs = logits[torch.arange(len(last), device=logits.device), last].float().softmax(-1)  # (2P, K)
+    a, b = probs.chunk(2)  # (P, K) each
+    return (a - b).pow(2).sum(-1).mean()

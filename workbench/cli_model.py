@@ -57,6 +57,7 @@ def train(
     hidden: int = 200,
     batch_size: int = 512,
     bf16: bool = True,
+    consistency: float = TrainConfig.consistency,
 ) -> None:
     """Train the predictor (stage 1, all logs, no labels) and/or the classifier (stage 2, labelled segments).
 
@@ -74,6 +75,8 @@ def train(
         hidden: LSTM width of each stage (the paper: 200).
         batch_size: Sequences per optimiser step, all processes together (the paper: 512).
         bf16: On CUDA, run the LSTMs under bfloat16 autocast.
+        consistency: Stage 2: weight of the term asking unlabelled neighbouring windows of a log for the same
+            class (0: labels alone).
     """
     from training import distributed
 
@@ -85,7 +88,10 @@ def train(
             "under torchrun only the predictor trains (--stage predictor); the classifier learns from a few labels "
             "in one process: run `workbench train SESSION --stage classifier` without torchrun"
         )
-    config = TrainConfig(max_epochs=max_epochs, patience=patience, device=device, batch_size=batch_size, bf16=bf16)
+    if consistency < 0:
+        raise WorkbenchError(f"--consistency must be 0 or more, got {consistency}")
+    config = TrainConfig(max_epochs=max_epochs, patience=patience, device=device, batch_size=batch_size, bf16=bf16,
+                         consistency=consistency)  # fmt: skip
     world = distributed.join(device)
     try:
         if not world.main:  # another torchrun process: it reads log files, never the session's database

@@ -16,10 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
+import labeling
 from sessions import FileRows, LogInfo, ModelVersion, NpyWriter, Segment, Session, WorkbenchError
 from training import distributed
 from training.bundle import ModelBundle, load_bundle, save_bundle
 from training.config import FeatureMode, TrainConfig, to_dict
+from training.data import Piece, neighbour_pairs
 from training.fit_classifier import fit_classifier
 from training.fit_predictor import fit_predictor
 from training.inference import LazyFeatures, Stage1Outputs, predictor_pass, run_classifiers
@@ -229,6 +231,35 @@ def stage2_features(
     return features
 
 
+def log_change_points(samples: np.ndarray, surprise: np.ndarray | None, *, rate_hz: float) -> np.ndarray:
+    """Change points (sample indices) of one log over its z-scored channels and, when known, its surprise."""
+    x = np.asarray(samples, np.float32)
+    z = (x - x.mean(axis=0)) / (x.std(axis=0) + 1e-6)  # (T, C)
+    if surprise is not None:
+        z = np.column_stack([z, surprise])
+    return labeling.change_points(z, block=max(1, round(0.25 * rate_hz)))
+
+
+def consistency_pairs(
+    lengths: Sequence[int], change_points: Sequence[np.ndarray], config: TrainConfig
+) -> list[tuple[Piece, Piece]]:
+    """Stage 2's unlabelled neighbour pairs over logs of ``lengths`` samples: windows as long as a training piece
+    (context and labelled stretch), one labelled stretch apart, none across a change point."""
+    window = config.context + config.label_piece
+    return neighbour_pairs(lengths, window=window, gap=config.label_piece, stride=config.label_piece,
+                           boundaries=change_points)  # fmt: skip
+
+
+_CHANGE_POINTS: dict[tuple[str, int, int], np.ndarray] = {}  # (session, log, samples): a log's signals never change
+
+
+def _signal_change_points(session: Session, log: LogInfo) -> np.ndarray:
+    key = (str(session.path), log.id, log.n_samples)
+    if key not in _CHANGE_POINTS:
+        _CHANGE_POINTS[key] = log_change_points(session.array(log.id), None, rate_hz=log.rate_hz)
+    return _CHANGE_POINTS[key]
+
+
 def train_classifier(
     session: Session,
     *,
@@ -277,9 +308,14 @@ def train_classifier(
         # warm models off what they knew (QCAT-scale bench: 75.9 % on unlabelled trials at 0.005, 81.2 % at 0.001)
         config = replace(config, max_epochs=warm_epochs, patience=1, lr=config.lr * WARM_LR_SCALE)
         new = _new_labels(used, previous.config.get("labels"))
+    pairs = []
+    if config.consistency > 0:
+        fits = config.context + 2 * config.label_piece  # a log shorter holds no pair: skip its change points
+        cps = [_signal_change_points(session, x) if x.n_samples >= fits else np.zeros(0, np.int64) for x in logs]
+        pairs = consistency_pairs([x.n_samples for x in logs], cps, config)
     with _recorded_run(session, "classifier", {"config": to_dict(config), "segments": len(segments)}) as result:
         fit = fit_classifier(features, segments, classes, config=config, hidden=hidden, init=init, new=new,
-                             progress=progress, cancel=cancel)  # fmt: skip
+                             pairs=pairs, progress=progress, cancel=cancel)  # fmt: skip
         labelled = sum(s[2] - s[1] for s in segments)
         total = sum(x.n_samples for x in logs)
         metrics = {**fit.metrics, "labelled_fraction": labelled / total, "labelled_seconds": labelled / logs[0].rate_hz}

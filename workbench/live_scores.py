@@ -108,15 +108,6 @@ def suggestion_lengths(rate_hz: float, *, seconds: float = SUGGESTION_S) -> tupl
     return longest, max(1, longest // 2)
 
 
-def log_change_points(samples: np.ndarray, surprise: np.ndarray | None, *, rate_hz: float) -> np.ndarray:
-    """Change points (sample indices) of one log over its z-scored channels and, when known, its surprise."""
-    x = np.asarray(samples, np.float32)
-    z = (x - x.mean(axis=0)) / (x.std(axis=0) + 1e-6)  # (T, C)
-    if surprise is not None:
-        z = np.column_stack([z, surprise])
-    return labeling.change_points(z, block=max(1, round(0.25 * rate_hz)))
-
-
 def suggest_for_session(
     session: Session,
     scores: SessionScores,

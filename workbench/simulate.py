@@ -16,12 +16,14 @@ from sklearn.model_selection import StratifiedKFold
 
 import labeling
 from training.config import FeatureMode, TrainConfig
+from training.data import Piece
 from training.evaluate import partitions, windows
 from training.fit_classifier import fit_classifier
 from training.fit_predictor import fit_predictor
 from training.inference import run_classifiers, run_predictor
 from training.metrics import classification_metrics
 
+from .cycle import consistency_pairs
 from .live_scores import SUGGESTION_S, suggestion_lengths
 
 
@@ -41,6 +43,7 @@ class SimSettings:
     stage2_epochs: int = 100
     stage2_patience: int = 20
     folds: int = 3  # ensemble members (disagreement needs more than one)
+    consistency: float = TrainConfig.consistency  # weight of stage 2's term on unlabelled neighbours (0: labels only)
     feature_mode: FeatureMode = "hidden+surprise"  # what stage 1 hands stage 2 (and the suggestions' embeddings)
     warm_start: bool = False  # start each round from the previous round's models instead of from scratch
     # Length of one suggestion, s; None: the UI's (workbench.live_scores.SUGGESTION_S) on demo logs, a whole 5 s
@@ -53,8 +56,8 @@ class FeatureLearner:
     """Retrains stage 2 on cached features of the pool and reports pool scores and held-out accuracy.
 
     ``train_features(labels)`` gives the features and segments stage 2 trains on (the pool's own features, or
-    windows cut from them to match how the test data is classified); ``test_predict(models)`` the held-out
-    predictions and truth.
+    windows cut from them to match how the test data is classified) and the unlabelled neighbour pairs of its
+    consistency term; ``test_predict(models)`` the held-out predictions and truth.
     """
 
     def __init__(
@@ -64,7 +67,7 @@ class FeatureLearner:
         classes: Sequence[str],
         config: TrainConfig,
         hidden: int,
-        train_features: Callable[[Sequence[labeling.simulate.Labelled]], tuple[list[np.ndarray], list]],
+        train_features: Callable[[Sequence[labeling.simulate.Labelled]], tuple[list[np.ndarray], list, list]],
         test_predict: Callable[[list], tuple[np.ndarray, np.ndarray]],
         *,
         warm_start: bool = False,
@@ -79,9 +82,9 @@ class FeatureLearner:
         if not labels:
             self.models = None
             return labeling.Round([labeling.LogScores(e) for e in self.pool_error], float("nan"))
-        feats, segments = self.train_features(labels)
+        feats, segments, pairs = self.train_features(labels)
         fit = fit_classifier(feats, segments, self.classes, config=self.config, hidden=self.hidden,
-                             init=self.models if self.warm_start else None)  # fmt: skip
+                             init=self.models if self.warm_start else None, pairs=pairs)  # fmt: skip
         self.models = fit.models
         # per log (M, T, K)
         members = run_classifiers(self.models, self.pool_features, batch=256, device=self.config.device)
@@ -166,7 +169,7 @@ def simulate_logs(
     # change points on the signals and the surprise together, as the UI computes them
     cps = [labeling.change_points(np.column_stack([pfit.normalizer(logs[i]), errors[i]]), block=25) for i in pool]
     cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=settings.stage2_patience, k_folds=settings.folds,
-                       device=settings.device)  # fmt: skip
+                       consistency=settings.consistency, device=settings.device)  # fmt: skip
 
     def test_predict(models):
         probs = run_classifiers(models, [feats[i] for i in test], batch=256, device=settings.device)
@@ -175,10 +178,13 @@ def simulate_logs(
         known = y_true >= 0
         return y_true[known], y_pred[known]
 
+    pool_feats = [feats[i] for i in pool]
+    # neighbours as the UI's Retrain pairs them (workbench.cycle.consistency_pairs)
+    pairs = consistency_pairs([len(f) for f in pool_feats], cps, cfg2)
+
     def learner(seed: int) -> FeatureLearner:
-        pool_feats = [feats[i] for i in pool]
         return FeatureLearner(pool_feats, [errors[i] for i in pool], classes, replace(cfg2, seed=seed),
-                              settings.hidden, lambda labels: (pool_feats, list(labels)), test_predict,
+                              settings.hidden, lambda labels: (pool_feats, list(labels), pairs), test_predict,
                               warm_start=settings.warm_start)  # fmt: skip
 
     total = sum(len(t) for t in pool_truth)
@@ -214,7 +220,7 @@ def simulate_partitions(
     """
     size, win = round(5 * rate_hz), round(1.7 * rate_hz)
     pieces = max(1, round(5 / settings.segment_s)) if settings.segment_s else 1
-    parts, y, _ = partitions(runs, labels, size)
+    parts, y, run_of = partitions(runs, labels, size)
     cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, piece=size, device=settings.device)
     pfit = fit_predictor(parts, config=cfg1, hidden=settings.hidden)
     log(
@@ -229,8 +235,9 @@ def simulate_partitions(
     errors = [np.square(o.error).mean(1) for o in outs]
     folds = list(StratifiedKFold(5, shuffle=True, random_state=0).split(np.zeros(len(y)), y))
     in_fold = [np.isin([i for i, _, _ in units], folds[f][0]).nonzero()[0] for f in range(len(folds))]
-    cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=settings.stage2_patience,
-                       k_folds=settings.folds, context=0, label_piece=win, device=settings.device)  # fmt: skip
+    cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=settings.stage2_patience, k_folds=settings.folds,
+                       context=0, label_piece=win, consistency=settings.consistency,
+                       device=settings.device)  # fmt: skip
     window_cache: dict[tuple[int, int, int], list[np.ndarray]] = {}
 
     def window_features(u: int, a: int, b: int) -> list[np.ndarray]:
@@ -253,6 +260,22 @@ def simulate_partitions(
             test_cache[fold] = [o.features(settings.feature_mode) for o in outs_w], y[folds[fold][1]][owner]
         return test_cache[fold]
 
+    neighbour_cache: dict[int, tuple[list[np.ndarray], list[tuple[Piece, Piece]]]] = {}
+
+    def neighbours(fold: int) -> tuple[list[np.ndarray], list[tuple[Piece, Piece]]]:
+        # The consistency term's pairs: a window of a pool partition with a window of the next partition of the same
+        # run (5 s on, one terrain: BorealTC's runs have no change point), through stage 1 as the test windows are.
+        if fold not in neighbour_cache:
+            pool_parts = folds[fold][0]
+            w, owner = windows([parts[i] for i in pool_parts], win, round(0.5 * rate_hz))
+            outs_w = run_predictor(pfit.model, pfit.normalizer, w, batch=512, device=settings.device)
+            at = {int(p): np.flatnonzero(owner == k) for k, p in enumerate(pool_parts)}
+            pairs = [(Piece(int(i), 0, win, 0), Piece(int(j), 0, win, 0))
+                     for p in pool_parts if p + 1 in at and run_of[p] == run_of[p + 1]
+                     for i in at[int(p)] for j in at[int(p) + 1]]  # fmt: skip
+            neighbour_cache[fold] = [o.features(settings.feature_mode) for o in outs_w], pairs
+        return neighbour_cache[fold]
+
     def learner(seed: int) -> FeatureLearner:
         pool = in_fold[seed % len(folds)]
         test_feats, y_test = test_windows(seed % len(folds))
@@ -263,7 +286,13 @@ def simulate_partitions(
                 for w in window_features(int(pool[log_i]), a, b):
                     f.append(w)
                     segs.append((len(f) - 1, 0, len(w), cls))
-            return f, segs
+            if settings.consistency <= 0:
+                return f, segs, []
+            unlabelled, pairs = neighbours(seed % len(folds))
+            # the pool's windows go after the labelled ones: the pairs' indices shift by their count
+            shift = len(f)
+            pairs = [(replace(a, seq=a.seq + shift), replace(b, seq=b.seq + shift)) for a, b in pairs]
+            return f + unlabelled, segs, pairs
 
         def test_predict(models):
             probs = run_classifiers(models, test_feats, batch=512, device=settings.device)

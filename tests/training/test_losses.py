@@ -12,6 +12,7 @@ from torch import nn
 from training.config import ElasticNet
 from training.losses import (
     classifier_loss,
+    consistency_loss,
     elastic_net,
     lstm_parameters,
     masked_cross_entropy,
@@ -75,3 +76,15 @@ def test_class_weights_make_each_class_count_by_its_weight() -> None:
     got = float(masked_cross_entropy(logits, labels, mask, torch.as_tensor(w, dtype=torch.float32)))
     assert got == pytest.approx((-math.log(0.7) - math.log(0.1)) / 2)  # both classes count the same
     assert float(masked_cross_entropy(logits, labels, mask)) == pytest.approx((-3 * math.log(0.7) - math.log(0.1)) / 4)
+
+
+def test_consistency_loss_by_hand_reads_each_sequences_last_step() -> None:
+    k = 2
+    logits = torch.zeros(4, 3, k)  # (2P, T, K): pairs (0, 2) and (1, 3)
+    logits[0, 1] = torch.tensor([math.log(3.0), 0.0])  # softmax (0.75, 0.25) at step 1, the last of a padded one
+    logits[0, 2] = torch.tensor([50.0, 0.0])  # padding: must not be read
+    last = torch.tensor([1, 2, 2, 2])
+    # pair 0: (0.75, 0.25) against (0.5, 0.5) -> 0.125; pair 1: equal -> 0
+    assert float(consistency_loss(logits, last)) == pytest.approx(0.0625)
+    same = torch.randn(2, 5, 3).repeat(2, 1, 1)
+    assert float(consistency_loss(same, torch.full((4,), 4))) == pytest.approx(0.0, abs=1e-7)

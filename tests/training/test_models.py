@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from training.config import ClassifierConfig, PredictorConfig, TrainConfig
-from training.data import Normalizer, cut_pieces, stage1_batch
+from training.data import Normalizer, Piece, cut_pieces, neighbour_pairs, stage1_batch
 from training.fit_classifier import fit_classifier, fold_indices
 from training.fit_predictor import fit_predictor
 from training.inference import run_classifiers, run_predictor
@@ -148,3 +148,46 @@ def test_a_fine_tune_trains_on_new_segments_with_as_many_old_ones_replayed() -> 
     assert sum(p.seq == 0 for p in pieces) == 2 and sum(p.seq == 1 for p in pieces) == 32  # at least a batch
     assert len(_epoch_pieces(new * 40, old, cfg, rng)) == 80 + 80
     assert _epoch_pieces([], old, cfg, rng) == []  # nothing new: nothing to train
+
+
+def test_neighbour_pairs_are_gap_apart_and_never_span_a_boundary() -> None:
+    pairs = neighbour_pairs([100, 29, 60], window=10, gap=20, stride=5, boundaries=[[50], [], [31]])
+    assert pairs, "some pairs fit"
+    for a, b in pairs:
+        assert a.seq == b.seq and a.label == b.label == -1
+        assert a.length == b.length == 10 and b.start - a.start == 20 and a.loss_from == a.start
+        assert b.stop <= [100, 29, 60][a.seq]
+        cut = {0: 50, 2: 31}.get(a.seq)
+        assert cut is None or not a.start < cut < b.stop
+    starts = {(a.seq, a.start) for a, _ in pairs}
+    # log 0: starts 0..70 by 5, those whose pair spans 50 dropped; a boundary at a pair's very edge is allowed
+    assert {s for q, s in starts if q == 0} == {0, 5, 10, 15, 20, 50, 55, 60, 65, 70}
+    assert not any(q == 1 for q, _ in starts)  # 29 samples hold no pair of 10 + 20
+    assert {s for q, s in starts if q == 2} == {0}  # 0-30 ends at the boundary 31; 5-35 on span it
+    assert len(neighbour_pairs([100], window=10, gap=20, stride=5)) == 15  # no boundaries known: every start
+    with pytest.raises(ValueError, match="positive"):
+        neighbour_pairs([100], window=10, gap=0, stride=5)
+
+
+def test_consistency_pulls_the_paired_windows_predictions_together() -> None:
+    rng = np.random.default_rng(3)
+    # feature 0 tells the classes apart; the labels say low = class 0, high = class 1
+    low = rng.normal(-1.0, 0.3, size=(200, 3)).astype(np.float32)
+    high = rng.normal(1.0, 0.3, size=(200, 3)).astype(np.float32)
+    feats = [low, high, np.concatenate([low, high])]
+    segments = [(log, a, a + 50, log) for log in (0, 1) for a in range(0, 200, 50)]
+    # the pairs join windows of the unlabelled log 2 across its low/high halves, against what the labels teach
+    pairs = [(Piece(2, s, s + 40, s), Piece(2, s + 200, s + 240, s + 200)) for s in range(0, 160, 10)]
+
+    def pair_distance(weight: float) -> float:
+        cfg = TrainConfig(**{**TINY.__dict__, "max_epochs": 30, "patience": 30, "context": 0, "label_piece": 40,
+                             "consistency": weight})  # fmt: skip
+        fit = fit_classifier(feats, segments, ["low", "high"], config=cfg, hidden=8, pairs=pairs)
+        windows = [feats[2][a.start : a.stop] for a, _ in pairs] + [feats[2][b.start : b.stop] for _, b in pairs]
+        probs = run_classifiers(fit.models, windows)  # per window (M, 40, K)
+        last = np.array([p.mean(0)[-1] for p in probs])  # (2P, K)
+        return float(np.square(last[: len(pairs)] - last[len(pairs) :]).sum(-1).mean())
+
+    without, with_term = pair_distance(0.0), pair_distance(20.0)
+    assert without > 0.5  # labels alone: the halves get different classes
+    assert with_term < 0.5 * without

@@ -57,6 +57,8 @@ def test_user_errors_exit_2_without_traceback(tmp_path: Path, capsys) -> None:
     (tmp_path / "m.toml").write_text("nonsense = [")
     assert run("ingest", tmp_path / "s", tmp_path / "x.csv", "--mapping", tmp_path / "m.toml") == 2
     assert "m.toml: cannot read mapping file" in capsys.readouterr().err
+    assert run("train", tmp_path / "s", "--stage", "classifier", "--consistency", "-1") == 2
+    assert "--consistency must be 0 or more, got -1.0" in capsys.readouterr().err
 
 
 def test_dry_run_writes_nothing_and_prints_a_mapping_that_loads(tmp_path: Path, demo_mcap: Path, capsys) -> None:

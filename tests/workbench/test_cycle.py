@@ -208,3 +208,24 @@ def test_a_warm_retrain_learns_the_new_and_changed_labels_and_keeps_folds_with_n
     assert fresh.config["new_labels"] == 2 and fresh.config["warm_start"] is True
     cold = cycle.train_classifier(trained, config=TINY, hidden=8, warm_start=False)
     assert cold.config["new_labels"] is None  # a full run trains on every label
+
+
+def test_a_retrain_pairs_unlabelled_neighbours_within_the_logs_change_points(trained: Session, monkeypatch) -> None:
+    seen = {}
+    real = cycle.fit_classifier
+
+    def spy(*args, **kwargs):
+        seen["pairs"] = kwargs["pairs"]
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(cycle, "fit_classifier", spy)
+    cycle.train_classifier(trained, config=TINY, hidden=8)
+    logs = cycle.model_logs(trained)
+    assert seen["pairs"], "the demo logs hold neighbour pairs"
+    for a, b in seen["pairs"]:
+        log = logs[a.seq]
+        cps = cycle.log_change_points(trained.array(log.id), None, rate_hz=log.rate_hz)
+        assert a.length == b.length == TINY.context + TINY.label_piece and b.start - a.start == TINY.label_piece
+        assert b.stop <= log.n_samples and not ((a.start < cps) & (cps < b.stop)).any()
+    cycle.train_classifier(trained, config=TrainConfig(**{**TINY.__dict__, "consistency": 0.0}), hidden=8)
+    assert seen["pairs"] == []  # weight 0: labels alone, no pairs built

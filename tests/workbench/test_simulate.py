@@ -48,6 +48,34 @@ def test_simulate_partitions_labels_whole_partitions(tmp_path: Path) -> None:
     assert (tmp_path / "simulate-borealtc.png").exists()
 
 
+def test_simulate_partitions_pairs_windows_of_neighbouring_partitions_of_one_run(monkeypatch) -> None:
+    from sklearn.model_selection import StratifiedKFold
+
+    import workbench.simulate as ws
+
+    seen = []
+    real = ws.fit_classifier
+
+    def spy(features, segments, *args, **kwargs):
+        seen.append((len(features), segments, kwargs["pairs"]))
+        return real(features, segments, *args, **kwargs)
+
+    monkeypatch.setattr(ws, "fit_classifier", spy)
+    labels = [r % 2 for r in range(6)]
+    simulate_partitions(_runs(), labels, ["a", "b"], rate_hz=20.0, settings=replace(TINY, strategies=("random",)),
+                        out=None, log=lambda s: None)  # fmt: skip
+    # 6 runs of 4 partitions (100 samples); seed 0 uses fold 0's training partitions as the pool
+    y = np.repeat(labels, 4)
+    pool = set(next(StratifiedKFold(5, shuffle=True, random_state=0).split(np.zeros(len(y)), y))[0].tolist())
+    neighbours = sum(p + 1 in pool and p // 4 == (p + 1) // 4 for p in pool)  # the next partition, same run
+    per_partition = (100 - 34) // 10 + 1  # 1.7 s windows every 0.5 s
+    for n_features, segments, pairs in seen:
+        assert len(pairs) == neighbours * per_partition**2
+        labelled = len(segments)  # one window per segment, first in the features
+        assert n_features == labelled + len(pool) * per_partition
+        assert all(a.seq >= labelled and b.seq >= labelled and a.length == b.length == 34 for a, b in pairs)
+
+
 def test_simulate_partitions_can_label_thirds_of_partitions(tmp_path: Path) -> None:
     lines: list[str] = []
     simulate_partitions(_runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0,

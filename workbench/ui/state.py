@@ -15,7 +15,8 @@ import numpy as np
 import labeling
 from sessions import LogInfo, Segment, Session, Terrain, WorkbenchError
 
-from ..live_scores import SessionScores, compute_scores, log_change_points, suggest_for_session
+from ..cycle import log_change_points
+from ..live_scores import SessionScores, compute_scores, suggest_for_session
 
 Event = str  # "labels" | "scores" | "suggestions" | "job" | "models" | "logs"
 Listener = Callable[[Event], None]
