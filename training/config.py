@@ -73,6 +73,9 @@ class TrainConfig:
             a few seconds apart, with no change point between them. It lets the unlabelled logs shape the
             classifier, which counts most when labels are few: on BorealTC, 40 partitions chosen by ``combined`` went
             from 78.7 to 83.7 % with weight 3 (fold 2; benchmarks/results/label-efficiency.md). Ignored without pairs.
+            Off (0) by default: on 40 minutes of demo walks it made the UI's stage-2 refit from scratch 15× slower
+            (1356 s against 90 s) for no accuracy (71.2 against 72.6 %; benchmarks/bench_retrain_long.py), and on
+            BorealTC's simulation it moved the label-efficiency ratio from about 0.73× to 0.68× only.
         elastic: The elastic-net penalty.
         seed: Seed of every random choice.
         device: "cpu" or "cuda".
@@ -91,7 +94,7 @@ class TrainConfig:
     clip: float = 1.0
     k_folds: int = 5
     class_balance: bool = False
-    consistency: float = 3.0
+    consistency: float = 0.0
     elastic: ElasticNet = ElasticNet()
     seed: int = 0
     device: str = "cpu"

@@ -159,9 +159,12 @@ def neighbour_pairs(
 ) -> list[tuple[Piece, Piece]]:
     """Pairs of unlabelled windows ``gap`` samples apart in one log, with no boundary between them.
 
-    Terrain changes seldom within a few seconds, so the classifier should say the same at the end of both windows
-    (``fit_classifier``'s consistency term). A boundary (a change point) inside ``(start, start + gap + window)``
-    drops the pair: across it the terrain may differ.
+    Terrain changes seldom within a few seconds, so the classifier should say the same at the last step of both
+    windows (``fit_classifier``'s consistency term). A boundary (a change point) between those two steps drops the
+    pair: across it the terrain may differ. A boundary earlier in the windows does not: what they compare is their
+    last steps, and a classifier has to see past an old change anyway. (Requiring the whole span free left 12 pairs
+    in 12 demo walks, whose signal change points come every 2.75 s; between the last steps, 2.3 % of the kept pairs
+    straddle a true terrain change there.)
 
     Args:
         lengths: Samples in each log.
@@ -180,9 +183,9 @@ def neighbour_pairs(
         starts = np.arange(0, n - gap - window + 1, stride)  # (P,)
         if boundaries is not None and len(starts):
             b = np.sort(np.asarray(boundaries[seq], np.int64))
-            # a boundary strictly inside the pair's span splits it
-            first = np.searchsorted(b, starts, side="right")
-            last = np.searchsorted(b, starts + gap + window, side="left")
+            # b starts a new stretch: it splits the pair when first's last step < b <= second's last step
+            first = np.searchsorted(b, starts + window - 1, side="right")
+            last = np.searchsorted(b, starts + gap + window - 1, side="right")
             starts = starts[last == first]
         out += [(Piece(seq, int(s), int(s) + window, int(s)), Piece(seq, int(s) + gap, int(s) + gap + window,
                  int(s) + gap)) for s in starts]  # fmt: skip

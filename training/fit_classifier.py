@@ -52,7 +52,7 @@ def fold_indices(labels: Sequence[int], k: int, seed: int) -> list[tuple[np.ndar
 
 MIN_BATCH = 32
 MAX_STEPS = 4
-CONSISTENCY_PAIRS = 32  # unlabelled pairs per step: 64 more windows, 3-4x the stage-2 time of the BorealTC simulation
+CONSISTENCY_PAIRS = 32  # per step: 64 more windows; 3-4x the stage-2 time on BorealTC, 15x on long demo walks
 
 
 def length_batches(lengths: np.ndarray, batch: int, rng: np.random.Generator) -> list[np.ndarray]:

@@ -244,9 +244,10 @@ def consistency_pairs(
     lengths: Sequence[int], change_points: Sequence[np.ndarray], config: TrainConfig
 ) -> list[tuple[Piece, Piece]]:
     """Stage 2's unlabelled neighbour pairs over logs of ``lengths`` samples: windows as long as a training piece
-    (context and labelled stretch), one labelled stretch apart, none across a change point."""
+    (context and labelled stretch), one labelled stretch apart, no change point between their last steps; a pair
+    starts every quarter stretch."""
     window = config.context + config.label_piece
-    return neighbour_pairs(lengths, window=window, gap=config.label_piece, stride=config.label_piece,
+    return neighbour_pairs(lengths, window=window, gap=config.label_piece, stride=max(1, config.label_piece // 4),
                            boundaries=change_points)  # fmt: skip
 
 
@@ -325,6 +326,7 @@ def train_classifier(
             session, "classifier", full,
             {"train": to_dict(config), "hidden": hidden, "feature_mode": feature_mode, "predictor": p_version.id,
              "warm_start": init is not None, "new_labels": None if new is None else len(new),
+             "consistency_pairs": len(pairs),
              "labels": {"ids": [s.id for s in used], "as_of": max((s.updated_at for s in used), default="")}},
         )  # fmt: skip
         result["version"] = version.id

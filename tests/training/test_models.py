@@ -150,7 +150,7 @@ def test_a_fine_tune_trains_on_new_segments_with_as_many_old_ones_replayed() -> 
     assert _epoch_pieces([], old, cfg, rng) == []  # nothing new: nothing to train
 
 
-def test_neighbour_pairs_are_gap_apart_and_never_span_a_boundary() -> None:
+def test_neighbour_pairs_are_gap_apart_and_never_compare_across_a_boundary() -> None:
     pairs = neighbour_pairs([100, 29, 60], window=10, gap=20, stride=5, boundaries=[[50], [], [31]])
     assert pairs, "some pairs fit"
     for a, b in pairs:
@@ -158,12 +158,15 @@ def test_neighbour_pairs_are_gap_apart_and_never_span_a_boundary() -> None:
         assert a.length == b.length == 10 and b.start - a.start == 20 and a.loss_from == a.start
         assert b.stop <= [100, 29, 60][a.seq]
         cut = {0: 50, 2: 31}.get(a.seq)
-        assert cut is None or not a.start < cut < b.stop
+        assert cut is None or not a.stop - 1 < cut <= b.stop - 1  # the compared last steps on one side of it
     starts = {(a.seq, a.start) for a, _ in pairs}
-    # log 0: starts 0..70 by 5, those whose pair spans 50 dropped; a boundary at a pair's very edge is allowed
-    assert {s for q, s in starts if q == 0} == {0, 5, 10, 15, 20, 50, 55, 60, 65, 70}
+    # log 0: starts 0..70 by 5; last steps s + 9 and s + 29. The boundary 50 splits them for s = 25..40, not for
+    # s = 20 (it comes after both) nor s = 45 (inside the first window, before both last steps)
+    assert {s for q, s in starts if q == 0} == {0, 5, 10, 15, 20, 45, 50, 55, 60, 65, 70}
     assert not any(q == 1 for q, _ in starts)  # 29 samples hold no pair of 10 + 20
-    assert {s for q, s in starts if q == 2} == {0}  # 0-30 ends at the boundary 31; 5-35 on span it
+    # log 2: starts 0..30; the boundary 31 splits s = 5 (last steps 14, 34) .. 20 (29, 49), not s = 0 (9, 29: it
+    # comes after both) nor s = 25, 30 (34, 54 and 39, 59: before both, inside the first window)
+    assert {s for q, s in starts if q == 2} == {0, 25, 30}
     assert len(neighbour_pairs([100], window=10, gap=20, stride=5)) == 15  # no boundaries known: every start
     with pytest.raises(ValueError, match="positive"):
         neighbour_pairs([100], window=10, gap=0, stride=5)

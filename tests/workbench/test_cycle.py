@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -219,13 +220,13 @@ def test_a_retrain_pairs_unlabelled_neighbours_within_the_logs_change_points(tra
         return real(*args, **kwargs)
 
     monkeypatch.setattr(cycle, "fit_classifier", spy)
-    cycle.train_classifier(trained, config=TINY, hidden=8)
+    cycle.train_classifier(trained, config=replace(TINY, consistency=3.0), hidden=8)
     logs = cycle.model_logs(trained)
     assert seen["pairs"], "the demo logs hold neighbour pairs"
     for a, b in seen["pairs"]:
         log = logs[a.seq]
         cps = cycle.log_change_points(trained.array(log.id), None, rate_hz=log.rate_hz)
         assert a.length == b.length == TINY.context + TINY.label_piece and b.start - a.start == TINY.label_piece
-        assert b.stop <= log.n_samples and not ((a.start < cps) & (cps < b.stop)).any()
-    cycle.train_classifier(trained, config=TrainConfig(**{**TINY.__dict__, "consistency": 0.0}), hidden=8)
-    assert seen["pairs"] == []  # weight 0: labels alone, no pairs built
+        assert b.stop <= log.n_samples and not ((a.stop - 1 < cps) & (cps <= b.stop - 1)).any()
+    cycle.train_classifier(trained, config=TINY, hidden=8)
+    assert TINY.consistency == 0.0 and seen["pairs"] == []  # the default, labels alone: no pairs built

@@ -27,6 +27,7 @@ def test_simulate_logs_reports_both_strategies(tmp_path: Path) -> None:
     assert "| round | random: labelled s (%)" in text and "`combined` reaches random's final accuracy" in text
     assert sum("round 2" in s for s in lines) == 2  # both strategies ran both rounds
     assert any("held out: 1 logs, 0.2 min, 3 terrain patches" in s for s in lines), lines[:2]
+    assert TINY.consistency == 0 and not any("pairs of unlabelled" in s for s in lines)  # labels only by default
     # suggestions as long as the UI's (1 s = 20 samples here, pieces of half to all of it): 2 per round
     done = [int(m.group(1)) for s in lines if (m := re.search(r"round 2: (\d+) samples", s))]
     assert done and all(4 * 10 <= n <= 4 * 20 for n in done), done
@@ -62,8 +63,9 @@ def test_simulate_partitions_pairs_windows_of_neighbouring_partitions_of_one_run
 
     monkeypatch.setattr(ws, "fit_classifier", spy)
     labels = [r % 2 for r in range(6)]
-    simulate_partitions(_runs(), labels, ["a", "b"], rate_hz=20.0, settings=replace(TINY, strategies=("random",)),
-                        out=None, log=lambda s: None)  # fmt: skip
+    simulate_partitions(_runs(), labels, ["a", "b"], rate_hz=20.0,
+                        settings=replace(TINY, strategies=("random",), consistency=3.0), out=None,
+                        log=lambda s: None)  # fmt: skip
     # 6 runs of 4 partitions (100 samples); seed 0 uses fold 0's training partitions as the pool
     y = np.repeat(labels, 4)
     pool = set(next(StratifiedKFold(5, shuffle=True, random_state=0).split(np.zeros(len(y)), y))[0].tolist())
