@@ -70,7 +70,7 @@ class TrainConfig:
             was and lowered the suggested labels' middle rounds by 3 points (benchmarks/results/label-efficiency.md).
         consistency: Stage 2: weight of the consistency term on unlabelled neighbour pairs (``fit_classifier``'s
             ``pairs``): the squared distance between the class probabilities the model gives two windows of one log
-            a few seconds apart, with no change point between them. It lets the unlabelled logs shape the
+            a few seconds apart, with no change point between their last steps. It lets the unlabelled logs shape the
             classifier, which counts most when labels are few: on BorealTC, 40 partitions chosen by ``combined`` went
             from 78.7 to 83.7 % with weight 3 (fold 2; benchmarks/results/label-efficiency.md). Ignored without pairs.
             Off (0) by default: on 40 minutes of demo walks it made the UI's stage-2 refit from scratch 15× slower

@@ -163,8 +163,8 @@ def neighbour_pairs(
     windows (``fit_classifier``'s consistency term). A boundary (a change point) between those two steps drops the
     pair: across it the terrain may differ. A boundary earlier in the windows does not: what they compare is their
     last steps, and a classifier has to see past an old change anyway. (Requiring the whole span free left 12 pairs
-    in 12 demo walks, whose signal change points come every 2.75 s; between the last steps, 2.3 % of the kept pairs
-    straddle a true terrain change there.)
+    in 12 demo walks, whose signal change points come every 2.75 s; with this rule and a pair every 100 samples
+    they hold 722, 2.1 % of them across a true terrain change.)
 
     Args:
         lengths: Samples in each log.
