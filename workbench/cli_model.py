@@ -76,8 +76,7 @@ def train(
         batch_size: Sequences per optimiser step, all processes together (the paper: 512).
         bf16: On CUDA, run the LSTMs under bfloat16 autocast.
         consistency: Stage 2: weight of the term asking unlabelled neighbouring windows of a log for the same
-            class (0, the default: labels alone; 3 is what the BorealTC simulation measured). On long logs it
-            makes stage 2 up to 15× slower.
+            class (0, the default: labels alone; 3: as BorealTC's simulation; up to 15× slower on long logs).
     """
     from training import distributed
 
