@@ -63,11 +63,12 @@ def label_stretches(session: Session, rng: np.random.Generator, n: int) -> None:
 def accuracy(session: Session, scores) -> float:
     """Per-timestep accuracy of the argmax on every sample nobody labelled, against the reference terrain."""
     hits = total = 0
+    segments = session.segments()  # read once, not once per log
     for x in session.logs():
         truth = np.full(x.n_samples, "", dtype=object)
         for a, b, t in session.reference(x.id):
             truth[a:b] = t
-        for s in session.segments():
+        for s in segments:
             if s.log_id == x.id:
                 truth[s.start : s.stop] = ""
         pred = np.asarray(scores.classes, dtype=object)[scores.scores[x.id].probs.argmax(axis=1)]

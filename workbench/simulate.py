@@ -180,8 +180,9 @@ def simulate_logs(
 
     pool_feats = [feats[i] for i in pool]
     # neighbours as the UI's Retrain pairs them (workbench.cycle.consistency_pairs)
-    pairs = consistency_pairs([len(f) for f in pool_feats], cps, cfg2) if settings.consistency > 0 else []
+    pairs = []
     if settings.consistency > 0:
+        pairs = consistency_pairs([len(f) for f in pool_feats], cps, cfg2)
         log(f"consistency {settings.consistency:g}: {len(pairs)} pairs of unlabelled neighbouring windows in the pool")
 
     def learner(seed: int) -> FeatureLearner:
