@@ -54,11 +54,16 @@ def run_child(step: str, folder: Path, hours: float) -> None:
     else:
         import torch
 
-        from training.bundle import ModelBundle, save_bundle
-        from training.config import ClassifierConfig, PredictorConfig
-        from training.data import Normalizer
-        from training.models import Classifier, Predictor
-        from workbench.live_scores import compute_scores
+        from training import (
+            Classifier,
+            ClassifierConfig,
+            ModelBundle,
+            Normalizer,
+            Predictor,
+            PredictorConfig,
+            save_bundle,
+        )
+        from workbench.scores import compute_scores
 
         torch.manual_seed(0)
         with Session.open(session_dir) as s:

@@ -21,10 +21,10 @@ from training import (
     Normalizer,
     Predictor,
     PredictorConfig,
+    padded_groups,
     run_classifiers,
     run_predictor,
 )
-from training.inference import _batches
 
 HIDDEN, MEMBERS, K = 200, 5, 6
 
@@ -33,7 +33,7 @@ def bare_forward(lstms: list[torch.nn.LSTM], arrays: list[np.ndarray], batch: in
     """Seconds for the bare layers over the same padded batches as the timed path."""
     t = time.perf_counter()
     with torch.inference_mode():
-        for group in _batches([len(a) for a in arrays], batch):
+        for group in padded_groups([len(a) for a in arrays], batch):
             n = max(len(arrays[i]) for i in group)
             x = torch.zeros(len(group), n, arrays[group[0]].shape[1])
             for j, i in enumerate(group):

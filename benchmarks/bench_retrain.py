@@ -32,10 +32,10 @@ import torch
 from common import Row, fmt_s, parse_args, record
 
 from sessions import Session
-from training.config import TrainConfig
+from training import TrainConfig
 from workbench import cycle
 from workbench.demo import TERRAINS, generate_walk
-from workbench.live_scores import compute_scores
+from workbench.scores import compute_scores
 from workbench.ui.jobs import WARM_EPOCHS, TrainJob
 from workbench.ui.state import SharedState
 

@@ -13,9 +13,7 @@ import numpy as np
 import torch
 from common import Row, parse_args, qcat_like, record
 
-from training import Normalizer, TrainConfig, fit_predictor
-from training.data import cut_pieces, stage1_batch
-from training.fit_predictor import split_pieces
+from training import Normalizer, TrainConfig, cut_pieces, fit_predictor, split_pieces, stage1_batch
 
 HIDDEN = 200
 

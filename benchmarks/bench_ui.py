@@ -94,7 +94,7 @@ def main() -> None:
     args = parse_args(__doc__)
     from playwright.sync_api import sync_playwright
 
-    from workbench.app import WorkbenchApp
+    from workbench.ui import WorkbenchApp
 
     minutes = 10.0 if args.quick else 60.0
     with tempfile.TemporaryDirectory() as tmp:

@@ -22,7 +22,7 @@ def main(which: str = "all") -> int:
         print(f"skipped: {DATA} is absent (BorealTC is not shipped with the project)")
         return 0
     sys.path.insert(0, str(ROOT))
-    from workbench import evaluate as ev
+    from workbench.evaluation import protocols as ev
 
     RESULTS.mkdir(parents=True, exist_ok=True)
     if which in ("protocol", "all"):

@@ -19,9 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from sessions import FileRows  # noqa: E402
-from training import distributed  # noqa: E402
-from training.config import TrainConfig  # noqa: E402
-from training.fit_predictor import fit_predictor  # noqa: E402
+from training import TrainConfig, distributed, fit_predictor  # noqa: E402
 
 
 def main() -> None:

@@ -34,6 +34,16 @@ class LogScores:
     def __len__(self) -> int:
         return len(self.surprise)
 
+    @property
+    def entropy(self) -> np.ndarray | None:
+        """``(T,)`` predictive entropy of ``probs`` in nats, or ``None`` before a classifier exists."""
+        return None if self.probs is None else entropy(self.probs)
+
+    @property
+    def predicted(self) -> np.ndarray | None:
+        """``(T,)`` index of the most probable class, or ``None`` before a classifier exists."""
+        return None if self.probs is None else np.asarray(self.probs).argmax(axis=-1)
+
     def raw(self, kind: Kind) -> np.ndarray | None:
         """``(T,)`` the unsmoothed track of ``kind``; higher is more worth labelling. ``None`` when unavailable."""
         if kind == "surprise":
@@ -42,7 +52,7 @@ class LogScores:
             return None if self.disagreement is None else np.asarray(self.disagreement, np.float64)
         if self.probs is None:
             return None
-        return entropy(self.probs) if kind == "entropy" else margin_uncertainty(self.probs)
+        return self.entropy if kind == "entropy" else margin_uncertainty(self.probs)
 
 
 @dataclass(frozen=True)

@@ -4,9 +4,10 @@ Knows nothing of training, labelling strategies or the UI; ``workbench`` compose
 """
 
 from .errors import IngestError, LabelError, SessionError, WorkbenchError
-from .ingest import IngestOptions, Mapping, load_mapping
+from .ingest import AlignedLog, IngestOptions, Mapping, align, load_mapping, plan_sources, read_mcap, read_source
+from .label_files import write_frame
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
-from .models import ModelVersion
+from .model_versions import ModelVersion
 from .rowfiles import FileRows, NpyWriter
 from .schema import DEFAULT_TERRAINS, SCHEMA_VERSION
 from .store import Session
@@ -14,6 +15,7 @@ from .store import Session
 __all__ = [
     "DEFAULT_TERRAINS",
     "SCHEMA_VERSION",
+    "AlignedLog",
     "Channel",
     "FileRows",
     "Gap",
@@ -30,5 +32,10 @@ __all__ = [
     "SessionError",
     "Terrain",
     "WorkbenchError",
+    "align",
     "load_mapping",
+    "plan_sources",
+    "read_mcap",
+    "read_source",
+    "write_frame",
 ]

@@ -17,7 +17,7 @@ from . import labels as _labels
 from .errors import LabelError, SessionError
 from .log_ingest import LOGS_DIR, LogIngest
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
-from .models import CACHE_DIR, ModelRegistry
+from .model_versions import CACHE_DIR, ModelRegistry
 from .rowfiles import FileRows
 from .schema import SCHEMA_VERSION, migrate
 

@@ -1,25 +1,38 @@
-"""The two-stage model (stage-1 predictor, stage-2 classifier), its training, scoring, export and evaluation.
+"""The two-stage model (stage-1 predictor, stage-2 classifier): its training, passes over logs, streaming runtime,
+ONNX export, bundles and evaluation protocols.
 
-Takes arrays, never sessions: ``workbench`` wires it to the session store.
+Takes arrays, never sessions: ``workbench`` wires it to the session store and scores logs with it.
 """
 
 from . import distributed
-from .bundle import BundleError, ModelBundle, load_bundle, save_bundle
+from .bundle import BundleError, ModelBundle, load_bundle, parameter_count, save_bundle
 from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint
-from .config import FEATURE_MODES, ClassifierConfig, ElasticNet, FeatureMode, PredictorConfig, TrainConfig
-from .data import Normalizer
+from .config import FEATURE_MODES, ClassifierConfig, ElasticNet, FeatureMode, PredictorConfig, TrainConfig, to_dict
+from .data import Normalizer, Piece, cut_pieces, neighbour_pairs, stage1_batch
+from .evaluate_sequences import held_out_logs_protocol, qcat_protocol
+from .evaluate_windows import FoldResult, WindowProtocol, borealtc_protocol, partitions, windows
 from .fit_classifier import ClassifierFit, fit_classifier
-from .fit_predictor import PredictorFit, fit_predictor
-from .inference import LazyFeatures, Stage1Outputs, ensemble_pass, predictor_pass, run_classifiers, run_predictor
+from .fit_predictor import PredictorFit, fit_predictor, split_pieces
+from .inference import (
+    LazyFeatures,
+    Stage1Outputs,
+    ensemble_pass,
+    padded_groups,
+    predictor_pass,
+    run_classifiers,
+    run_predictor,
+)
 from .losses import classifier_loss, elastic_net, predictor_loss
+from .metrics import classification_metrics
 from .models import Classifier, Predictor
-from .progress import Cancelled, Progress
-from .scoring import LogScores, entropy, score_log
+from .onnx_export import check_onnx, export_onnx, run_onnx
+from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
 from .stream import StreamingClassifier
 
 __all__ = [
     "FEATURE_MODES",
     "BundleError",
+    "CancelFn",
     "Cancelled",
     "Checkpoint",
     "Classifier",
@@ -27,31 +40,49 @@ __all__ = [
     "ClassifierFit",
     "ElasticNet",
     "FeatureMode",
+    "FoldResult",
     "LazyFeatures",
-    "LogScores",
     "ModelBundle",
     "Normalizer",
+    "Piece",
     "Predictor",
     "PredictorConfig",
     "PredictorFit",
     "Progress",
+    "ProgressFn",
     "Stage1Outputs",
     "StreamingClassifier",
     "TrainConfig",
+    "WindowProtocol",
+    "borealtc_protocol",
+    "check_onnx",
+    "classification_metrics",
     "classifier_loss",
+    "cut_pieces",
     "distributed",
     "elastic_net",
     "ensemble_pass",
-    "entropy",
+    "export_onnx",
     "fit_classifier",
     "fit_predictor",
+    "held_out_logs_protocol",
     "load_bundle",
     "load_checkpoint",
+    "neighbour_pairs",
+    "never",
+    "padded_groups",
+    "parameter_count",
+    "partitions",
     "predictor_loss",
     "predictor_pass",
+    "qcat_protocol",
     "run_classifiers",
+    "run_onnx",
     "run_predictor",
     "save_bundle",
     "save_checkpoint",
-    "score_log",
+    "split_pieces",
+    "stage1_batch",
+    "to_dict",
+    "windows",
 ]

@@ -86,7 +86,8 @@ class LazyFeatures:
         return self.outputs.features(self.mode, start, max(start, stop))
 
 
-def _batches(lengths: Sequence[int], batch: int) -> list[list[int]]:
+def padded_groups(lengths: Sequence[int], batch: int) -> list[list[int]]:
+    """Indices of sequences of ``lengths`` in groups of at most ``batch``, longest first, as the passes batch them."""
     order = np.argsort(lengths)[::-1]  # similar lengths together: less padding
     return [order[i : i + batch].tolist() for i in range(0, len(order), batch)]
 
@@ -118,7 +119,7 @@ def predictor_pass(
         device: Torch device.
     """
     predictor = predictor.to(device).eval()
-    for group in _batches([len(a) for a in arrays], batch):
+    for group in padded_groups([len(a) for a in arrays], batch):
         lengths = [len(arrays[i]) for i in group]
         n, c = max(lengths), arrays[group[0]].shape[1]
         step = _chunk_for(len(group), chunk)
@@ -189,7 +190,7 @@ def ensemble_pass(
     """
     for model in models:
         model.to(device).eval()
-    for group in _batches([len(f) for f in features], batch):
+    for group in padded_groups([len(f) for f in features], batch):
         lengths = [len(features[i]) for i in group]
         n, width = max(lengths), features[group[0]].shape[1]
         step = _chunk_for(len(group), chunk)

@@ -18,15 +18,26 @@ import numpy as np
 
 import labeling
 from sessions import FileRows, LogInfo, ModelVersion, NpyWriter, Segment, Session, WorkbenchError
-from training import distributed
-from training.bundle import ModelBundle, load_bundle, save_bundle
-from training.config import FeatureMode, TrainConfig, to_dict
-from training.data import Piece, neighbour_pairs
-from training.fit_classifier import fit_classifier
-from training.fit_predictor import fit_predictor
-from training.inference import LazyFeatures, Stage1Outputs, predictor_pass, run_classifiers
-from training.progress import CancelFn, Cancelled, ProgressFn, never
-from training.scoring import LogScores, score_log
+from training import (
+    CancelFn,
+    Cancelled,
+    FeatureMode,
+    LazyFeatures,
+    ModelBundle,
+    Piece,
+    ProgressFn,
+    Stage1Outputs,
+    TrainConfig,
+    distributed,
+    fit_classifier,
+    fit_predictor,
+    load_bundle,
+    neighbour_pairs,
+    never,
+    predictor_pass,
+    save_bundle,
+    to_dict,
+)
 
 
 def model_logs(session: Session, channels: Sequence[str] | None = None) -> list[LogInfo]:
@@ -348,15 +359,3 @@ def active_bundle(session: Session) -> tuple[ModelVersion, ModelBundle]:
     if version is None:
         raise WorkbenchError(f"{session.path}: no classifier yet; label some segments and run `workbench train`")
     return version, load_bundle(session.path / version.path)
-
-
-def score_session(session: Session, log_ids: Sequence[int] | None = None) -> dict[int, LogScores]:
-    """Per-timestep scores of logs (default: all the model uses) with the active models, from cached features."""
-    c_version, bundle = active_bundle(session)
-    p_version = next(v for v in session.model_versions("predictor") if v.id == c_version.config["predictor"])
-    logs = model_logs(session, bundle.channels)
-    if log_ids is not None:
-        logs = [x for x in logs if x.id in set(log_ids)]
-    outs = stage1_outputs(session, p_version, bundle, logs)
-    probs = run_classifiers(bundle.classifiers, [outs[x.id].lazy(bundle.feature_mode) for x in logs])
-    return {x.id: score_log(outs[x.id].error[:], p) for x, p in zip(logs, probs, strict=True)}

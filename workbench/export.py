@@ -9,11 +9,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sessions import IngestError, IngestOptions, Session, WorkbenchError
-from sessions.ingest import align, plan_sources, read_source
-from sessions.label_files import write_frame
-from training.bundle import BundleError, ModelBundle, load_bundle, parameter_count
-from training.inference import run_classifiers, run_predictor
+from sessions import IngestError, IngestOptions, Session, WorkbenchError, align, plan_sources, read_source, write_frame
+from training import BundleError, ModelBundle, load_bundle, parameter_count, run_predictor
 
 ONNX_TOLERANCE = 1e-4
 CHECK_SAMPLES = 1500  # per log, for the ONNX check: a per-sample loop in onnxruntime
@@ -103,9 +100,10 @@ def export_all(session: Session, out: Path, *, predictions: bool = False) -> lis
     Returns:
         What was written, one (path, description) per item.
     """
-    from training.onnx_export import check_onnx, export_onnx
+    from training import check_onnx, export_onnx
 
-    from .cycle import active_bundle, model_logs, score_session
+    from .cycle import active_bundle, model_logs
+    from .scores import score_session
 
     out = Path(out)
     if out.exists():
@@ -173,11 +171,15 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
             names.append(name)
             arrays.append(item)
     if arrays:
+        from .scores import score_logs
+
         outs = run_predictor(bundle.predictor, bundle.normalizer, arrays)
-        probs = run_classifiers(bundle.classifiers, [o.lazy(bundle.feature_mode) for o in outs])
+        scored = score_logs(
+            bundle.classifiers, [o.lazy(bundle.feature_mode) for o in outs], [o.surprise() for o in outs]
+        )
         frames = [
-            prediction_frame(name, p.mean(0), bundle.classes, bundle.rate_hz)
-            for name, p in zip(names, probs, strict=True)
+            prediction_frame(name, s.probs, bundle.classes, bundle.rate_hz)
+            for name, s in zip(names, scored, strict=True)
         ]
         write_frame(pd.concat(frames), out)
         lines.append(f"wrote predictions for {len(arrays)} log(s) to {out}")

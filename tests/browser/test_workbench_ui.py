@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from sessions import Session
-from training.config import TrainConfig
+from training import TrainConfig
 
 from .conftest import open_tab, save_screenshot
 
@@ -23,8 +23,7 @@ TINY = ("--hidden", "8", "--stage1-epochs", "2", "--stage2-epochs", "3")
 @pytest.fixture(scope="module")
 def base_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from workbench.cycle import train_classifier, train_predictor
-    from workbench.demo import generate_demo_logs
-    from workbench.seed import seed_labels
+    from workbench.demo import generate_demo_logs, seed_labels
 
     root = tmp_path_factory.mktemp("ui")
     logs = generate_demo_logs(root / "logs", n_logs=2, minutes=0.6, seed=3)

@@ -1,12 +1,9 @@
-"""The simulation loop with a stand-in learner (no model): oracle, curves, savings, table and plot."""
-
-from pathlib import Path
+"""The simulation loop with a stand-in learner (no model): oracle, curves, savings and table."""
 
 import numpy as np
 import pytest
 
 from labeling import CurvePoint, LogScores, Round, bootstrap_final_ratio, savings, simulate, table, time_to_reach
-from labeling import plot as plot_curves
 
 
 def stand_in(truth: list[np.ndarray], k: int):
@@ -76,7 +73,7 @@ def test_bootstrap_final_ratio_resamples_seeds_in_pairs() -> None:
     assert np.all(bootstrap_final_ratio(same, method="fast", draws=50) == pytest.approx(0.5))
 
 
-def test_table_and_plot(tmp_path: Path) -> None:
+def test_table() -> None:
     curves = {
         "random": [[CurvePoint(100, 0.5, 0.0), CurvePoint(200, 0.6, 0.0)]] * 2,
         "combined": [[CurvePoint(100, 0.6, 0.0), CurvePoint(200, 0.7, 0.0)], [CurvePoint(100, 0.8, 0.0),
@@ -84,5 +81,3 @@ def test_table_and_plot(tmp_path: Path) -> None:
     }  # fmt: skip
     text = table(curves, total_samples=1000, rate_hz=100.0)
     assert "| 2 | 2 (20.00) | 60.00 ± 0.00 | 2 (20.00) | 80.00 ± 10.00 |" in text
-    png = plot_curves(curves, tmp_path / "c.png", total_samples=1000, rate_hz=100.0, title="t")
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -4,8 +4,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from labeling import STRATEGIES, LogScores, candidates, class_weights, coverage, suggest
-from labeling.simulate import oracle
+from labeling import STRATEGIES, LogScores, candidates, class_weights, coverage, oracle, suggest
 
 
 def make_scores(lengths: list[int], k: int, seed: int, *, cold: bool = False) -> list[LogScores]:

@@ -115,7 +115,7 @@ def run_people(path: Path, people: int, ops: int) -> tuple[int, list[float], lis
     """Returns the number of labels checked, Save -> acknowledgement times seen by the clients, and the server's
     click -> committed times (the Save handler's ``add_label``: the figure the issue's 50 ms p99 is about)."""
     from training.config import TrainConfig
-    from workbench.app import WorkbenchApp
+    from workbench.ui import WorkbenchApp
 
     session = Session.open(path)
     app = WorkbenchApp(session, port=free_port(), hidden=8, max_epochs=(2, 30))

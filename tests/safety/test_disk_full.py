@@ -134,7 +134,7 @@ def test_the_cli_says_one_line_on_a_full_and_a_read_only_disk(small_disk: Path, 
 
 @pytest.mark.slow  # passes alone; in one full `make test` run a Save went unanswered (see test_concurrent_clients)
 def test_the_ui_shows_a_full_disk_and_keeps_every_saved_label(labelled: tuple[Session, int]) -> None:
-    from workbench.app import WorkbenchApp
+    from workbench.ui import WorkbenchApp
 
     s, _ = labelled
     app = WorkbenchApp(s, port=free_port(), hidden=8)

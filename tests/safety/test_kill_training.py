@@ -16,6 +16,7 @@ from sessions import Session
 from training.bundle import load_bundle
 from training.config import TrainConfig
 from workbench import cycle
+from workbench.scores import score_session
 
 # A training run in its own process, killed by SIGKILL from inside at a chosen point: after N optimiser steps
 # (mid-epoch), while a weights file is half written (mid-save), or with the files in place but not yet registered.
@@ -82,7 +83,7 @@ def check_after_kill(path: Path, before: tuple) -> None:
     with Session.open(path) as s:
         for v in s.model_versions():
             load_bundle(s.path / v.path)  # every listed version is whole
-        scores = cycle.score_session(s)
+        scores = score_session(s)
         assert scores and all(np.isfinite(sc.probs).all() for sc in scores.values())
 
 

@@ -50,7 +50,7 @@ def test_the_server_binds_loopback_unless_told_and_warns_when_told(session: Sess
 def test_an_upload_over_the_limit_is_refused_before_it_is_buffered(session: Session) -> None:
     from viser import _messages
 
-    from workbench.app import WorkbenchApp
+    from workbench.ui import WorkbenchApp
 
     app = WorkbenchApp(session, port=free_port(), hidden=8)
     try:

@@ -9,7 +9,7 @@ import numpy as np
 from mcap.writer import Writer as RawWriter
 from mcap_ros2.writer import Writer
 
-from workbench.ros2_cdr import IMU_SCHEMA, WRENCH_STAMPED_SCHEMA
+from workbench.demo import IMU_SCHEMA, WRENCH_STAMPED_SCHEMA
 
 VECTOR3_STAMPED_SCHEMA = IMU_SCHEMA[IMU_SCHEMA.index("=" * 80) :].replace(
     "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n" + "=" * 80 + "\n", ""

@@ -13,8 +13,7 @@ import sys
 from pathlib import Path
 
 from sessions import Session
-from training import distributed
-from training.config import TrainConfig
+from training import TrainConfig, distributed
 from workbench import cycle
 
 

@@ -12,11 +12,11 @@ import pytest
 import torch
 
 from sessions import LabelError, Session, WorkbenchError
-from training.bundle import load_bundle
-from training.config import TrainConfig
+from training import TrainConfig, load_bundle
 from workbench import cycle
 from workbench.cli import main
-from workbench.seed import seed_labels
+from workbench.demo import seed_labels
+from workbench.scores import score_session
 
 TINY = TrainConfig(max_epochs=2, patience=1, chunk=32, piece=256, batch_size=16, label_piece=64, context=32, k_folds=3)
 
@@ -83,10 +83,15 @@ def test_a_warm_retrain_is_a_short_fine_tune_and_a_cold_one_is_not(trained: Sess
 
 
 def test_scores_have_the_documented_shapes(trained: Session) -> None:
-    scores = cycle.score_session(trained)
+    scores = score_session(trained)
     log = trained.logs()[0]
     sc = scores[log.id]
-    assert sc.error.shape == (log.n_samples, 22) and sc.error_total.shape == (log.n_samples,)
+    # the per-channel error stays in the stage-1 cache; the scores carry its mean over channels
+    c_version, bundle = cycle.active_bundle(trained)
+    p_version = next(v for v in trained.model_versions("predictor") if v.id == c_version.config["predictor"])
+    error = cycle.stage1_outputs(trained, p_version, bundle, [log])[log.id].error[:]
+    assert error.shape == (log.n_samples, 22) and sc.surprise.shape == (log.n_samples,)
+    np.testing.assert_allclose(sc.surprise, np.square(error).mean(axis=1), rtol=1e-5)
     assert sc.probs.shape == (log.n_samples, 6)
     np.testing.assert_allclose(sc.probs.sum(1), 1.0, atol=1e-5)
     assert (sc.entropy >= 0).all() and (sc.entropy <= np.log(6) + 1e-5).all()

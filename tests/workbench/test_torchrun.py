@@ -14,7 +14,7 @@ import pytest
 
 from sessions import Session
 from tests.browser.conftest import free_port
-from training.bundle import load_bundle
+from training import load_bundle
 
 EPOCHS = 3
 ROOT = Path(__file__).resolve().parents[2]

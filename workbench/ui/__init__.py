@@ -1,7 +1,8 @@
 """The browser workbench on viser: shared state and training job, one view per browser, one module per panel."""
 
+from .app import WorkbenchApp
 from .jobs import JobStatus, TrainJob
 from .state import Queued, SharedState
 from .view import ClientView
 
-__all__ = ["ClientView", "JobStatus", "Queued", "SharedState", "TrainJob"]
+__all__ = ["ClientView", "JobStatus", "Queued", "SharedState", "TrainJob", "WorkbenchApp"]

@@ -15,8 +15,7 @@ import traceback
 from dataclasses import dataclass, field, replace
 
 from sessions import WorkbenchError
-from training.config import TrainConfig
-from training.progress import Cancelled, Progress
+from training import Cancelled, Progress, TrainConfig
 
 from ..cycle import train_classifier, train_predictor
 from .state import SharedState

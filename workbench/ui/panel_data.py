@@ -3,35 +3,65 @@ model bundle through the browser."""
 
 from __future__ import annotations
 
+import html
 import io
-import re
 import tempfile
 import zipfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from sessions import IngestError, WorkbenchError
+from sessions import IngestError, Session, WorkbenchError
+
+from .uploads import MAX_UPLOAD_MB, UPLOAD_SUFFIXES, safe_name
 
 if TYPE_CHECKING:
     from .view import ClientView
 
-MAX_UPLOAD_MB = 512
-UPLOAD_SUFFIXES = (".mcap", ".csv")
+_STYLE = (
+    "<style>.wb-table{border-collapse:collapse;width:100%;font-size:0.8em;white-space:nowrap}"
+    ".wb-table th,.wb-table td{padding:3px 5px;border-bottom:1px solid #e0e0e0;text-align:left}"
+    ".wb-table th{color:#666;font-weight:500}"
+    ".wb-table td.n,.wb-table th.n{text-align:right;font-variant-numeric:tabular-nums}"
+)
 
 
-def safe_name(name: str) -> str:
-    """A file name that cannot leave the folder it is written to: the last path part, plain characters only."""
-    base = re.split(r"[\\/]", name)[-1]
-    base = re.sub(r"[^A-Za-z0-9._-]+", "_", base).lstrip(".")
-    return base[:120] or "upload"
+def _duration(seconds: float) -> str:
+    m, s = divmod(round(seconds), 60)
+    h, m = divmod(m, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+
+def logs_table_html(session: Session) -> str:
+    """An HTML table of the session's logs (name, format, duration, rate, channels, labelled time)."""
+    logs = session.logs()
+    if not logs:
+        return _STYLE + "<p>No logs yet. Ingest some with <code>workbench ingest SESSION FILE...</code></p>"
+    labelled: dict[int, int] = {}
+    for seg in session.segments():
+        labelled[seg.log_id] = labelled.get(seg.log_id, 0) + seg.length
+    rows = []
+    for log in logs:
+        lab = labelled.get(log.id, 0) / max(log.n_samples, 1)
+        title = html.escape(f"{log.format}: {log.source_path}", quote=True)
+        rows.append(
+            f"<tr><td class='n'>{log.id}</td><td title='{title}'>{html.escape(log.name)}</td>"
+            f"<td class='n'>{_duration(log.duration_s)}</td><td class='n'>{log.rate_hz:g}</td>"
+            f"<td class='n'>{log.n_channels}</td><td class='n'>{len(log.gaps)}</td><td class='n'>{lab:.0%}</td></tr>"
+        )
+    total = sum(log.duration_s for log in logs)
+    return (
+        _STYLE
+        + f"<p><b>{len(logs)}</b> logs, {_duration(total)} in all</p>"
+        + "<table class='wb-table'><tr><th class='n'>#</th><th>log</th><th class='n'>length</th>"
+        + "<th class='n'>Hz</th><th class='n'>channels</th><th class='n'>gaps</th><th class='n'>labelled</th></tr>"
+        + "".join(rows)
+        + "</table>"
+    )
 
 
 class DataPanel:
     def __init__(self, view: ClientView) -> None:
-        from ..app import logs_table_html
-
         self.view = view
-        self._table = logs_table_html
         gui = view.client.gui
         self.logs = gui.add_html("")
         self.upload = gui.add_upload_button(f"Upload MCAP / CSV (≤ {MAX_UPLOAD_MB} MB)", icon="upload")
@@ -45,7 +75,7 @@ class DataPanel:
         self.refresh()
 
     def refresh(self) -> None:
-        self.logs.content = self._table(self.view.state.session)
+        self.logs.content = logs_table_html(self.view.state.session)
 
     def _uploaded(self) -> None:
         f = self.upload.value

@@ -16,7 +16,8 @@ import labeling
 from sessions import LogInfo, Segment, Session, Terrain, WorkbenchError
 
 from ..cycle import log_change_points
-from ..live_scores import SessionScores, compute_scores, suggest_for_session
+from ..scores import SessionScores, compute_scores
+from ..suggestions import suggest_for_session
 
 Event = str  # "labels" | "scores" | "suggestions" | "job" | "models" | "logs"
 Listener = Callable[[Event], None]

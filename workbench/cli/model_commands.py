@@ -10,7 +10,7 @@ from typing import Literal
 import tyro
 
 from sessions import IngestOptions, Session, WorkbenchError
-from training.config import FeatureMode, TrainConfig
+from training import FeatureMode, TrainConfig
 
 Pos = tyro.conf.Positional
 
@@ -80,7 +80,7 @@ def train(
     """
     from training import distributed
 
-    from . import cycle
+    from .. import cycle
 
     _check_device(device)
     if distributed.launched() and stage != "predictor":
@@ -107,7 +107,7 @@ def train(
 
 
 def _train_predictor(s: Session, config: TrainConfig, hidden: int) -> None:
-    from . import cycle
+    from .. import cycle
 
     def resumed(epoch: int, batch: int) -> None:
         where = f"epoch {epoch}" + (f", batch {batch}" if batch else "")
@@ -123,7 +123,7 @@ def _train_predictor(s: Session, config: TrainConfig, hidden: int) -> None:
 
 
 def _train_classifier(s: Session, config: TrainConfig, hidden: int, feature_mode: FeatureMode, stage: str) -> None:
-    from . import cycle
+    from .. import cycle
 
     terrains = {seg.terrain for seg in s.segments()}
     if stage == "all" and len(terrains) < 2:
@@ -147,7 +147,7 @@ def export(session: Pos[Path], out: Path, predictions: bool = False) -> None:
         out: Folder to create.
         predictions: Also write per-timestep predictions of every log.
     """
-    from .export import export_all
+    from ..export import export_all
 
     with Session.open(session) as s:
         written = export_all(s, out, predictions=predictions)
@@ -163,7 +163,7 @@ def classify(bundle: Pos[Path], files: Pos[list[Path]], out: Path) -> int:
         files: Log files (MCAP / CSV) with the channels the model was trained on.
         out: Output table (.csv, .parquet or .json).
     """
-    from .export import classify_files
+    from ..export import classify_files
 
     code, lines = classify_files(bundle, files, out, IngestOptions())
     for line in lines:
@@ -249,7 +249,7 @@ def evaluate(
         members: With --simulate: stage-2 ensemble members per retrain (the UI's Retrain trains 5).
         device: Where both stages train and run.
     """
-    from . import evaluate as ev
+    from ..evaluation import protocols as ev
 
     _check_device(device)
     if simulate:

@@ -15,7 +15,7 @@ import tyro
 
 from sessions import IngestError, IngestOptions, Session, WorkbenchError, load_mapping
 
-from . import cli_model
+from . import model_commands
 from .ingest_report import dry_run_report
 
 Pos = tyro.conf.Positional
@@ -137,7 +137,7 @@ def serve(
         stage1_epochs: Most epochs of a predictor retrain from the UI (early stopping may end it sooner).
         stage2_epochs: Most epochs of a classifier retrain from the UI.
     """
-    from .app import WorkbenchApp
+    from ..ui.app import WorkbenchApp
 
     s = Session.open(session)
     if host not in ("127.0.0.1", "localhost", "::1"):
@@ -181,8 +181,8 @@ def demo(
             paper's model.
         serve_ui: Serve the UI when ready (--no-serve: prepare the session and exit).
     """
-    from .demo import generate_demo_logs
-    from .seed import seed_labels as add_seed_labels
+    from ..demo import generate_demo_logs
+    from ..demo import seed_labels as add_seed_labels
 
     if (session / "session.sqlite").exists():
         with Session.open(session) as s:
@@ -198,10 +198,12 @@ def demo(
             added = add_seed_labels(s, seed_labels, seed=seed)
             print(f"labelled {len(added)} segment(s) from the demo's ground truth ({seed_labels:.0%} of the time)")
         if added:
-            cli_model.train(session, stage="predictor", max_epochs=epochs, patience=max(3, epochs // 4), hidden=hidden)
+            model_commands.train(
+                session, stage="predictor", max_epochs=epochs, patience=max(3, epochs // 4), hidden=hidden
+            )
             if len({seg.terrain for seg in added}) >= 2:
                 # stage 2 on a few seconds of labels is cheap: let early stopping end it, not the quick-start cap
-                cli_model.train(session, stage="classifier", max_epochs=100, patience=20, hidden=hidden)
+                model_commands.train(session, stage="classifier", max_epochs=100, patience=20, hidden=hidden)
             else:
                 print("classifier: skipped (the seed labels cover fewer than two terrains)")
     if serve_ui:
@@ -216,15 +218,15 @@ COMMANDS = {
     "new": new,
     "ingest": ingest,
     "info": info,
-    "train": cli_model.train,
-    "export": cli_model.export,
-    "classify": cli_model.classify,
-    "evaluate": cli_model.evaluate,
+    "train": model_commands.train,
+    "export": model_commands.export,
+    "classify": model_commands.classify,
+    "evaluate": model_commands.evaluate,
     "labels": labels,
     "serve": serve,
     "demo": demo,
 }
-LABEL_COMMANDS = {"export": cli_model.labels_export, "import": cli_model.labels_import}
+LABEL_COMMANDS = {"export": model_commands.labels_export, "import": model_commands.labels_import}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from labeling import CurvePoint
-from workbench.simulate import SimSettings, report, simulate_logs, simulate_partitions
+from workbench.evaluation.label_efficiency import SimSettings, report, simulate_logs, simulate_partitions
 
 TINY = SimSettings(strategies=("random", "combined"), seeds=1, rounds=2, batch=2, hidden=8, stage1_epochs=1,
                    stage2_epochs=2, folds=2)  # fmt: skip
@@ -52,7 +52,7 @@ def test_simulate_partitions_labels_whole_partitions(tmp_path: Path) -> None:
 def test_simulate_partitions_pairs_windows_of_neighbouring_partitions_of_one_run(monkeypatch) -> None:
     from sklearn.model_selection import StratifiedKFold
 
-    import workbench.simulate as ws
+    import workbench.evaluation.label_efficiency as ws
 
     seen = []
     real = ws.fit_classifier
@@ -99,7 +99,7 @@ def test_report_gives_the_ratio_per_round_and_its_spread_over_seeds() -> None:
 
 def test_device_reaches_every_fit_and_pass(monkeypatch, tmp_path: Path) -> None:
     """``--device cuda`` must move all of the simulation: a pass left on the CPU would be silently slow."""
-    import workbench.simulate as ws
+    import workbench.evaluation.label_efficiency as ws
 
     seen: list[tuple[str, str]] = []
 
@@ -116,7 +116,7 @@ def test_device_reaches_every_fit_and_pass(monkeypatch, tmp_path: Path) -> None:
         monkeypatch.setattr(ws, name, wrapped)
 
     for name, config in [("fit_predictor", True), ("fit_classifier", True), ("run_predictor", False),
-                         ("run_classifiers", False)]:  # fmt: skip
+                         ("run_classifiers", False), ("score_logs", False)]:  # fmt: skip
         spy(name, getattr(ws, name), config=config)
     gpu = replace(TINY, device="cuda")
     simulate_partitions(_runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=gpu, out=None,
@@ -125,5 +125,6 @@ def test_device_reaches_every_fit_and_pass(monkeypatch, tmp_path: Path) -> None:
     logs = [rng.normal(size=(300, 2)).astype(np.float32) for _ in range(3)]
     truth = [np.repeat(rng.permutation(3), 100) for _ in range(3)]
     simulate_logs(logs, truth, ["a", "b", "c"], rate_hz=20.0, settings=gpu, out=None, log=lambda s: None)
-    assert {name for name, _ in seen} == {"fit_predictor", "fit_classifier", "run_predictor", "run_classifiers"}
+    passes = {"fit_predictor", "fit_classifier", "run_predictor", "run_classifiers", "score_logs"}
+    assert {name for name, _ in seen} == passes
     assert [s for s in seen if s[1] != "cuda"] == []

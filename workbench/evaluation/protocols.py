@@ -10,10 +10,8 @@ from typing import Literal
 
 import numpy as np
 
-from sessions import IngestError, IngestOptions, WorkbenchError
-from sessions.ingest import align, plan_sources, read_source
-from training.config import FEATURE_MODES, FeatureMode, TrainConfig
-from training.evaluate import FoldResult, borealtc_protocol
+from sessions import IngestError, IngestOptions, WorkbenchError, align, plan_sources, read_source
+from training import FEATURE_MODES, FeatureMode, FoldResult, TrainConfig, borealtc_protocol
 
 BOREALTC_PUBLISHED = {"CNN (spectrograms)": 93.96, "Mamba": 93.51, "LSTM": 82.47, "SVM": 78.04}
 
@@ -153,7 +151,7 @@ def evaluate_qcat(
     device: str = "cpu",
 ) -> str:
     """The paper's QCAT protocol, and a leak-free variant holding out whole trials."""
-    from training.evaluate_sequences import qcat_protocol
+    from training import qcat_protocol
 
     recs, notes = load_recordings(folder)
     for n in notes:
@@ -192,7 +190,7 @@ def evaluate_demo(
     device: str = "cpu",
 ) -> str:
     """Leave-logs-out on demo logs against their sidecar truth, for each way stage 1 can feed stage 2."""
-    from training.evaluate_sequences import held_out_logs_protocol
+    from training import held_out_logs_protocol
 
     recs, notes = load_recordings(folder)
     for n in notes:
@@ -223,10 +221,10 @@ def simulate(
     members: int = 3,
     device: str = "cpu",
 ) -> str:
-    """The label-efficiency simulation on ``folder`` (see :mod:`workbench.simulate`)."""
+    """The label-efficiency simulation on ``folder`` (see :mod:`workbench.evaluation.label_efficiency`)."""
     from labeling import STRATEGIES
 
-    from .simulate import SimSettings, simulate_logs, simulate_partitions
+    from .label_efficiency import SimSettings, simulate_logs, simulate_partitions
 
     unknown = [s for s in strategies if s not in STRATEGIES]
     if unknown:

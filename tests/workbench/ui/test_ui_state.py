@@ -9,12 +9,11 @@ from pathlib import Path
 import pytest
 
 from sessions import Session, WorkbenchError
-from workbench.live_scores import SUGGESTION_S
-from workbench.seed import seed_labels
+from tests.workbench.test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
+from workbench.demo import seed_labels
+from workbench.suggestions import SUGGESTION_S
 from workbench.ui.jobs import JobStatus, TrainJob, needs_predictor
 from workbench.ui.state import SharedState
-
-from .test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
 
 
 def wait_for(check, timeout: float = 60.0):

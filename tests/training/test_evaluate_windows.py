@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from training.config import TrainConfig
-from training.evaluate import WindowProtocol, borealtc_protocol, partitions, windows
 from training.evaluate_sequences import _split_groups, held_out_logs_protocol, qcat_protocol
+from training.evaluate_windows import WindowProtocol, borealtc_protocol, partitions, windows
 
 S1 = TrainConfig(max_epochs=3, patience=2, chunk=32, batch_size=64)
 S2 = TrainConfig(max_epochs=40, patience=8, batch_size=64, k_folds=2)

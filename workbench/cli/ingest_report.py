@@ -6,8 +6,7 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 
-from sessions import IngestError, IngestOptions
-from sessions.ingest import align, plan_sources, read_source
+from sessions import IngestError, IngestOptions, align, plan_sources, read_source
 
 
 def _toml_str(text: str) -> str:

@@ -15,16 +15,23 @@ import numpy as np
 from sklearn.model_selection import StratifiedKFold
 
 import labeling
-from training.config import FeatureMode, TrainConfig
-from training.data import Piece
-from training.evaluate import partitions, windows
-from training.fit_classifier import fit_classifier
-from training.fit_predictor import fit_predictor
-from training.inference import run_classifiers, run_predictor
-from training.metrics import classification_metrics
+from training import (
+    FeatureMode,
+    Piece,
+    TrainConfig,
+    classification_metrics,
+    fit_classifier,
+    fit_predictor,
+    partitions,
+    run_classifiers,
+    run_predictor,
+    windows,
+)
 
-from .cycle import consistency_pairs
-from .live_scores import SUGGESTION_S, suggestion_lengths
+from ..cycle import consistency_pairs
+from ..scores import score_logs
+from ..suggestions import SUGGESTION_S, suggestion_lengths
+from .curves_plot import plot_curves
 
 
 @dataclass(frozen=True)
@@ -46,7 +53,7 @@ class SimSettings:
     consistency: float = TrainConfig.consistency  # weight of stage 2's term on unlabelled neighbours (0: labels only)
     feature_mode: FeatureMode = "hidden+surprise"  # what stage 1 hands stage 2 (and the suggestions' embeddings)
     warm_start: bool = False  # start each round from the previous round's models instead of from scratch
-    # Length of one suggestion, s; None: the UI's (workbench.live_scores.SUGGESTION_S) on demo logs, a whole 5 s
+    # Length of one suggestion, s; None: the UI's (workbench.suggestions.SUGGESTION_S) on demo logs, a whole 5 s
     # partition on BorealTC (the protocol's unit; 5 / segment_s equal pieces of each when given).
     segment_s: float | None = None
     device: str = "cpu"  # where both stages train and run ("cuda": every fit and pass on the GPU)
@@ -67,7 +74,7 @@ class FeatureLearner:
         classes: Sequence[str],
         config: TrainConfig,
         hidden: int,
-        train_features: Callable[[Sequence[labeling.simulate.Labelled]], tuple[list[np.ndarray], list, list]],
+        train_features: Callable[[Sequence[labeling.Labelled]], tuple[list[np.ndarray], list, list]],
         test_predict: Callable[[list], tuple[np.ndarray, np.ndarray]],
         *,
         warm_start: bool = False,
@@ -78,7 +85,7 @@ class FeatureLearner:
         self.models = None
         self.warm_start = warm_start
 
-    def __call__(self, labels: Sequence[labeling.simulate.Labelled]) -> labeling.Round:
+    def __call__(self, labels: Sequence[labeling.Labelled]) -> labeling.Round:
         if not labels:
             self.models = None
             return labeling.Round([labeling.LogScores(e) for e in self.pool_error], float("nan"))
@@ -86,12 +93,7 @@ class FeatureLearner:
         fit = fit_classifier(feats, segments, self.classes, config=self.config, hidden=self.hidden,
                              init=self.models if self.warm_start else None, pairs=pairs)  # fmt: skip
         self.models = fit.models
-        # per log (M, T, K)
-        members = run_classifiers(self.models, self.pool_features, batch=256, device=self.config.device)
-        scores = [
-            labeling.LogScores(e, m.mean(0), labeling.mutual_information(m))
-            for e, m in zip(self.pool_error, members, strict=True)
-        ]
+        scores = score_logs(self.models, self.pool_features, self.pool_error, batch=256, device=self.config.device)
         y_true, y_pred = self.test_predict(self.models)
         m = classification_metrics(y_true, y_pred, self.classes)
         return labeling.Round(scores, m["accuracy"], m["macro_f1"])
@@ -139,7 +141,7 @@ def report(curves, *, total: int, rate_hz: float, title: str, out: Path | None) 
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         name = title.lower().split()[0]
-        png = labeling.plot(curves, out / f"simulate-{name}.png", total_samples=total, rate_hz=rate_hz, title=title)
+        png = plot_curves(curves, out / f"simulate-{name}.png", total_samples=total, rate_hz=rate_hz, title=title)
         lines.append(f"\nplot: {png}")
     return "\n".join(lines)
 
@@ -244,7 +246,7 @@ def simulate_partitions(
     window_cache: dict[tuple[int, int, int], list[np.ndarray]] = {}
 
     def window_features(u: int, a: int, b: int) -> list[np.ndarray]:
-        # zero-state windows of the labelled stretch, as the test windows are classified (see training.evaluate); a
+        # zero-state windows of the labelled stretch, as the test windows are classified (training.evaluate_windows); a
         # stretch shorter than a window is one window
         if (u, a, b) not in window_cache:
             i, start, _ = units[u]

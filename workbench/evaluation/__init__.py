@@ -1,0 +1,17 @@
+"""Research runs over datasets: the BorealTC, QCAT and demo protocols, and the label-efficiency simulation with its
+report and plot."""
+
+from .label_efficiency import SimSettings, report, simulate_logs, simulate_partitions
+from .protocols import BOREALTC_PUBLISHED, evaluate_borealtc, evaluate_demo, evaluate_qcat, simulate
+
+__all__ = [
+    "BOREALTC_PUBLISHED",
+    "SimSettings",
+    "evaluate_borealtc",
+    "evaluate_demo",
+    "evaluate_qcat",
+    "report",
+    "simulate",
+    "simulate_logs",
+    "simulate_partitions",
+]

@@ -1,0 +1,143 @@
+"""The one scoring path: per-timestep surprise, class probabilities and ensemble disagreement of logs.
+
+The UI's highlights and suggestions, the export's predictions, ``workbench classify`` and the label-efficiency
+simulation all score through :func:`score_logs`, so what the robot's export predicts and what the UI shows cannot
+drift apart. Scores are ``labeling.LogScores``: the type the suggestions take.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import labeling
+from sessions import LogInfo, ModelVersion, Session, WorkbenchError
+from training import Classifier, LazyFeatures, ModelBundle, ensemble_pass, load_bundle
+
+from .cycle import active_bundle, model_logs, stage1_outputs
+
+EMBEDDING_MODE = "hidden+surprise"  # the suggestions' embeddings: what the label-efficiency simulation used
+
+
+def score_logs(
+    classifiers: Sequence[Classifier],
+    features: Sequence[np.ndarray | LazyFeatures],
+    surprise: Sequence[np.ndarray],
+    *,
+    batch: int = 64,
+    device: str = "cpu",
+) -> list[labeling.LogScores]:
+    """Score logs: the stage-2 ensemble over each log's features, reduced chunk by chunk.
+
+    The members' ``(M, L, K)`` probabilities are reduced to their mean and disagreement one chunk at a time, never
+    held for a whole log (an hour of five members is 200 MB).
+
+    Args:
+        classifiers: The ``M`` ensemble members; none (an empty sequence) before a classifier exists.
+        features: Per log, ``(T, F)`` stage-2 inputs (a ``LazyFeatures`` computes only the chunk asked for).
+        surprise: Per log, ``(T,)`` stage-1 error (``Stage1Outputs.surprise``).
+        batch: Logs per LSTM call.
+        device: Torch device.
+
+    Returns:
+        Per log, ``LogScores``: ``(T,)`` surprise, and with classifiers ``(T, K)`` mean probabilities and ``(T,)``
+        mutual information between prediction and member (BALD).
+    """
+    if not classifiers:
+        return [labeling.LogScores(np.asarray(s)) for s in surprise]
+    k = classifiers[0].config.n_classes
+    mean = [np.empty((len(f), k), np.float32) for f in features]
+    disagreement = [np.empty(len(f), np.float32) for f in features]
+
+    def reduce(i: int, a: int, b: int, probs: np.ndarray) -> None:  # probs: (M, b - a, K)
+        mean[i][a:b] = probs.mean(axis=0)
+        disagreement[i][a:b] = labeling.mutual_information(probs)
+
+    ensemble_pass(classifiers, features, reduce, batch=batch, device=device)
+    return [labeling.LogScores(np.asarray(s), m, d) for s, m, d in zip(surprise, mean, disagreement, strict=True)]
+
+
+@dataclass(frozen=True)
+class SessionScores:
+    """Scores of every log the active models cover, keyed by log id.
+
+    Attributes:
+        predictor: Active predictor version id (``None``: nothing trained yet, every dict is empty).
+        classifier: Classifier version the probabilities come from (``None``: stage 1 only).
+        classes: Class names of ``probs``' last axis.
+        scores: Per log, ``labeling.LogScores`` (``(T,)`` surprise; ``(T, K)`` probs and ``(T,)`` disagreement
+            once a classifier exists).
+        tracks: Per log, the session-normalised, smoothed tracks in ``[0, 1]`` by kind.
+        embeddings: Per log, ``(T, H + C)`` stage-1 hidden state and surprise ``|x_t − x̂_t|``, computed from the
+            memory-mapped feature cache for the rows sliced: for typical and diverse suggestions, what the
+            label-efficiency simulation measured them with.
+    """
+
+    predictor: int | None = None
+    classifier: int | None = None
+    classes: tuple[str, ...] = ()
+    scores: dict[int, labeling.LogScores] = field(default_factory=dict)
+    tracks: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
+    embeddings: dict[int, LazyFeatures] = field(default_factory=dict)
+
+
+def _score_session_logs(
+    session: Session,
+    predictor: ModelVersion,
+    bundle: ModelBundle,
+    classifier: ModelBundle | None,
+    log_ids: Collection[int] | None,
+) -> tuple[list[LogInfo], dict, list[labeling.LogScores]]:
+    logs = model_logs(session, bundle.channels)
+    if log_ids is not None:
+        logs = [x for x in logs if x.id in set(log_ids)]
+    outs = stage1_outputs(session, predictor, bundle, logs)  # memory-mapped
+    if classifier is None:
+        return logs, outs, score_logs((), (), [outs[x.id].surprise() for x in logs])
+    features = [outs[x.id].lazy(classifier.feature_mode) for x in logs]
+    return logs, outs, score_logs(classifier.classifiers, features, [outs[x.id].surprise() for x in logs])
+
+
+def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[int] | None = None) -> SessionScores:
+    """What the UI shows: every log scored with the active predictor (and the active classifier when it was trained
+    on it), with highlight tracks and suggestion embeddings.
+
+    Args:
+        session: The session.
+        window: Smoothing of the tracks, in samples.
+        log_ids: Only these logs (the ones on screen, refreshed first after a retrain); their tracks are then ranked
+            among themselves until the whole session is scored.
+    """
+    p_version = session.active_model("predictor")
+    if p_version is None:
+        return SessionScores()
+    bundle = load_bundle(session.path / p_version.path)
+    c_version = session.active_model("classifier")
+    if c_version is not None and c_version.config.get("predictor") != p_version.id:
+        c_version = None  # trained on another predictor's features: its probabilities would mean nothing
+    c_bundle = None if c_version is None else load_bundle(session.path / c_version.path)
+    logs, outs, scored = _score_session_logs(session, p_version, bundle, c_bundle, log_ids)
+    ids = [x.id for x in logs]
+    tracks = labeling.normalised_tracks(scored, window=window)
+    return SessionScores(
+        p_version.id,
+        None if c_version is None else c_version.id,
+        () if c_bundle is None else tuple(c_bundle.classes),
+        dict(zip(ids, scored, strict=True)),
+        dict(zip(ids, tracks, strict=True)),
+        # rows are computed from the cache only where a suggestion reads them: an hour of them is 1.6 GB
+        {x.id: outs[x.id].lazy(EMBEDDING_MODE) for x in logs},  # (T, H + C) each
+    )
+
+
+def score_session(session: Session, log_ids: Sequence[int] | None = None) -> dict[int, labeling.LogScores]:
+    """What the export predicts: logs (default: all the model uses) scored with the active classifier and the
+    predictor it was trained on, from cached stage-1 outputs."""
+    c_version, bundle = active_bundle(session)
+    p_version = next((v for v in session.model_versions("predictor") if v.id == c_version.config["predictor"]), None)
+    if p_version is None:
+        raise WorkbenchError(f"{session.path}: the predictor classifier v{c_version.id} was trained on is gone")
+    logs, _, scored = _score_session_logs(session, p_version, bundle, bundle, log_ids)
+    return {x.id: s for x, s in zip(logs, scored, strict=True)}

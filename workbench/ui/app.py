@@ -1,0 +1,114 @@
+"""The browser workbench, served by viser: one server over a session, a view per browser, the session watched for
+changes made by other processes."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+from sessions import Session
+
+from .uploads import MAX_UPLOAD_MB, limit_uploads, safe_name
+
+
+class WorkbenchApp:
+    """A viser server over one session: shared state and training job, and one :class:`ClientView` per browser."""
+
+    def __init__(
+        self,
+        session: Session,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        hidden: int = 200,
+        max_epochs: tuple[int, int] = (30, 100),
+    ) -> None:
+        import viser
+
+        from training import TrainConfig
+
+        from .jobs import TrainJob
+        from .state import SharedState
+        from .view import ClientView
+
+        self.session = session
+        self.state = SharedState(session)
+        self.job = TrainJob(
+            self.state,
+            hidden=hidden,
+            predictor_config=TrainConfig(max_epochs=max_epochs[0], patience=5),
+            classifier_config=TrainConfig(max_epochs=max_epochs[1], patience=20),
+        )
+        self.server = viser.ViserServer(host=host, port=port, label="Terrain workbench", verbose=False)
+        self.server.gui.set_panel_label(f"Terrain workbench · {Path(session.path).name}")
+        self.views: dict[int, ClientView] = {}
+        self._views_lock = threading.Lock()
+
+        def connect(client) -> None:
+            view = ClientView(client, self.state, self.job)
+            with self._views_lock:
+                self.views[client.client_id] = view
+
+        def disconnect(client) -> None:
+            with self._views_lock:
+                view = self.views.pop(client.client_id, None)
+            if view is not None:
+                view.close()
+
+        self.server.on_client_connect(connect)
+        self.server.on_client_disconnect(disconnect)
+        limit_uploads(self.server, MAX_UPLOAD_MB << 20, self._upload_refused)
+        self._stop = threading.Event()
+        self._watch = threading.Thread(target=self._poll, name="session-watch", daemon=True)
+        self._watch.start()
+
+    def _upload_refused(self, client_id: int, name: str, size: int) -> None:
+        client = self.server.get_clients().get(client_id)  # the client, not its view: that may still be building
+        if client is not None:
+            body = (f"{safe_name(name)}: {size / 2**20:.0f} MB is over the {MAX_UPLOAD_MB} MB upload limit; "
+                    "ingest it with `workbench ingest` instead")  # fmt: skip
+            client.add_notification("Not done", body, auto_close_seconds=8.0, color="red")
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+
+    def _fingerprint(self) -> tuple:
+        history = self.session.history(limit=1)
+        return (len(self.session.logs()), history[0].op_id if history else 0,
+                len(self.session.segments()), tuple(v.id for v in self.session.model_versions()))  # fmt: skip
+
+    def _poll(self) -> None:
+        # Another process (a CLI ingest, import or train) may change the session: follow it.
+        last = self._fingerprint()
+        while not self._stop.wait(2.0):
+            try:
+                now = self._fingerprint()
+            except Exception:
+                continue
+            if now == last:
+                continue
+            if now[0] != last[0]:
+                self.state.logs_changed()
+            if now[1:3] != last[1:3]:
+                self.state.notify("labels")
+                self.state.refresh(scores=False)
+            if now[3] != last[3] and not self.job.running:
+                self.state.notify("models")
+                self.state.refresh(scores=True)
+            last = now
+
+    def stop(self) -> None:
+        self._stop.set()
+        self.state.stop()
+        self.server.stop()
+
+    def serve_forever(self) -> None:
+        try:
+            while True:
+                time.sleep(3600)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.stop()
