@@ -5,7 +5,7 @@ within one terrain patch each, so every trial has one true terrain), the paper's
 has labelled 4 % of the time and has a trained model; they label up to 5 % and press Retrain.
 
 - **Ours**: what the UI's Retrain does (``TrainJob``): stage 2 warm-started from the active models on the cached
-  stage-1 features for ``WARM_EPOCHS`` epochs on the labels added since (the last 1 %) with as many older ones
+  stage-1 features for ``RETRAIN.warm_epochs`` epochs on the labels added since (the last 1 %) with as many older ones
   replayed, at a fifth of the learning rate (the features already in memory from the setup's training, as after
   any earlier retrain in the same server), then the log on screen rescored and redrawn before the others. Timed
   from ``job.start()`` to the "scores" event that carries the new model's scores of that log; the full rescore is
@@ -35,8 +35,9 @@ from sessions import Session
 from training import TrainConfig
 from workbench import cycle
 from workbench.demo import TERRAINS, generate_walk
+from workbench.retrain import RETRAIN
 from workbench.scores import compute_scores
-from workbench.ui.jobs import WARM_EPOCHS, TrainJob
+from workbench.ui import TrainJob
 from workbench.ui.state import SharedState
 
 HIDDEN = 200
@@ -195,7 +196,7 @@ def main() -> None:
             f"unlabelled trials: quick fine-tune {100 * acc_ours:.2f} %, then from scratch in the background "
             f"{100 * acc_refined:.2f} % (naive: {100 * acc_naive:.2f} %; before the retrain: "
             f"{100 * acc_before:.2f} %); "
-            f"fine-tune {WARM_EPOCHS} epoch(s); view first: {'yes' if view_first else '**no**'}",
+            f"fine-tune {RETRAIN.warm_epochs} epoch(s); view first: {'yes' if view_first else '**no**'}",
         )
     ]
     record("retrain", rows, device=args.device)

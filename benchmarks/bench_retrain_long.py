@@ -33,8 +33,9 @@ from sessions import Session
 from training import TrainConfig
 from workbench import cycle
 from workbench.demo import generate_demo_logs
+from workbench.retrain import RETRAIN
 from workbench.scores import compute_scores
-from workbench.ui.jobs import CLASSIFIER_CONFIG, TrainJob
+from workbench.ui import TrainJob
 from workbench.ui.state import SharedState
 
 HIDDEN = 200
@@ -126,14 +127,14 @@ def main() -> None:
         label_stretches(session, rng, SETUP_LABELS)
         t = time.perf_counter()
         cycle.train_predictor(session, config=STAGE1, hidden=HIDDEN)
-        setup = cycle.train_classifier(session, config=CLASSIFIER_CONFIG, hidden=HIDDEN)
+        setup = cycle.train_classifier(session, config=RETRAIN.classifier, hidden=HIDDEN)
         print(f"setup models {time.perf_counter() - t:.0f} s", flush=True)
         label_stretches(session, rng, NEW_LABELS)
         labelled = sum(s.length for s in session.segments())
         shown = logs[-1].id
         runs = {}
         for weight in (0.0, WEIGHT):  # the reference first: the term's run cannot profit from a warmer cache
-            config = replace(CLASSIFIER_CONFIG, consistency=weight)
+            config = replace(RETRAIN.classifier, consistency=weight)
             session.activate_model(setup.id)
             torch.manual_seed(0)
             t_view, t_all, acc_quick = retrain(session, config, shown)

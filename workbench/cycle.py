@@ -39,6 +39,8 @@ from training import (
     to_dict,
 )
 
+from .retrain import RETRAIN
+
 
 def model_logs(session: Session, channels: Sequence[str] | None = None) -> list[LogInfo]:
     """The logs a model uses: those with ``channels``, or with the most common channel set of the session."""
@@ -156,7 +158,6 @@ def active_predictor(session: Session) -> tuple[ModelVersion, ModelBundle]:
 
 
 PREDICTOR_BATCH = 64  # logs per stage-1 call when filling the cache
-WARM_LR_SCALE = 0.2  # learning rate of the UI's warm fine-tune, as a share of the configured one
 
 
 def stage1_outputs(
@@ -294,7 +295,7 @@ def train_classifier(
         warm_epochs: When warm-starting, train at most this many epochs (patience 1) instead of ``config``'s: the
             UI's Retrain is a short fine-tune, since the previous models already fit all but the newest labels. It
             trains on the labels added or changed since the active version and as many older ones replayed, at
-            ``WARM_LR_SCALE`` of the learning rate.
+            ``RETRAIN.warm_lr_scale`` of the learning rate.
         progress: Called after every optimiser step.
         cancel: Polled after every step.
     """
@@ -316,9 +317,7 @@ def train_classifier(
             init = old.classifiers
     new = None
     if init is not None and warm_epochs is not None:
-        # a fifth of the learning rate: at the full rate two epochs of new labels and replayed old ones pulled the
-        # warm models off what they knew (QCAT-scale bench: 75.9 % on unlabelled trials at 0.005, 81.2 % at 0.001)
-        config = replace(config, max_epochs=warm_epochs, patience=1, lr=config.lr * WARM_LR_SCALE)
+        config = replace(config, max_epochs=warm_epochs, patience=1, lr=config.lr * RETRAIN.warm_lr_scale)
         new = _new_labels(used, previous.config.get("labels"))
     pairs = []
     if config.consistency > 0:

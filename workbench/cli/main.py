@@ -15,6 +15,7 @@ import tyro
 
 from sessions import IngestError, IngestOptions, Session, WorkbenchError, load_mapping
 
+from ..retrain import RETRAIN
 from . import model_commands
 from .ingest_report import dry_run_report
 
@@ -123,9 +124,9 @@ def serve(
     session: Pos[Path],
     host: str = "127.0.0.1",
     port: int = 8080,
-    hidden: int = 200,
-    stage1_epochs: int = 30,
-    stage2_epochs: int = 100,
+    hidden: int = RETRAIN.hidden,
+    stage1_epochs: int = RETRAIN.predictor.max_epochs,
+    stage2_epochs: int = RETRAIN.classifier.max_epochs,
 ) -> None:
     """Serve the workbench UI for a session in the browser.
 
@@ -203,7 +204,10 @@ def demo(
             )
             if len({seg.terrain for seg in added}) >= 2:
                 # stage 2 on a few seconds of labels is cheap: let early stopping end it, not the quick-start cap
-                model_commands.train(session, stage="classifier", max_epochs=100, patience=20, hidden=hidden)
+                stage2 = RETRAIN.classifier  # as the page's Retrain trains it
+                model_commands.train(
+                    session, stage="classifier", max_epochs=stage2.max_epochs, patience=stage2.patience, hidden=hidden
+                )
             else:
                 print("classifier: skipped (the seed labels cover fewer than two terrains)")
     if serve_ui:

@@ -29,6 +29,7 @@ from training import (
 )
 
 from ..cycle import consistency_pairs
+from ..retrain import RETRAIN
 from ..scores import score_logs
 from ..suggestions import SUGGESTION_S, suggestion_lengths
 from .curves_plot import plot_curves
@@ -44,11 +45,11 @@ class SimSettings:
     batch: int = 4
     hidden: int = 64
     stage1_epochs: int = 20
-    # Stage 2 stops as the UI's Retrain does (workbench.ui.jobs.CLASSIFIER_CONFIG). The 40 epochs with patience 8
+    # Stage 2 stops as the UI's Retrain does (workbench.retrain.RETRAIN). The 40 epochs with patience 8
     # used before stopped so early that one set of demo labels (181 s) gave 68.6, 69.0 and 79.8 % over three
     # training seeds, against 75.8, 73.4 and 73.8 % with these: the curves measured the training's luck.
-    stage2_epochs: int = 100
-    stage2_patience: int = 20
+    stage2_epochs: int = RETRAIN.classifier.max_epochs
+    stage2_patience: int = RETRAIN.classifier.patience
     folds: int = 3  # ensemble members (disagreement needs more than one)
     consistency: float = TrainConfig.consistency  # weight of stage 2's term on unlabelled neighbours (0: labels only)
     feature_mode: FeatureMode = "hidden+surprise"  # what stage 1 hands stage 2 (and the suggestions' embeddings)

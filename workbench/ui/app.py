@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from sessions import Session
 
+from ..retrain import RETRAIN
 from .uploads import MAX_UPLOAD_MB, limit_uploads, safe_name
 
 
@@ -21,12 +23,10 @@ class WorkbenchApp:
         *,
         host: str = "127.0.0.1",
         port: int = 8080,
-        hidden: int = 200,
-        max_epochs: tuple[int, int] = (30, 100),
+        hidden: int = RETRAIN.hidden,
+        max_epochs: tuple[int, int] = (RETRAIN.predictor.max_epochs, RETRAIN.classifier.max_epochs),
     ) -> None:
         import viser
-
-        from training import TrainConfig
 
         from .jobs import TrainJob
         from .state import SharedState
@@ -37,8 +37,8 @@ class WorkbenchApp:
         self.job = TrainJob(
             self.state,
             hidden=hidden,
-            predictor_config=TrainConfig(max_epochs=max_epochs[0], patience=5),
-            classifier_config=TrainConfig(max_epochs=max_epochs[1], patience=20),
+            predictor_config=replace(RETRAIN.predictor, max_epochs=max_epochs[0]),
+            classifier_config=replace(RETRAIN.classifier, max_epochs=max_epochs[1]),
         )
         self.server = viser.ViserServer(host=host, port=port, label="Terrain workbench", verbose=False)
         self.server.gui.set_panel_label(f"Terrain workbench · {Path(session.path).name}")

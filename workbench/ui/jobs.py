@@ -18,14 +18,8 @@ from sessions import WorkbenchError
 from training import Cancelled, Progress, TrainConfig
 
 from ..cycle import train_classifier, train_predictor
+from ..retrain import RETRAIN
 from .state import SharedState
-
-PREDICTOR_CONFIG = TrainConfig(max_epochs=30, patience=5)
-# A Retrain after a few more labels fine-tunes the active models for this many epochs: they fit all the older labels
-# already, and a person waits for this one (benchmarks/bench_retrain.py measures the cycle and its accuracy against
-# a full retrain from scratch).
-WARM_EPOCHS = 2
-CLASSIFIER_CONFIG = TrainConfig(max_epochs=100, patience=20)
 
 
 @dataclass(frozen=True)
@@ -66,11 +60,11 @@ class TrainJob:
         self,
         state: SharedState,
         *,
-        hidden: int = 200,
-        predictor_config: TrainConfig = PREDICTOR_CONFIG,
-        classifier_config: TrainConfig = CLASSIFIER_CONFIG,
-        warm_epochs: int | None = WARM_EPOCHS,
-        refine: bool = True,
+        hidden: int = RETRAIN.hidden,
+        predictor_config: TrainConfig = RETRAIN.predictor,
+        classifier_config: TrainConfig = RETRAIN.classifier,
+        warm_epochs: int | None = RETRAIN.warm_epochs,
+        refine: bool = RETRAIN.refine,
     ) -> None:
         self.state = state
         self.hidden = hidden

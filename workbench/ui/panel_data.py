@@ -15,13 +15,13 @@ from sessions import IngestError, Session, WorkbenchError
 from .uploads import MAX_UPLOAD_MB, UPLOAD_SUFFIXES, safe_name
 
 if TYPE_CHECKING:
-    from .view import ClientView
+    from .host import PanelHost
 
 _STYLE = (
     "<style>.wb-table{border-collapse:collapse;width:100%;font-size:0.8em;white-space:nowrap}"
     ".wb-table th,.wb-table td{padding:3px 5px;border-bottom:1px solid #e0e0e0;text-align:left}"
     ".wb-table th{color:#666;font-weight:500}"
-    ".wb-table td.n,.wb-table th.n{text-align:right;font-variant-numeric:tabular-nums}"
+    ".wb-table td.n,.wb-table th.n{text-align:right;font-variant-numeric:tabular-nums}</style>"
 )
 
 
@@ -60,22 +60,22 @@ def logs_table_html(session: Session) -> str:
 
 
 class DataPanel:
-    def __init__(self, view: ClientView) -> None:
-        self.view = view
-        gui = view.client.gui
+    def __init__(self, host: PanelHost) -> None:
+        self.host = host
+        gui = host.client.gui
         self.logs = gui.add_html("")
         self.upload = gui.add_upload_button(f"Upload MCAP / CSV (≤ {MAX_UPLOAD_MB} MB)", icon="upload")
-        self.upload.on_upload(lambda _: view._guard(self._uploaded))
+        self.upload.on_upload(lambda _: host.guard(self._uploaded))
         with gui.add_folder("Download"):
             for fmt in ("csv", "parquet", "json"):
                 b = gui.add_button(f"Labels ({fmt.upper()})", icon="download")
-                b.on_click(lambda _, fmt=fmt: view._guard(lambda: self.download_labels(fmt)))
+                b.on_click(lambda _, fmt=fmt: host.guard(lambda: self.download_labels(fmt)))
             self.bundle_button = gui.add_button("Model bundle (zip: PyTorch, ONNX, card)", icon="package")
-            self.bundle_button.on_click(lambda _: view._guard(self.download_bundle))
+            self.bundle_button.on_click(lambda _: host.guard(self.download_bundle))
         self.refresh()
 
     def refresh(self) -> None:
-        self.logs.content = logs_table_html(self.view.state.session)
+        self.logs.content = logs_table_html(self.host.state.session)
 
     def _uploaded(self) -> None:
         f = self.upload.value
@@ -87,7 +87,7 @@ class DataPanel:
                 f"{name}: {len(f.content) / 2**20:.0f} MB is over the {MAX_UPLOAD_MB} MB limit; "
                 "ingest it with `workbench ingest` instead"
             )
-        session = self.view.state.session
+        session = self.host.state.session
         folder = session.path / "uploads"
         folder.mkdir(exist_ok=True)
         path = folder / name
@@ -107,23 +107,23 @@ class DataPanel:
         added = [x for x in logs if x.id not in before]
         if not added:
             path.unlink(missing_ok=True)
-            self.view.notify("Already here", f"{name} is already in the session", color="blue")
+            self.host.notify("Already here", f"{name} is already in the session", color="blue")
             return
-        self.view.notify("Ingested", ", ".join(f"{x.name} ({x.duration_s:.0f} s)" for x in added))
-        self.view.state.logs_changed()
+        self.host.notify("Ingested", ", ".join(f"{x.name} ({x.duration_s:.0f} s)" for x in added))
+        self.host.state.logs_changed()
 
     def download_labels(self, fmt: str) -> None:
-        session = self.view.state.session
+        session = self.host.state.session
         with tempfile.TemporaryDirectory() as tmp:
             path = session.export_labels(Path(tmp) / f"labels.{fmt}")
             data = path.read_bytes()
-        self.view.client.send_file_download(f"{session.path.name}-labels.{fmt}", data, save_immediately=True)
+        self.host.client.send_file_download(f"{session.path.name}-labels.{fmt}", data, save_immediately=True)
 
     def download_bundle(self) -> None:
         from ..export import export_all
 
-        session = self.view.state.session
-        self.view.notify("Exporting", "building the bundle and checking ONNX against PyTorch", color="blue")
+        session = self.host.state.session
+        self.host.notify("Exporting", "building the bundle and checking ONNX against PyTorch", color="blue")
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "export"
             export_all(session, out)
@@ -132,4 +132,4 @@ class DataPanel:
                 for p in sorted(out.rglob("*")):
                     if p.is_file():
                         z.write(p, p.relative_to(out))
-        self.view.client.send_file_download(f"{session.path.name}-model.zip", buf.getvalue(), save_immediately=True)
+        self.host.client.send_file_download(f"{session.path.name}-model.zip", buf.getvalue(), save_immediately=True)

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from sessions import WorkbenchError
 
 if TYPE_CHECKING:
-    from .view import ClientView
+    from .host import PanelHost
 
 NONE_CHOSEN = "(choose a segment)"
 KEYS_HELP = (
@@ -21,10 +21,10 @@ KEYS_HELP = (
 
 
 class LabelPanel:
-    def __init__(self, view: ClientView) -> None:
-        self.view = view
-        gui = view.client.gui
-        terrains = [t.name for t in view.state.terrains()]
+    def __init__(self, host: PanelHost) -> None:
+        self.host = host
+        gui = host.client.gui
+        terrains = [t.name for t in host.state.terrains()]
         gui.add_html(KEYS_HELP)
         self.range = gui.add_multi_slider(
             "Range (s)",
@@ -35,90 +35,90 @@ class LabelPanel:
             min_range=0.0,
             hint="Drag both handles, or press B and E at the cursor",
         )
-        self.range.on_update(lambda _: view._guard(self._range_moved))
+        self.range.on_update(lambda _: host.guard(self._range_moved))
         self.terrain = gui.add_dropdown("Terrain", terrains or ("(no terrains)",), hint="Keys 1–9")
         self.save_button = gui.add_button("Save label (Enter)", icon="device-floppy", color="green")
-        self.save_button.on_click(lambda _: view._guard(self.save))
+        self.save_button.on_click(lambda _: host.guard(self.save))
         self.snap_html = gui.add_html("")
         self.snap_button = gui.add_button("Take snap (P)", icon="magnet", visible=False)
-        self.snap_button.on_click(lambda _: view._guard(self.take_snap))
+        self.snap_button.on_click(lambda _: host.guard(self.take_snap))
         self._snap: tuple[int, int] | None = None
         with gui.add_folder("Segments of this log"):
             self.segments = gui.add_dropdown("Segment", ("(none)",))
             self.go_button = gui.add_button("Go to", icon="player-play")
-            self.go_button.on_click(lambda _: view._guard(self.go_to))
+            self.go_button.on_click(lambda _: host.guard(self.go_to))
             self.relabel_button = gui.add_button("Relabel as chosen terrain", icon="pencil")
-            self.relabel_button.on_click(lambda _: view._guard(self.relabel))
+            self.relabel_button.on_click(lambda _: host.guard(self.relabel))
             self.delete_button = gui.add_button("Delete", icon="trash", color="red")
-            self.delete_button.on_click(lambda _: view._guard(self.delete))
+            self.delete_button.on_click(lambda _: host.guard(self.delete))
             self.undo_button = gui.add_button("Undo my last change (U)", icon="arrow-back-up")
-            self.undo_button.on_click(lambda _: view._guard(self.undo))
+            self.undo_button.on_click(lambda _: host.guard(self.undo))
         self.summary = gui.add_html("")
         self.refresh()
 
     # -------------------------------------------------------------------------------------------- range
     def _set_range(self, start: int, stop: int) -> None:
-        view = self.view
-        log = view.log
+        host = self.host
+        log = host.log
         if log is None:
             return
         start, stop = max(0, min(start, log.n_samples)), max(0, min(stop, log.n_samples))
-        view.selection = (min(start, stop), max(start, stop)) if start != stop else None
-        with view.quiet():
+        host.selection = (min(start, stop), max(start, stop)) if start != stop else None
+        with host.quiet():
             self.range.max = round(log.duration_s, 2)
-            lo, hi = view.selection or (start, start)
+            lo, hi = host.selection or (start, start)
             self.range.value = (round(lo / log.rate_hz, 2), round(hi / log.rate_hz, 2))
         self._propose_snap()
-        view.redraw()
+        host.redraw()
 
     def _range_moved(self) -> None:
-        log = self.view.log
+        log = self.host.log
         if log is None:
             return
         lo, hi = self.range.value
         self._set_range(log.sample_at(lo), log.sample_at(hi))
 
     def mark_start(self) -> None:
-        log = self.view.log
+        log = self.host.log
         if log is None:
             return
-        a = log.sample_at(self.view.cursor_s)
-        b = self.view.selection[1] if self.view.selection and self.view.selection[1] > a else a + round(log.rate_hz)
+        a = log.sample_at(self.host.cursor_s)
+        b = self.host.selection[1] if self.host.selection and self.host.selection[1] > a else a + round(log.rate_hz)
         self._set_range(a, b)
 
     def mark_end(self) -> None:
-        log = self.view.log
+        log = self.host.log
         if log is None:
             return
-        b = log.sample_at(self.view.cursor_s)
-        a = self.view.selection[0] if self.view.selection and self.view.selection[0] < b else b - round(log.rate_hz)
+        b = log.sample_at(self.host.cursor_s)
+        a = self.host.selection[0] if self.host.selection and self.host.selection[0] < b else b - round(log.rate_hz)
         self._set_range(a, b)
 
     def select(self, start: int, stop: int, terrain: str | None = None) -> None:
         """Select a range of the current log (a suggestion, a segment) and optionally a terrain."""
         if terrain is not None:
-            self.view.set_widget(self.terrain, terrain)
+            self.host.set_widget(self.terrain, terrain)
         self._set_range(start, stop)
 
     def clear(self) -> None:
-        self.view.selection = None
+        self.host.selection = None
         self._snap = None
         self.snap_html.content = ""
         self.snap_button.visible = False
-        self.view.redraw()
+        self.host.redraw()
 
     def pick_terrain(self, index: int) -> None:
-        terrains = [t.name for t in self.view.state.terrains()]
+        terrains = [t.name for t in self.host.state.terrains()]
         if index < len(terrains):
-            self.view.set_widget(self.terrain, terrains[index])
+            self.host.set_widget(self.terrain, terrains[index])
 
     def _propose_snap(self) -> None:
-        view, sel, log = self.view, self.view.selection, self.view.log
+        host, sel, log = self.host, self.host.selection, self.host.log
         self._snap = None
         if sel is None or log is None:
             self.snap_html.content, self.snap_button.visible = "", False
             return
-        snap = view.state.snap(log.id, *sel)
+        snap = host.state.snap(log.id, *sel)
         if not (snap.moved_start or snap.moved_stop) or (snap.start, snap.stop) == sel:
             self.snap_html.content = "<small style='color:#777'>No change point near the edges.</small>"
             self.snap_button.visible = False
@@ -141,44 +141,44 @@ class LabelPanel:
 
     # -------------------------------------------------------------------------------------------- saving
     def save(self, *, terrain: str | None = None, source: str = "manual") -> None:
-        view, log, sel = self.view, self.view.log, self.view.selection
+        host, log, sel = self.host, self.host.log, self.host.selection
         if log is None or sel is None:
             raise WorkbenchError("mark a range first: B and E at the cursor, or drag the range handles")
         terrain = terrain or self.terrain.value
-        seg = view.state.add_label(log.id, sel[0], sel[1], terrain, author=view.author, source=source)
-        view.notify("Saved", f"{(sel[1] - sel[0]) / log.rate_hz:.1f} s of {terrain} on {log.name} (segment {seg.id})")
+        seg = host.state.add_label(log.id, sel[0], sel[1], terrain, author=host.author, source=source)
+        host.notify("Saved", f"{(sel[1] - sel[0]) / log.rate_hz:.1f} s of {terrain} on {log.name} (segment {seg.id})")
         self.clear()
 
     def undo(self) -> None:
-        kind = self.view.state.undo(author=self.view.author)
-        self.view.notify("Undone", f"your last {kind}", color="blue")
+        kind = self.host.state.undo(author=self.host.author)
+        self.host.notify("Undone", f"your last {kind}", color="blue")
 
     def _chosen_segment(self):
         value = self.segments.value
         if not value.startswith("#"):
             raise WorkbenchError("no segment chosen")
-        return self.view.state.session.segment(int(value[1:].split()[0]))
+        return self.host.state.session.segment(int(value[1:].split()[0]))
 
     def go_to(self) -> None:
         seg = self._chosen_segment()
-        log = self.view.state.log(seg.log_id)
-        self.view.show(log, start_s=seg.start / log.rate_hz, stop_s=seg.stop / log.rate_hz)
+        log = self.host.state.log(seg.log_id)
+        self.host.show(log, start_s=seg.start / log.rate_hz, stop_s=seg.stop / log.rate_hz)
         self.select(seg.start, seg.stop, seg.terrain)
 
     def relabel(self) -> None:
         seg = self._chosen_segment()
-        self.view.state.change_label(seg.id, author=self.view.author, terrain=self.terrain.value)
+        self.host.state.change_label(seg.id, author=self.host.author, terrain=self.terrain.value)
         note = f"segment {seg.id}: {seg.terrain} → {self.terrain.value}; U undoes"
-        self.view.notify("Relabelled", note, color="blue")
+        self.host.notify("Relabelled", note, color="blue")
 
     def delete(self) -> None:
         seg = self._chosen_segment()
-        self.view.state.delete_label(seg.id, author=self.view.author)
-        self.view.notify("Deleted", f"segment {seg.id} ({seg.terrain}); U undoes", color="blue")
+        self.host.state.delete_label(seg.id, author=self.host.author)
+        self.host.notify("Deleted", f"segment {seg.id} ({seg.terrain}); U undoes", color="blue")
 
     def refresh(self) -> None:
-        view, log = self.view, self.view.log
-        state = view.state
+        host, log = self.host, self.host.log
+        state = host.state
         terrains = [t.name for t in state.terrains()]
         if terrains and tuple(terrains) != tuple(self.terrain.options):
             self.terrain.options = terrains
@@ -188,7 +188,7 @@ class LabelPanel:
             if log is not None
             else ()
         )
-        with view.quiet():
+        with host.quiet():
             # Viser keeps the value when it is still listed, else falls on the first entry: "(choose a segment)", not
             # a segment Delete would then remove. A choice whose text changed (another person relabelled it) is
             # kept by its id. The value is read again after the options change, because the person may choose

@@ -10,36 +10,36 @@ import labeling
 from sessions import WorkbenchError
 
 if TYPE_CHECKING:
+    from .host import PanelHost
     from .state import Queued
-    from .view import ClientView
 
 
 class SuggestPanel:
-    def __init__(self, view: ClientView) -> None:
-        self.view = view
-        gui = view.client.gui
+    def __init__(self, host: PanelHost) -> None:
+        self.host = host
+        gui = host.client.gui
         self.current: Queued | None = None
         self._skipped: set[tuple[int, int, int]] = set()
         self.info = gui.add_html("")
         self.next_button = gui.add_button("Next suggestion (N)", icon="arrow-right", color="teal")
-        self.next_button.on_click(lambda _: view._guard(self.next))
+        self.next_button.on_click(lambda _: host.guard(self.next))
         self.accept_button = gui.add_button("Accept guess (A)", icon="check", color="green", disabled=True)
-        self.accept_button.on_click(lambda _: view._guard(self.accept))
+        self.accept_button.on_click(lambda _: host.guard(self.accept))
         self.skip_button = gui.add_button("Skip (X)", icon="player-skip-forward", disabled=True)
-        self.skip_button.on_click(lambda _: view._guard(self.skip))
+        self.skip_button.on_click(lambda _: host.guard(self.skip))
         self.table = gui.add_html("")
         self.strategy = gui.add_dropdown(
             "Rank by",
             labeling.STRATEGIES,
-            initial_value=view.state.strategy,
+            initial_value=host.state.strategy,
             hint="How the shared queue is ranked (for everyone): combined mixes uncertainty, disagreement, surprise "
             "and diversity; the others use one score alone; random is the baseline",
         )
-        self.strategy.on_update(lambda _: view._guard(lambda: view.state.set_strategy(self.strategy.value)))
+        self.strategy.on_update(lambda _: host.guard(lambda: host.state.set_strategy(self.strategy.value)))
         self.refresh()
 
     def visible_queue(self) -> list[Queued]:
-        return [q for q in self.view.state.queue if q.key not in self._skipped]
+        return [q for q in self.host.state.queue if q.key not in self._skipped]
 
     def next(self) -> None:
         queue = self.visible_queue()
@@ -52,8 +52,8 @@ class SuggestPanel:
     def _show(self, q: Queued) -> None:
         self.current = q
         a, b = q.seconds
-        self.view.show(q.log, start_s=a, stop_s=b)
-        self.view.label_panel.select(q.start, q.stop, q.guess)
+        self.host.show(q.log, start_s=a, stop_s=b)
+        self.host.label_panel.select(q.start, q.stop, q.guess)
         self.refresh()
 
     def accept(self) -> None:
@@ -62,11 +62,11 @@ class SuggestPanel:
             raise WorkbenchError("no suggestion on screen: press N first")
         if q.guess is None:
             raise WorkbenchError("no guess yet (no classifier): choose the terrain (1–9) and press Enter")
-        self.view.label_panel.select(q.start, q.stop)
-        if self.view.log is None or self.view.log.id != q.log.id:
-            self.view.show(q.log)
-            self.view.label_panel.select(q.start, q.stop)
-        self.view.label_panel.save(terrain=q.guess, source="suggestion")
+        self.host.label_panel.select(q.start, q.stop)
+        if self.host.log is None or self.host.log.id != q.log.id:
+            self.host.show(q.log)
+            self.host.label_panel.select(q.start, q.stop)
+        self.host.label_panel.save(terrain=q.guess, source="suggestion")
         self._advance(q)
 
     def skip(self) -> None:
@@ -85,7 +85,7 @@ class SuggestPanel:
             self.refresh()
 
     def _empty_reason(self) -> str:
-        state = self.view.state
+        state = self.host.state
         if state.busy or not state.scored:
             return f"suggestions are being computed ({state.busy or 'starting'}); they appear here in a moment"
         if state.scores.predictor is None:
@@ -93,8 +93,8 @@ class SuggestPanel:
         return "no suggestions left (everything worth labelling is labelled, or all were skipped)"
 
     def refresh(self) -> None:
-        if self.strategy.value != self.view.state.strategy:  # another browser changed it
-            self.view.set_widget(self.strategy, self.view.state.strategy)
+        if self.strategy.value != self.host.state.strategy:  # another browser changed it
+            self.host.set_widget(self.strategy, self.host.state.strategy)
         queue = self.visible_queue()
         if self.current is not None and self.current.key not in {q.key for q in queue}:
             # the queue was recomputed: keep showing the same stretch if it is still suggested

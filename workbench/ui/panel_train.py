@@ -13,17 +13,17 @@ from sessions import WorkbenchError
 from .plots import confusion_image, learning_curve_image
 
 if TYPE_CHECKING:
-    from .view import ClientView
+    from .host import PanelHost
 
 
 class TrainPanel:
-    def __init__(self, view: ClientView) -> None:
-        self.view = view
-        gui = view.client.gui
+    def __init__(self, host: PanelHost) -> None:
+        self.host = host
+        gui = host.client.gui
         self.retrain_button = gui.add_button(
             "Retrain (R)", icon="refresh", color="green", hint="Stage 2 on the labels; stage 1 too when logs were added"
         )
-        self.retrain_button.on_click(lambda _: view._guard(self.retrain))
+        self.retrain_button.on_click(lambda _: host.guard(self.retrain))
         self.stage1 = gui.add_checkbox(
             "Also retrain the predictor (stage 1)",
             False,
@@ -32,7 +32,7 @@ class TrainPanel:
         self.progress = gui.add_progress_bar(0.0, visible=False)
         self.status = gui.add_html("")
         self.cancel_button = gui.add_button("Cancel", icon="x", color="red", visible=False)
-        self.cancel_button.on_click(lambda _: view._guard(view.job.cancel))
+        self.cancel_button.on_click(lambda _: host.guard(host.job.cancel))
         self.loss_plot = gui.add_uplot(
             (np.zeros(2), np.zeros(2)),
             ({"label": "epoch"}, {"label": "train loss", "stroke": "#2e7d32", "width": 1.5}),
@@ -45,7 +45,7 @@ class TrainPanel:
             self.versions = gui.add_html("")
             self.version_pick = gui.add_dropdown("Version", ("(none)",))
             self.activate_button = gui.add_button("Make active", icon="player-play")
-            self.activate_button.on_click(lambda _: view._guard(self.activate))
+            self.activate_button.on_click(lambda _: host.guard(self.activate))
             self.confusion = gui.add_image(
                 np.full((10, 10, 3), 255, np.uint8), label="Confusion (out of fold)", visible=False
             )
@@ -55,9 +55,9 @@ class TrainPanel:
         self.refresh("models")
 
     def retrain(self) -> None:
-        job = self.view.job
+        job = self.host.job
         what = job.start(predictor=bool(self.stage1.value))
-        self.view.notify(
+        self.host.notify(
             "Training started", f"{what}; keep labelling, the page refreshes when it is done", color="blue"
         )
 
@@ -66,15 +66,15 @@ class TrainPanel:
         if not value.startswith("v"):
             raise WorkbenchError("no version chosen")
         vid = int(value[1:].split()[0])
-        if self.view.job.running:
+        if self.host.job.running:
             raise WorkbenchError("a training run is going; wait for it or cancel it first")
-        self.view.state.session.activate_model(vid)
-        self.view.state.notify("models")
-        self.view.state.refresh(scores=True)
-        self.view.notify("Active", f"model v{vid} is active; highlights refresh")
+        self.host.state.session.activate_model(vid)
+        self.host.state.notify("models")
+        self.host.state.refresh(scores=True)
+        self.host.notify("Active", f"model v{vid} is active; highlights refresh")
 
     def refresh(self, event: str) -> None:
-        job, state = self.view.job, self.view.state
+        job, state = self.host.job, self.host.state
         st = job.status
         running = st.state in ("running", "refining")
         self.retrain_button.disabled = st.state == "running"  # while refining, Retrain starts a newer quick one
@@ -108,7 +108,7 @@ class TrainPanel:
             self._versions()
 
     def _versions(self) -> None:
-        versions = self.view.state.session.model_versions()
+        versions = self.host.state.session.model_versions()
         key = tuple((v.id, v.active) for v in versions)
         if key == self._drawn_versions:
             return
@@ -132,7 +132,7 @@ class TrainPanel:
             else "<small>No models yet. Press Retrain.</small>"
         )
         opts = tuple(f"v{v.id} {v.stage}" + (" (active)" if v.active else "") for v in reversed(versions))
-        with self.view.quiet():
+        with self.host.quiet():
             self.version_pick.options = opts or ("(none)",)
         active = next((v for v in versions if v.active and v.stage == "classifier"), None)
         if active is not None and active.metrics.get("confusion"):

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from .view import ClientView
+    from .host import PanelHost
 
 BODY = (0.6, 0.3, 0.12)  # m, a small quadruped's trunk
 FEET = {"fl": (0.27, 0.14), "fr": (0.27, -0.14), "rl": (-0.27, 0.14), "rr": (-0.27, -0.14)}
@@ -45,9 +45,9 @@ def _rotate(wxyz: tuple[float, float, float, float], v: np.ndarray) -> np.ndarra
 
 
 class RobotView:
-    def __init__(self, view: ClientView) -> None:
-        self.view = view
-        scene = view.client.scene
+    def __init__(self, host: PanelHost) -> None:
+        self.host = host
+        scene = host.client.scene
         scene.set_up_direction("+z")
         scene.add_grid("/ground", 3.0, 3.0, cell_size=0.25, position=(0.0, 0.0, 0.0))
         self.body = scene.add_box("/robot/body", color=(90, 110, 100), dimensions=BODY, position=(0, 0, LEG))
@@ -63,12 +63,12 @@ class RobotView:
         self._thread.start()
 
     def update(self) -> None:
-        log = self.view.log
+        log = self.host.log
         if log is None:
             return
         names = log.channel_names
-        i = min(log.sample_at(self.view.cursor_s), log.n_samples - 1)
-        row = np.asarray(self.view.state.session.array(log.id)[i], np.float64)
+        i = min(log.sample_at(self.host.cursor_s), log.n_samples - 1)
+        row = np.asarray(self.host.state.session.array(log.id)[i], np.float64)
         q = [_channel(names, "orientation", f".{a}") for a in "xyzw"]
         wxyz = _quat_wxyz(*(row[k] for k in q)) if None not in q else (1.0, 0.0, 0.0, 0.0)  # type: ignore[misc]
         self.body.wxyz = wxyz
@@ -97,15 +97,15 @@ class RobotView:
             if self._closed.is_set():  # close() wakes the loop to end it
                 return
             now = time.monotonic()
-            log = self.view.log
+            log = self.host.log
             if log is None:
                 continue
-            t = self.view.cursor_s + (now - last)
+            t = self.host.cursor_s + (now - last)
             last = now
             if t >= log.duration_s:
                 self._playing.clear()
                 t = log.duration_s
-            self.view._guard(lambda t=t: self.view.move_cursor(t))
+            self.host.guard(lambda t=t: self.host.move_cursor(t))
 
     def close(self) -> None:
         self._closed.set()

@@ -1,6 +1,8 @@
 """One browser's view: its own log, window, cursor and selection over the shared state; hotkeys; the traces panel.
 
-Panels (label, suggestions, training, data, robot) live in their own modules and read and move this view.
+Panels (label, suggestions, training, data, robot) live in their own modules and see this view only as a
+:class:`~workbench.ui.host.PanelHost`; the tracks' arrays (``track_data``) and the legend (``legend``) are built
+outside it.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ from sessions import LogInfo, WorkbenchError
 
 from . import charts
 from .decimate import decimate
+from .legend import legend_html
+from .track_data import track_inputs
 
 if TYPE_CHECKING:
     import viser
@@ -109,15 +113,15 @@ class ClientView:
         self.log_dropdown = gui.add_dropdown(
             "Log", self._log_options(logs) or ("(no logs yet)",), hint="The log on screen"
         )
-        self.log_dropdown.on_update(lambda _: self._guard(self._pick_log))
+        self.log_dropdown.on_update(lambda _: self.guard(self._pick_log))
         self.cursor_slider = gui.add_slider(
             "Cursor (s)", 0.0, 1.0, 0.01, 0.0, hint="←/→ move the cursor; Shift+←/→ a whole window"
         )
-        self.cursor_slider.on_update(lambda _: self._guard(lambda: self.move_cursor(self.cursor_slider.value)))
+        self.cursor_slider.on_update(lambda _: self.guard(lambda: self.move_cursor(self.cursor_slider.value)))
         self.zoom = gui.add_dropdown(
             "Window", [_fmt_width(w) for w in WIDTHS_S], initial_value=_fmt_width(30.0), hint="↑ zoom in, ↓ zoom out"
         )
-        self.zoom.on_update(lambda _: self._guard(lambda: self.set_width(WIDTHS_S[self._zoom_index()])))
+        self.zoom.on_update(lambda _: self.guard(lambda: self.set_width(WIDTHS_S[self._zoom_index()])))
         self.legend = gui.add_html("")
         self.tracks_chart = None
         self._chart_area_order = 100.0
@@ -130,14 +134,14 @@ class ClientView:
                 self.threshold,
                 hint="Rank of the score in the session: 0.9 = top 10 % of time",
             )
-            self.threshold_slider.on_update(lambda _: self._guard(self._set_threshold))
+            self.threshold_slider.on_update(lambda _: self.guard(self._set_threshold))
             self.forces = gui.add_dropdown("Foot forces", ("by foot", "by axis"))
-            self.forces.on_update(lambda _: self._guard(self._set_forces))
+            self.forces.on_update(lambda _: self.guard(self._set_forces))
 
     def _log_options(self, logs: list[LogInfo]) -> tuple[str, ...]:
         return tuple(f"{x.id}: {x.name}" for x in logs)
 
-    def _guard(self, fn: Callable[[], None]) -> None:
+    def guard(self, fn: Callable[[], None]) -> None:
         """Run a widget callback unless the server itself moved the widget; report errors in the page."""
         if getattr(self._quiet, "depth", 0):
             return
@@ -172,7 +176,7 @@ class ClientView:
 
         def bind(label: str, key: str, fn: Callable[[], None], *, modifier: str | None = None, desc: str = "") -> None:
             cmd = gui.add_command(label, description=desc or None, hotkey=key, modifier=modifier)  # type: ignore[arg-type]
-            cmd.on_trigger(lambda _: self._guard(fn))
+            cmd.on_trigger(lambda _: self.guard(fn))
 
         bind("Cursor left", "arrowleft", lambda: self.step(-0.05))
         bind("Cursor right", "arrowright", lambda: self.step(0.05))
@@ -310,9 +314,7 @@ class ClientView:
                 charts.trace_chart(dec, g, cursor_s=self.cursor_s, show_x=(i == len(groups) - 1))
                 for i, g in enumerate(groups)
             ]
-            tracks = charts.tracks_chart(
-                self._track_inputs(log, dec.t, a, b), self._terrain_colors(), cursor_s=self.cursor_s
-            )
+            tracks = charts.tracks_chart(self._track_inputs(log, dec.t), self._terrain_colors(), cursor_s=self.cursor_s)
             key = (log.channel_names, self.forces_by, len(tracks["series"]))
             with self.client.atomic():
                 if key != self._chart_key:
@@ -323,7 +325,14 @@ class ClientView:
                         if handle.series != spec["series"]:  # a new series list rebuilds the chart: only if needed
                             handle.series = spec["series"]
                         handle.data = spec["data"]
-                self.legend.content = self._legend_html(log, a, b)
+                self.legend.content = legend_html(
+                    log,
+                    (a, b),
+                    terrains=self.state.terrains(),
+                    cursor_s=self.cursor_s,
+                    selection=self.selection,
+                    busy=self.state.busy,
+                )
             self.robot.update()
 
     def _rebuild_charts(self, tracks: dict, specs: list[dict]) -> None:
@@ -339,83 +348,27 @@ class ClientView:
     def _terrain_colors(self) -> list[tuple[str, str]]:
         return [(t.name, t.color) for t in self.state.terrains()]
 
-    def _track_inputs(self, log: LogInfo, t: np.ndarray, a: int, b: int) -> charts.TrackInputs:
-        terrains = [x.name for x in self.state.terrains()]
-        segs = [
-            (s.start, s.stop, terrains.index(s.terrain))
-            for s in self.state.session.segments(log.id)
-            if s.terrain in terrains
-        ]
-        idx = np.clip(np.round(t * log.rate_hz).astype(np.int64), 0, max(0, log.n_samples - 1))
-        # everything below works on the visible stretch only: a pan must not cost the whole log
-        lo, hi = (int(idx.min()), int(idx.max()) + 1) if len(idx) else (0, 0)
-        rel = idx - lo
-        labels = charts.per_sample_labels(hi - lo, [(x - lo, y - lo, k) for x, y, k in segs if y > lo and x < hi])[rel]
-        scores = self.state.scores
-        tracks = scores.tracks.get(log.id)
-        predicted = surprise = unsure = highlight = None
-        if tracks is not None:
-            win = {k: v[lo:hi] for k, v in tracks.items()}
-            surprise = _bucket_max(win["surprise"], rel)
-            kinds = [k for k in ("entropy", "margin") if k in win]
-            if kinds:
-                unsure = _bucket_max(np.maximum.reduce([win[k] for k in kinds]), rel)
-            high = np.zeros(hi - lo, bool)
-            for k in ("surprise", *kinds, "disagreement"):
-                if k in win:
-                    high |= win[k] >= self.threshold
-            highlight = high[rel]
-            probs = scores.scores[log.id].probs if log.id in scores.scores else None
-            if probs is not None:
-                order = [terrains.index(c) if c in terrains else -1 for c in scores.classes]
-                predicted = np.asarray(order)[probs[idx].argmax(axis=1)]
-        suggested = np.zeros(len(idx), bool)
-        current = np.zeros(len(idx), bool)
+    def _track_inputs(self, log: LogInfo, t: np.ndarray) -> charts.TrackInputs:
+        """The tracks' arrays at the decimated times ``t`` (``(P,)``, s) of the window on screen."""
+        queue = [q for q in self.suggest_panel.visible_queue() if q.log.id == log.id]
         cur = self.suggest_panel.current
-        for q in self.suggest_panel.visible_queue():
-            if q.log.id == log.id:
-                inside = (idx >= q.start) & (idx < q.stop)
-                suggested |= inside
-                if cur is not None and q.key == cur.key:
-                    current |= inside
-        selection = np.zeros(len(idx), bool)
-        if self.selection is not None:
-            selection = (idx >= self.selection[0]) & (idx < self.selection[1])
-        return charts.TrackInputs(t, labels, predicted, surprise, unsure, highlight, suggested, current, selection)
-
-    def _legend_html(self, log: LogInfo, a: int, b: int) -> str:
-        chips = "".join(
-            f"<span style='display:inline-block;padding:0 6px;margin:1px 2px;border-radius:8px;"
-            f"background:{t.color}33;border:1px solid {t.color}'>{i + 1} {t.name}</span>"
-            for i, t in enumerate(self.state.terrains()[:9])
-        )
-        sel = ""
-        if self.selection is not None:
-            s0, s1 = (x / log.rate_hz for x in self.selection)
-            sel = f" · range <b>{s0:.2f}–{s1:.2f} s</b>"
-        busy = f" · <i>{self.state.busy}…</i>" if self.state.busy else ""
-        return (
-            "<div style='font-size:0.8em;line-height:1.6'>"
-            f"<b>{log.name}</b> · {a / log.rate_hz:.1f}–{b / log.rate_hz:.1f} s of {log.duration_s:.0f} s · "
-            f"cursor {self.cursor_s:.2f} s{sel}{busy}<br>{chips}"
-            f"<span style='color:{charts.SURPRISE}'> ━ surprise</span>"
-            f"<span style='color:{charts.UNSURE}'> ━ uncertainty</span>"
-            "<span style='background:#ffb30040'> highlighted </span></div>"
+        current = next(((q.start, q.stop) for q in queue if cur is not None and q.key == cur.key), None)
+        return track_inputs(
+            log,
+            t,
+            terrains=[x.name for x in self.state.terrains()],
+            segments=self.state.session.segments(log.id),
+            scores=self.state.scores,
+            threshold=self.threshold,
+            suggested=[(q.start, q.stop) for q in queue],
+            current=current,
+            selection=self.selection,
         )
 
     def close(self) -> None:
         self.state.set_viewed(self.author, None)
         self._unsubscribe()
         self.robot.close()
-
-
-def _bucket_max(track: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """A ``(T,)`` track at the decimated sample indices ``idx`` (``(P,)``), keeping each span's peak."""
-    if len(idx) < 2:
-        return track[idx].astype(np.float64)
-    edges = np.append(idx, idx[-1] + 1)
-    hi = np.maximum.reduceat(track, np.clip(edges[:-1], 0, len(track) - 1))
-    return np.where(np.diff(edges) > 0, hi, track[idx]).astype(np.float64)
 
 
 def _fmt_width(seconds: float) -> str:
