@@ -17,7 +17,7 @@ from common import Row, fmt_s, parse_args, record
 
 from sessions import Session
 from workbench.demo import generate_walk, write_walk
-from workbench.ui.state import SharedState
+from workbench.ui import SharedState
 
 
 def bare_commits(folder: Path, n: int) -> np.ndarray:
@@ -60,10 +60,15 @@ def main() -> None:
         state.stop()
         bare = bare_commits(folder, n)
     p50, p99, b99 = np.median(times), np.percentile(times, 99), np.percentile(bare, 99)
-    row = Row(f"label save, click → committed ({n} labels, p50 / p99)", f"{fmt_s(p50)} / {fmt_s(p99)}",
-              f"bare SQLite insert + durable commit: {fmt_s(np.median(bare))} / {fmt_s(b99)}",
-              f"{p99 / b99:.1f}× the bare commit's p99", "≤ 50 ms p99", bool(p99 <= 0.05),
-              f"{len(kept)} of {n} labels in the session after, terrains {'right' if ok else '**wrong**'}")  # fmt: skip
+    row = Row(
+        f"label save, click → committed ({n} labels, p50 / p99)",
+        f"{fmt_s(p50)} / {fmt_s(p99)}",
+        f"bare SQLite insert + durable commit: {fmt_s(np.median(bare))} / {fmt_s(b99)}",
+        f"{p99 / b99:.1f}× the bare commit's p99",
+        "≤ 50 ms p99",
+        bool(p99 <= 0.05),
+        f"{len(kept)} of {n} labels in the session after, terrains {'right' if ok else '**wrong**'}",
+    )
     record("labels", [row], device=args.device)
 
 

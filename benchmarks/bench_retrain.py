@@ -37,8 +37,7 @@ from workbench import cycle
 from workbench.demo import TERRAINS, generate_walk
 from workbench.retrain import RETRAIN
 from workbench.scores import compute_scores
-from workbench.ui import TrainJob
-from workbench.ui.state import SharedState
+from workbench.ui import SharedState, TrainJob
 
 HIDDEN = 200
 STAGE1 = TrainConfig(max_epochs=1, patience=1)  # the setup's stage 1 and the naive cycle's: one epoch each
@@ -163,10 +162,14 @@ def main() -> None:
         quick = state.scores.classifier
         refined = threading.Event()
         state.subscribe(
-            lambda e: refined.set()
-            if e == "scores" and state.scores.classifier not in (None, before, quick)
-            and len(state.scores.scores) == len(logs) else None
-        )  # fmt: skip
+            lambda e: (
+                refined.set()
+                if e == "scores"
+                and state.scores.classifier not in (None, before, quick)
+                and len(state.scores.scores) == len(logs)
+                else None
+            )
+        )
         refined.wait(3600)
         t_refined = time.perf_counter() - t0
         acc_refined = accuracy(session, state.scores, logs)

@@ -35,8 +35,7 @@ from workbench import cycle
 from workbench.demo import generate_demo_logs
 from workbench.retrain import RETRAIN
 from workbench.scores import compute_scores
-from workbench.ui import TrainJob
-from workbench.ui.state import SharedState
+from workbench.ui import SharedState, TrainJob
 
 HIDDEN = 200
 STAGE1 = TrainConfig(max_epochs=1, patience=1)  # stage 1 of the setup: one epoch, as in bench_retrain
@@ -122,8 +121,11 @@ def main() -> None:
         for name in {t for x in logs for _, _, t in session.reference(x.id)} - {t.name for t in session.terrains()}:
             session.add_terrain(name)
         total = sum(x.n_samples for x in logs)
-        print(f"{len(logs)} walks, {total:,} steps ({total / logs[0].rate_hz / 60:.0f} min), setup "
-              f"{time.perf_counter() - t:.0f} s", flush=True)  # fmt: skip
+        print(
+            f"{len(logs)} walks, {total:,} steps ({total / logs[0].rate_hz / 60:.0f} min), setup "
+            f"{time.perf_counter() - t:.0f} s",
+            flush=True,
+        )
         label_stretches(session, rng, SETUP_LABELS)
         t = time.perf_counter()
         cycle.train_predictor(session, config=STAGE1, hidden=HIDDEN)
@@ -145,11 +147,16 @@ def main() -> None:
             acc_scratch = accuracy(session, compute_scores(session))
             pairs = int(session.active_model("classifier").config["consistency_pairs"])
             runs[weight] = (t_view, t_all, acc_quick, t_scratch, acc_scratch, pairs)
-            print(f"consistency {weight:g}: view {t_view:.1f} s, all {t_all:.1f} s, quick {100 * acc_quick:.2f} %, "
-                  f"from scratch {t_scratch:.1f} s, {100 * acc_scratch:.2f} %", flush=True)  # fmt: skip
+            print(
+                f"consistency {weight:g}: view {t_view:.1f} s, all {t_all:.1f} s, quick {100 * acc_quick:.2f} %, "
+                f"from scratch {t_scratch:.1f} s, {100 * acc_scratch:.2f} %",
+                flush=True,
+            )
     on, off = runs[WEIGHT], runs[0.0]
-    where = (f"{len(logs)} walks, {total / logs[0].rate_hz / 60:.0f} min, {labelled / logs[0].rate_hz:.0f} s "
-             f"labelled, {on[5]} pairs")  # fmt: skip
+    where = (
+        f"{len(logs)} walks, {total / logs[0].rate_hz / 60:.0f} min, {labelled / logs[0].rate_hz:.0f} s "
+        f"labelled, {on[5]} pairs"
+    )
     rows = [
         Row(
             f"Retrain pressed → log in view refreshed, consistency {WEIGHT:g} ({where})",

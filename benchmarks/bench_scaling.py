@@ -38,18 +38,27 @@ def train(folder: Path, *, procs: int, threads: int, epochs: int = 1, hidden: in
     args = [WORKER, str(folder), str(epochs), str(hidden), str(threads), str(batch)]
     env = {**os.environ, "OMP_NUM_THREADS": str(threads)}
     if procs > 1:
-        cmd = [sys.executable, "-m", "torch.distributed.run", f"--nproc-per-node={procs}", "--master-addr=127.0.0.1",
-               "--master-port=29533", *args]  # fmt: skip
+        cmd = [
+            sys.executable,
+            "-m",
+            "torch.distributed.run",
+            f"--nproc-per-node={procs}",
+            "--master-addr=127.0.0.1",
+            "--master-port=29533",
+            *args,
+        ]
     else:
         cmd = [sys.executable, *args]
     out = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
     if out.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{out.stderr[-3000:]}")
     result = json.loads(out.stdout.strip().splitlines()[-1])
-    print(f"{procs} process(es) x {threads} thread(s), batch {batch}, {result['logs']} logs: "
-          f"{result['seconds']:.1f} s, "
-          f"{result['timesteps'] * result['epochs'] / result['seconds']:,.0f} steps/s, "
-          f"peak RSS {', '.join(f'{g:.2f}' for g in result['rss_gb'])} GB")  # fmt: skip
+    print(
+        f"{procs} process(es) x {threads} thread(s), batch {batch}, {result['logs']} logs: "
+        f"{result['seconds']:.1f} s, "
+        f"{result['timesteps'] * result['epochs'] / result['seconds']:,.0f} steps/s, "
+        f"peak RSS {', '.join(f'{g:.2f}' for g in result['rss_gb'])} GB"
+    )
     return result
 
 
@@ -75,24 +84,33 @@ def main() -> None:
         small = write_logs(Path(tmp) / "quarter", n_seq // 4, seed=1)
         mem_small = train(small, procs=2, threads=1, batch=MEM_BATCH)
         mem_big = train(logs, procs=2, threads=1, batch=MEM_BATCH)
-    loss = f"train MSE after the epoch: 1 process {one_1['history'][-1]['train_loss']:.4f}, " \
-           f"2 processes {two_1['history'][-1]['train_loss']:.4f} (same global batch and seed)"  # fmt: skip
+    loss = (
+        f"train MSE after the epoch: 1 process {one_1['history'][-1]['train_loss']:.4f}, "
+        f"2 processes {two_1['history'][-1]['train_loss']:.4f} (same global batch and seed)"
+    )
     speedup = rate(two_1) / rate(one_1)
     rows = [
-        Row(f"stage-1 training, 2 processes x 1 thread (torchrun, gloo), hidden 200, batch 512, {n_seq} sequences",
+        Row(
+            f"stage-1 training, 2 processes x 1 thread (torchrun, gloo), hidden 200, batch 512, {n_seq} sequences",
             f"{rate(two_1):,.0f} steps/s",
             f"1 process x 1 thread: {rate(one_1):,.0f} steps/s; 1 process x {cores} threads: {rate(one_all):,.0f}",
             f"{speedup:.2f}× one process (scaling efficiency {speedup / 2:.0%}); "
             f"{rate(two_1) / rate(one_all):.2f}× one process with all {cores} threads",
-            "measured, for docs/scaling.md", None, loss),
-        Row(f"peak memory per training process, 2 processes, batch {MEM_BATCH}, against the number of logs",
+            "measured, for docs/scaling.md",
+            None,
+            loss,
+        ),
+        Row(
+            f"peak memory per training process, 2 processes, batch {MEM_BATCH}, against the number of logs",
             f"{max(mem_big['rss_gb']):.2f} GB with {mem_big['logs']} logs",
             f"{max(mem_small['rss_gb']):.2f} GB with {mem_small['logs']} logs",
             f"{max(mem_big['rss_gb']) / max(mem_small['rss_gb']):.2f}× with 4× the logs",
-            "not growing with the number of logs", bool(max(mem_big["rss_gb"]) < 1.1 * max(mem_small["rss_gb"])),
+            "not growing with the number of logs",
+            bool(max(mem_big["rss_gb"]) < 1.1 * max(mem_small["rss_gb"])),
             f"batch 512: {max(two_1['rss_gb']):.2f} GB per process with 2 processes, "
-            f"{max(one_all['rss_gb']):.2f} GB with 1"),
-    ]  # fmt: skip
+            f"{max(one_all['rss_gb']):.2f} GB with 1",
+        ),
+    ]
     record("scaling", rows, device=args.device)
 
 

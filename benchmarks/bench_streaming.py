@@ -36,8 +36,15 @@ def make_bundle(seed: int = 0, members: int = MEMBERS) -> ModelBundle:
     predictor = Predictor(PredictorConfig(C, HIDDEN)).eval()
     members = [Classifier(ClassifierConfig(HIDDEN + C, K, HIDDEN)).eval() for _ in range(members)]
     norm = Normalizer(np.zeros(C, np.float32), np.ones(C, np.float32))
-    return ModelBundle(predictor, norm, tuple(f"ch{i}" for i in range(C)), 100.0, members, tuple("abcdef"),
-                       feature_mode="hidden+surprise")  # fmt: skip
+    return ModelBundle(
+        predictor,
+        norm,
+        tuple(f"ch{i}" for i in range(C)),
+        100.0,
+        members,
+        tuple("abcdef"),
+        feature_mode="hidden+surprise",
+    )
 
 
 class NaiveStream:
@@ -92,8 +99,13 @@ def main() -> None:
         return f"argmax = offline pass on {agree:.2%} of samples, max |Δp| {np.abs(streamed - offline).max():.1e}"
 
     rows = []
-    for streams, precision, members in ((1, "float32", MEMBERS), (1, "float32", 1), (64, "float32", MEMBERS),
-                                        (64, "bfloat16", MEMBERS), (64, "bfloat16", 1)):  # fmt: skip
+    for streams, precision, members in (
+        (1, "float32", MEMBERS),
+        (1, "float32", 1),
+        (64, "float32", MEMBERS),
+        (64, "bfloat16", MEMBERS),
+        (64, "bfloat16", 1),
+    ):
         fast = StreamingClassifier(bundle, streams=streams, precision=precision, members=members)
         naive = NaiveStream(replace(bundle, classifiers=bundle.classifiers[:members]), streams)
         batch = rng.normal(size=(steps, streams, C)).astype(np.float32)
@@ -102,18 +114,30 @@ def main() -> None:
         med_f, p99_f, med_n = np.median(t_fast), np.percentile(t_fast, 99), np.median(t_naive)
         what = f"{precision}, {members} member{'s' if members > 1 else ''}"
         if streams == 1:
-            rows.append(Row(f"streaming latency per sample, 1 stream, both stages, {what} (median / p99)",
-                            f"{fmt_s(med_f)} / {fmt_s(p99_f)}",
-                            f"nn.LSTM per sample: {fmt_s(med_n)} / {fmt_s(np.percentile(t_naive, 99))}",
-                            f"{med_n / med_f:.1f}× faster", "≤ 50 µs median, p99 ≤ 200 µs",
-                            bool(med_f <= 50e-6 and p99_f <= 200e-6), agreement(precision, members)))  # fmt: skip
+            rows.append(
+                Row(
+                    f"streaming latency per sample, 1 stream, both stages, {what} (median / p99)",
+                    f"{fmt_s(med_f)} / {fmt_s(p99_f)}",
+                    f"nn.LSTM per sample: {fmt_s(med_n)} / {fmt_s(np.percentile(t_naive, 99))}",
+                    f"{med_n / med_f:.1f}× faster",
+                    "≤ 50 µs median, p99 ≤ 200 µs",
+                    bool(med_f <= 50e-6 and p99_f <= 200e-6),
+                    agreement(precision, members),
+                )
+            )
         else:
             hz = 1.0 / med_f  # steps per second of all streams at once
-            rows.append(Row(f"streaming throughput, {streams} robots batched, 1 core, {what}",
-                            f"{hz:.0f} Hz per robot ({streams} × {hz:.0f} samples/s)",
-                            f"nn.LSTM per sample: {1.0 / med_n:.0f} Hz per robot",
-                            f"{med_n / med_f:.1f}× faster", f"≥ {RATE_HZ:.0f} Hz per robot",
-                            bool(hz >= RATE_HZ), agreement(precision, members)))  # fmt: skip
+            rows.append(
+                Row(
+                    f"streaming throughput, {streams} robots batched, 1 core, {what}",
+                    f"{hz:.0f} Hz per robot ({streams} × {hz:.0f} samples/s)",
+                    f"nn.LSTM per sample: {1.0 / med_n:.0f} Hz per robot",
+                    f"{med_n / med_f:.1f}× faster",
+                    f"≥ {RATE_HZ:.0f} Hz per robot",
+                    bool(hz >= RATE_HZ),
+                    agreement(precision, members),
+                )
+            )
     rows.append(products_alone(bundle, rng))
     rows.append(products_alone(bundle, rng, members=1))
     rows.append(batched_products(bundle, rng))
@@ -149,20 +173,30 @@ def products_alone(bundle: ModelBundle, rng: np.random.Generator, *, members: in
     """The profile of a 1-stream float32 step: its matrix products alone, against the whole step."""
     t_prod, t_step, weights = _products_and_step(bundle, rng, members=members, streams=1, repeat=3000)
     nbytes = sum(a.nbytes for a in weights)
-    return Row(f"profile: a 1-stream float32 step's LSTM matrix products alone, {members} member"
-               f"{'s' if members > 1 else ''} (median)", fmt_s(t_prod),
-               f"the whole step: {fmt_s(t_step)}", f"{t_prod / t_step:.0%} of the step",
-               f"{nbytes / 1e6:.1f} MB of weights read per step: {nbytes / t_prod / 1e9:.0f} GB/s", None)  # fmt: skip
+    return Row(
+        f"profile: a 1-stream float32 step's LSTM matrix products alone, {members} member"
+        f"{'s' if members > 1 else ''} (median)",
+        fmt_s(t_prod),
+        f"the whole step: {fmt_s(t_step)}",
+        f"{t_prod / t_step:.0%} of the step",
+        f"{nbytes / 1e6:.1f} MB of weights read per step: {nbytes / t_prod / 1e9:.0f} GB/s",
+        None,
+    )
 
 
 def batched_products(bundle: ModelBundle, rng: np.random.Generator, streams: int = 64) -> Row:
     """The profile of the 64-robot float32 step: its matrix products alone, and the arithmetic rate they reach."""
     t_prod, t_step, weights = _products_and_step(bundle, rng, members=MEMBERS, streams=streams, repeat=300)
     flops = 2 * streams * sum(a.size for a in weights)  # multiply-adds of the products
-    return Row(f"profile: a {streams}-stream float32 step's LSTM matrix products alone, {MEMBERS} members (median)",
-               fmt_s(t_prod), f"the whole step: {fmt_s(t_step)}", f"{t_prod / t_step:.0%} of the step",
-               f"{flops / 1e6:.0f} MFLOP per step at {flops / t_prod / 1e9:.0f} GFLOP/s; {RATE_HZ:.0f} Hz needs "
-               f"{flops * RATE_HZ / 1e9:.0f} GFLOP/s", None)  # fmt: skip
+    return Row(
+        f"profile: a {streams}-stream float32 step's LSTM matrix products alone, {MEMBERS} members (median)",
+        fmt_s(t_prod),
+        f"the whole step: {fmt_s(t_step)}",
+        f"{t_prod / t_step:.0%} of the step",
+        f"{flops / 1e6:.0f} MFLOP per step at {flops / t_prod / 1e9:.0f} GFLOP/s; {RATE_HZ:.0f} Hz needs "
+        f"{flops * RATE_HZ / 1e9:.0f} GFLOP/s",
+        None,
+    )
 
 
 if __name__ == "__main__":

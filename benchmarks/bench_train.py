@@ -69,10 +69,15 @@ def main() -> None:
     t_bare, steps_bare = bare_loop(logs, config, epochs)
     bare = steps_bare / t_bare
     val = fit.history[-1]["val_loss"]
-    row = Row(f"stage-1 training throughput, hidden {HIDDEN}, batch {config.batch_size}, {epochs} epoch(s)",
-              f"{ours:,.0f} steps/s", f"bare nn.LSTM + Adam loop: {bare:,.0f} steps/s", f"{ours / bare:.2f}×",
-              "≥ 0.9× the bare loop", bool(ours / bare >= 0.9),
-              f"validation MSE after {len(fit.history)} epoch(s): {val:.4f} (normalised units)")  # fmt: skip
+    row = Row(
+        f"stage-1 training throughput, hidden {HIDDEN}, batch {config.batch_size}, {epochs} epoch(s)",
+        f"{ours:,.0f} steps/s",
+        f"bare nn.LSTM + Adam loop: {bare:,.0f} steps/s",
+        f"{ours / bare:.2f}×",
+        "≥ 0.9× the bare loop",
+        bool(ours / bare >= 0.9),
+        f"validation MSE after {len(fit.history)} epoch(s): {val:.4f} (normalised units)",
+    )
     record("train", [row], device=args.device)
 
 

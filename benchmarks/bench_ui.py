@@ -22,8 +22,15 @@ from common import Row, fmt_s, parse_args, record
 from sessions import Session
 from workbench.demo import generate_walk, write_walk
 
-CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                  "--disable-component-update", "--disable-sync", "--no-first-run"]  # fmt: skip
+CHROMIUM_FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
 
 
 def free_port() -> int:
@@ -136,11 +143,17 @@ def main() -> None:
         a, r = np.array(ours[name]), np.array(raw[name])
         p50, worst = np.median(a[:, 0]), a[:, 0].max()
         check = f"server part {fmt_s(np.median(a[:, 1]))}; page shows the log: {'yes' if ok else '**no**'}"
-        rows.append(Row(f"{label} (median / worst of {len(a)})", f"{fmt_s(p50)} / {fmt_s(worst)}",
-                        f"raw window sent: {fmt_s(np.median(r[:, 0]))} ({np.median(r[:, 2]) / 1e6:.1f} MB)",
-                        f"{np.median(r[:, 0]) / p50:.1f}× faster; {np.median(a[:, 2]) / 1e3:.0f} kB sent",
-                        target, bool(worst <= limit),
-                        check))  # fmt: skip
+        rows.append(
+            Row(
+                f"{label} (median / worst of {len(a)})",
+                f"{fmt_s(p50)} / {fmt_s(worst)}",
+                f"raw window sent: {fmt_s(np.median(r[:, 0]))} ({np.median(r[:, 2]) / 1e6:.1f} MB)",
+                f"{np.median(r[:, 0]) / p50:.1f}× faster; {np.median(a[:, 2]) / 1e3:.0f} kB sent",
+                target,
+                bool(worst <= limit),
+                check,
+            )
+        )
     record("ui", rows, device=args.device)
 
 

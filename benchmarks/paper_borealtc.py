@@ -32,8 +32,9 @@ def main(which: str = "all") -> int:
         print(report)
     if which in ("simulate", "all"):
         t = time.monotonic()
-        report = ev.simulate("borealtc", DATA, strategies=("random", "combined"), seeds=3, rounds=6, batch=10,
-                             out=RESULTS)  # fmt: skip
+        report = ev.simulate(
+            "borealtc", DATA, strategies=("random", "combined"), seeds=3, rounds=6, batch=10, out=RESULTS
+        )
         (RESULTS / "borealtc-simulate.md").write_text(report + f"\n\n{time.monotonic() - t:.0f} s\n")
         print(report)
     return 0

@@ -36,9 +36,20 @@ def main() -> None:
     rss[world.rank] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6  # kB -> GB
     rss = distributed.all_sum(rss)
     if world.main:
-        print(json.dumps({"seconds": seconds, "timesteps": fit.timesteps, "epochs": len(fit.history),
-                          "history": fit.history, "rss_gb": rss, "processes": world.size,
-                          "threads": torch.get_num_threads(), "logs": len(rows)}))  # fmt: skip
+        print(
+            json.dumps(
+                {
+                    "seconds": seconds,
+                    "timesteps": fit.timesteps,
+                    "epochs": len(fit.history),
+                    "history": fit.history,
+                    "rss_gb": rss,
+                    "processes": world.size,
+                    "threads": torch.get_num_threads(),
+                    "logs": len(rows),
+                }
+            )
+        )
     distributed.leave()
 
 

@@ -87,9 +87,19 @@ def simulate(
     curve = []
     for r in range(rounds):
         counts = np.bincount([c for *_, c in labels], [b - a for _, a, b, _ in labels], minlength=len(classes))
-        picks = suggest(state.scores, labelled=spans, label_counts=counts, change_points=change_points,
-                        classes=classes, strategy=strategy, n=batch, max_len=max_len, min_len=min_len,
-                        embeddings=embeddings, seed=seed * 1000 + r)  # fmt: skip
+        picks = suggest(
+            state.scores,
+            labelled=spans,
+            label_counts=counts,
+            change_points=change_points,
+            classes=classes,
+            strategy=strategy,
+            n=batch,
+            max_len=max_len,
+            min_len=min_len,
+            embeddings=embeddings,
+            seed=seed * 1000 + r,
+        )
         if not picks:
             break
         for p in picks:

@@ -10,8 +10,19 @@ from .errors import LabelError
 from .labels import add_segment
 from .logs import LogInfo, Segment
 
-COLUMNS = ("log", "source_file", "start_s", "end_s", "start_sample", "end_sample", "terrain", "author", "source",
-           "created_at", "updated_at")  # fmt: skip
+COLUMNS = (
+    "log",
+    "source_file",
+    "start_s",
+    "end_s",
+    "start_sample",
+    "end_sample",
+    "terrain",
+    "author",
+    "source",
+    "created_at",
+    "updated_at",
+)
 FORMATS = {".csv": "csv", ".parquet": "parquet", ".json": "json"}
 
 
@@ -20,8 +31,21 @@ def segments_frame(segments: list[Segment], logs: dict[int, LogInfo]) -> pd.Data
     rows = []
     for s in segments:
         log = logs[s.log_id]
-        rows.append((log.name, log.source_path, s.start / log.rate_hz, s.stop / log.rate_hz, s.start, s.stop,
-                     s.terrain, s.author, s.source, s.created_at, s.updated_at))  # fmt: skip
+        rows.append(
+            (
+                log.name,
+                log.source_path,
+                s.start / log.rate_hz,
+                s.stop / log.rate_hz,
+                s.start,
+                s.stop,
+                s.terrain,
+                s.author,
+                s.source,
+                s.created_at,
+                s.updated_at,
+            )
+        )
     return pd.DataFrame(rows, columns=list(COLUMNS))
 
 
@@ -56,8 +80,9 @@ def read_frame(path: Path) -> pd.DataFrame:
         raise LabelError(f"{path}: cannot read label file ({type(exc).__name__}: {exc})") from None
 
 
-def import_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path,
-                author: str) -> list[Segment]:  # fmt: skip
+def import_rows(
+    conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path, author: str
+) -> list[Segment]:
     """Add every row as a segment inside the caller's transaction; any bad row refuses the whole file.
 
     Rows name their log by ``log`` (name) and give ``start_sample``/``end_sample`` or ``start_s``/``end_s``.
@@ -83,8 +108,18 @@ def import_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[s
             start, stop = round(float(row.start_s) * log.rate_hz), round(float(row.end_s) * log.rate_hz)
         who = str(row.author) if "author" in frame.columns and pd.notna(row.author) else author
         try:
-            out.append(add_segment(conn, log_id=log.id, start=start, stop=stop, terrain=str(row.terrain),
-                                   author=who, source="import", kind="import"))  # fmt: skip
+            out.append(
+                add_segment(
+                    conn,
+                    log_id=log.id,
+                    start=start,
+                    stop=stop,
+                    terrain=str(row.terrain),
+                    author=who,
+                    source="import",
+                    kind="import",
+                )
+            )
         except LabelError as exc:
             raise LabelError(f"{path}: row {i}: {exc}; nothing was imported") from None
     return out

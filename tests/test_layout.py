@@ -53,3 +53,107 @@ def test_no_file_grows_past_500_lines() -> None:
         for path in (REPO / package).rglob("*.py"):
             n = len(path.read_text().splitlines())
             assert n <= 500, f"{path.relative_to(REPO)} has {n} lines: split it"
+
+
+PACKAGES = (*INDEPENDENT, "workbench")
+ROOMS = ("cli", "demo", "evaluation", "ui")  # workbench's rooms, each used through its __init__ from outside
+
+
+def _imports(path):
+    """``(module, line)`` of every absolute import in a file: ``import a.b`` and ``from a.b import c``."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield alias.name, node.lineno
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            yield node.module, node.lineno
+
+
+def _owner(rel) -> str | None:
+    """The package a file belongs to: its own, or the one its test folder mirrors (``tests/training/`` -> training).
+
+    ``tests/safety/`` breaks things on purpose (it patches writers to fail, fuzzes the readers one by one), so it may
+    reach into any module."""
+    parts = rel.parts
+    if parts[0] in PACKAGES:
+        return parts[0]
+    if parts[0] == "tests" and len(parts) > 2:
+        return "*" if parts[1] == "safety" else parts[1]
+    return None
+
+
+def _outside_code():
+    for folder in (*PACKAGES, "tests", "benchmarks"):
+        for path in (REPO / folder).rglob("*.py"):
+            yield path, path.relative_to(REPO)
+
+
+def test_packages_are_used_through_their_public_names() -> None:
+    """Outside a package, ``from training import fit_classifier``, never ``from training.fit_classifier import``;
+    workbench's rooms likewise (``workbench.ui``, not ``workbench.ui.state``)."""
+    bad = []
+    for path, rel in _outside_code():
+        owner = _owner(rel)
+        for module, line in _imports(path):
+            parts = module.split(".")
+            if parts[0] not in PACKAGES or owner in (parts[0], "*"):
+                continue
+            deep = len(parts) > 1 if parts[0] in INDEPENDENT else (len(parts) > 2 and parts[1] in ROOMS)
+            if deep:
+                bad.append(f"{rel}:{line} imports {module}")
+    assert not bad, "use the package's public names:\n" + "\n".join(bad)
+
+
+def test_public_names_cover_what_outside_code_uses() -> None:
+    """Every name outside code imports from a core package is in that package's ``__all__``."""
+    missing = []
+    for path, rel in _outside_code():
+        tree = ast.parse(path.read_text(), filename=str(path))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module in INDEPENDENT:
+                if _owner(rel) == node.module:
+                    continue
+                public = __import__(node.module).__all__
+                missing += [f"{rel}: {node.module}.{a.name}" for a in node.names if a.name not in public]
+    assert not missing, "\n".join(missing)
+
+
+def test_labeling_imports_no_plotting() -> None:
+    imports = imported_packages("labeling")
+    assert not {"torch", "viser", "tyro", "matplotlib"} & set(imports), sorted(imports)
+
+
+def test_no_two_modules_share_a_name() -> None:
+    seen: dict[str, list[str]] = {}
+    for package in PACKAGES:
+        for path in (REPO / package).rglob("*.py"):
+            if path.name not in ("__init__.py", "__main__.py"):
+                seen.setdefault(path.stem, []).append(str(path.relative_to(REPO)))
+    shared = {name: paths for name, paths in seen.items() if len(paths) > 1}
+    assert not shared, shared
+
+
+def test_every_error_class_belongs_to_the_one_family() -> None:
+    """Each ``*Error`` class the packages define derives from a root the CLI and the UI report as one line."""
+    import importlib
+    import inspect
+
+    from workbench.user_errors import USER_ERRORS
+
+    strays, checked = [], set()
+    for package in PACKAGES:
+        for path in (REPO / package).rglob("*.py"):
+            rel = path.relative_to(REPO).with_suffix("")
+            name = ".".join(p for p in rel.parts if p != "__init__")
+            if name.endswith("__main__"):
+                continue
+            module = importlib.import_module(name)
+            for cls_name, cls in inspect.getmembers(module, inspect.isclass):
+                if cls.__module__ != name or not issubclass(cls, Exception) or not cls_name.endswith("Error"):
+                    continue
+                checked.add(cls_name)
+                if not issubclass(cls, USER_ERRORS):
+                    strays.append(f"{name}.{cls_name}")
+    assert {"IngestError", "LabelError", "SessionError", "BundleError"} <= checked, sorted(checked)
+    assert not strays, strays

@@ -5,7 +5,7 @@ Takes arrays, never sessions: ``workbench`` wires it to the session store and sc
 """
 
 from . import distributed
-from .bundle import BundleError, ModelBundle, load_bundle, parameter_count, save_bundle
+from .bundle import ModelBundle, load_bundle, parameter_count, save_bundle
 from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint
 from .config import FEATURE_MODES, ClassifierConfig, ElasticNet, FeatureMode, PredictorConfig, TrainConfig, to_dict
 from .data import Normalizer, Piece, cut_pieces, neighbour_pairs, stage1_batch
@@ -28,6 +28,7 @@ from .models import Classifier, Predictor
 from .onnx_export import check_onnx, export_onnx, run_onnx
 from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
 from .stream import StreamingClassifier
+from .training_errors import BundleError, TrainingError
 
 __all__ = [
     "FEATURE_MODES",
@@ -53,6 +54,7 @@ __all__ = [
     "Stage1Outputs",
     "StreamingClassifier",
     "TrainConfig",
+    "TrainingError",
     "WindowProtocol",
     "borealtc_protocol",
     "check_onnx",

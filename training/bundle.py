@@ -15,15 +15,12 @@ from safetensors.torch import load_file, save_file
 from .config import ClassifierConfig, FeatureMode, PredictorConfig
 from .data import Normalizer
 from .models import Classifier, Predictor
+from .training_errors import BundleError
 
 BUNDLE_SCHEMA = 1
 CONFIG_FILE = "model.json"
 PREDICTOR_FILE = "predictor.safetensors"
 CLASSIFIER_FILE = "classifier.safetensors"
-
-
-class BundleError(Exception):
-    """A bundle folder is missing files, damaged, or from a newer schema."""
 
 
 @dataclass

@@ -187,6 +187,8 @@ def neighbour_pairs(
             first = np.searchsorted(b, starts + window - 1, side="right")
             last = np.searchsorted(b, starts + gap + window - 1, side="right")
             starts = starts[last == first]
-        out += [(Piece(seq, int(s), int(s) + window, int(s)), Piece(seq, int(s) + gap, int(s) + gap + window,
-                 int(s) + gap)) for s in starts]  # fmt: skip
+        out += [
+            (Piece(seq, int(s), int(s) + window, int(s)), Piece(seq, int(s) + gap, int(s) + gap + window, int(s) + gap))
+            for s in starts
+        ]
     return out

@@ -66,8 +66,10 @@ def qcat_protocol(
         m = classification_metrics(y[test], pred, classes)
         m.update(fold=fold, sequences=(len(unl), len(lab), len(test)), seconds=time.monotonic() - t0)
         results.append(m)
-        log(f"fold {fold}: accuracy {m['accuracy']:.2%}, macro-F1 {m['macro_f1']:.3f} on {len(test)} test sequences "
-            f"({len(lab)} labelled, {len(unl)} unlabelled)")  # fmt: skip
+        log(
+            f"fold {fold}: accuracy {m['accuracy']:.2%}, macro-F1 {m['macro_f1']:.3f} on {len(test)} test sequences "
+            f"({len(lab)} labelled, {len(unl)} unlabelled)"
+        )
     return results
 
 

@@ -140,8 +140,10 @@ def borealtc_protocol(
     if not strict:
         t = time.monotonic()
         shared = fit_predictor(parts, config=replace(stage1, piece=size), hidden=hidden)
-        log(f"stage 1 on all {len(parts)} partitions (no labels): {len(shared.history)} epochs, "
-            f"{time.monotonic() - t:.0f} s")  # fmt: skip
+        log(
+            f"stage 1 on all {len(parts)} partitions (no labels): {len(shared.history)} epochs, "
+            f"{time.monotonic() - t:.0f} s"
+        )
     results = []
     for fold, (train_idx, test_idx) in enumerate(cv.split(np.zeros(len(y)), y), start=1):
         t0 = time.monotonic()
@@ -165,6 +167,8 @@ def borealtc_protocol(
         results.append(
             FoldResult(fold, m["accuracy"], m["macro_f1"], len(test_wins), len(chosen), time.monotonic() - t0, m)
         )
-        log(f"fold {fold}: accuracy {m['accuracy']:.2%}, macro-F1 {m['macro_f1']:.3f} on {len(test_wins)} windows "
-            f"({len(chosen)} labelled partitions, {time.monotonic() - t0:.0f} s)")  # fmt: skip
+        log(
+            f"fold {fold}: accuracy {m['accuracy']:.2%}, macro-F1 {m['macro_f1']:.3f} on {len(test_wins)} windows "
+            f"({len(chosen)} labelled partitions, {time.monotonic() - t0:.0f} s)"
+        )
     return results

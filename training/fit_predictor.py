@@ -181,9 +181,13 @@ def fit_predictor(
         return x, y, mask
 
     # settings and data a checkpoint must share to be resumed; not the device or the number of processes
-    key = fingerprint(config={k: v for k, v in to_dict(config).items() if k not in ("device", "bf16")},
-                      hidden=hidden, lengths=[len(a) for a in arrays], channels=arrays[0].shape[1],
-                      init=None if init is None else init.normalizer.to_dict())  # fmt: skip
+    key = fingerprint(
+        config={k: v for k, v in to_dict(config).items() if k not in ("device", "bf16")},
+        hidden=hidden,
+        lengths=[len(a) for a in arrays],
+        channels=arrays[0].shape[1],
+        init=None if init is None else init.normalizer.to_dict(),
+    )
     ckpt = load_checkpoint(checkpoint, key) if checkpoint is not None else None
     history: list[dict[str, float]] = []
     best, best_state, best_epoch, since = float("inf"), copy.deepcopy(model.state_dict()), 0, 0
@@ -207,17 +211,47 @@ def fit_predictor(
             return
         val = history[-1]["val_loss"] if history else None
         best_val = None if best == float("inf") else best
-        progress(Progress("predictor", 0, 1, epoch, config.max_epochs, step, steps, train_loss, val, best_val,
-                          time.monotonic() - t0))  # fmt: skip
+        progress(
+            Progress(
+                "predictor",
+                0,
+                1,
+                epoch,
+                config.max_epochs,
+                step,
+                steps,
+                train_loss,
+                val,
+                best_val,
+                time.monotonic() - t0,
+            )
+        )
 
     def save(epoch: int, batch: int, order: np.ndarray, total: float, count: float, finished: bool) -> None:
         if checkpoint is None:
             return
         total, count = distributed.all_sum([total, count])  # every process calls this at the same batch
         if world.main:
-            save_checkpoint(Checkpoint(key, epoch, batch, finished, total, count, history, best, best_epoch, since,
-                                       rng.bit_generator.state, torch.from_numpy(np.asarray(order, np.int64)),
-                                       model.state_dict(), best_state, optimizer.state_dict()), checkpoint)  # fmt: skip
+            save_checkpoint(
+                Checkpoint(
+                    key,
+                    epoch,
+                    batch,
+                    finished,
+                    total,
+                    count,
+                    history,
+                    best,
+                    best_epoch,
+                    since,
+                    rng.bit_generator.state,
+                    torch.from_numpy(np.asarray(order, np.int64)),
+                    model.state_dict(),
+                    best_state,
+                    optimizer.state_dict(),
+                ),
+                checkpoint,
+            )
 
     epoch = start_epoch
     while not done and epoch <= config.max_epochs:
@@ -227,14 +261,28 @@ def fit_predictor(
         first = start_batch if epoch == start_epoch else 0
         total, count = carried if epoch == start_epoch else (0.0, 0.0)
         step = first * chunks_per_batch
-        reader = _Prefetch(lambda b, order=order: tensors([train[i] for i in order[b * config.batch_size :
-                                                                                   (b + 1) * config.batch_size]]),
-                           n_batches, first)  # fmt: skip
+        reader = _Prefetch(
+            lambda b, order=order: tensors(
+                [train[i] for i in order[b * config.batch_size : (b + 1) * config.batch_size]]
+            ),
+            n_batches,
+            first,
+        )
         try:
             for b in range(first, n_batches):
                 x, y, mask = reader.get(b)
-                s, n = _run_batch(net, model, x, y, mask, config.chunk, optimizer=optimizer, config=config,
-                                  world=world, autocast=autocast)  # fmt: skip
+                s, n = _run_batch(
+                    net,
+                    model,
+                    x,
+                    y,
+                    mask,
+                    config.chunk,
+                    optimizer=optimizer,
+                    config=config,
+                    world=world,
+                    autocast=autocast,
+                )
                 total, count, step = total + s, count + n, step + chunks_per_batch
                 if cancel():
                     raise Cancelled("predictor training cancelled")
@@ -251,8 +299,9 @@ def fit_predictor(
             v_total, v_count = 0.0, 0
             for i in range(0, len(mine), config.batch_size):
                 x, y, mask = tensors_local(mine[i : i + config.batch_size])
-                s, n = _run_batch(model, model, x, y, mask, length, optimizer=None, config=config, world=world,
-                                  autocast=autocast)  # fmt: skip
+                s, n = _run_batch(
+                    model, model, x, y, mask, length, optimizer=None, config=config, world=world, autocast=autocast
+                )
                 v_total, v_count = v_total + s, v_count + n
         v_total, v_count = distributed.all_sum([v_total, v_count])
         val_loss = v_total / max(v_count, 1)

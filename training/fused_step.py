@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bundle import ModelBundle
+from .training_errors import BundleError
 
 
 def _np(t) -> np.ndarray:
@@ -66,9 +67,9 @@ class FusedWeights:
 
 
 def fuse_weights(bundle: ModelBundle) -> FusedWeights:
-    """The bundle's weights in the fused layout (raises ``ValueError`` without a classifier)."""
+    """The bundle's weights in the fused layout (raises ``BundleError`` without a classifier)."""
     if not bundle.classifiers:
-        raise ValueError("the bundle has no classifier: train stage 2 first")
+        raise BundleError("the bundle has no classifier: train stage 2 first")
     p, cs = bundle.predictor, bundle.classifiers
     h1, h2 = p.config.hidden, cs[0].config.hidden
     w_ih, w_hh = _np(p.lstm.weight_ih_l0), _np(p.lstm.weight_hh_l0)  # (4H1, C), (4H1, H1)

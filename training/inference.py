@@ -156,10 +156,11 @@ def run_predictor(
     """Stage 1 over whole raw logs, in memory (``predictor_pass`` writes anywhere)."""
     h, c = predictor.config.hidden, predictor.config.n_channels
     outs = [
-        Stage1Outputs(np.empty((len(a), h), np.float32), np.empty((len(a), c), np.float32),
-                      np.empty((len(a), c), np.float32))
+        Stage1Outputs(
+            np.empty((len(a), h), np.float32), np.empty((len(a), c), np.float32), np.empty((len(a), c), np.float32)
+        )
         for a in arrays
-    ]  # fmt: skip
+    ]
     predictor_pass(predictor, normalizer, arrays, outs, chunk=chunk, batch=batch, device=device)
     return outs
 

@@ -37,18 +37,6 @@ class Predictor(nn.Module):
         return self.head(hidden), hidden, state
 
 
-def feature_size(mode: FeatureMode, config: PredictorConfig) -> int:
-    """Width of the features stage 1 hands stage 2 in ``mode``."""
-    return {
-        "hidden": config.hidden,
-        "estimate": config.n_channels,
-        "error": config.n_channels,
-        "hidden+error": config.hidden + config.n_channels,
-        "surprise": config.n_channels,
-        "hidden+surprise": config.hidden + config.n_channels,
-    }[mode]
-
-
 def stage1_features(
     mode: FeatureMode, hidden: torch.Tensor, estimate: torch.Tensor, error: torch.Tensor
 ) -> torch.Tensor:
@@ -85,19 +73,6 @@ def feature_width(mode: FeatureMode, hidden: int, channels: int) -> int:
     return {"hidden": hidden, "hidden+surprise": hidden + channels, "hidden+error": hidden + channels}.get(
         mode, channels
     )
-
-
-def one_step_errors(x: torch.Tensor, estimate: torch.Tensor, previous: torch.Tensor | None = None) -> torch.Tensor:
-    """``x_t − x̂_t`` for every ``t`` of a chunk: ``estimate`` is shifted by one, ``previous`` bridges chunks.
-
-    Args:
-        x: ``(B, T, C)`` normalised samples.
-        estimate: ``(B, T, C)`` estimates of the next samples.
-        previous: ``(B, C)`` the estimate of ``x[:, 0]`` from the chunk before, or None at a sequence's start.
-    """
-    shifted = torch.roll(estimate, 1, dims=1)  # shifted[:, t] = estimate[:, t - 1]
-    shifted[:, 0] = x[:, 0] if previous is None else previous
-    return x - shifted  # (B, T, C)
 
 
 class Classifier(nn.Module):

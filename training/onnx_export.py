@@ -22,17 +22,22 @@ def zero_state(bundle: ModelBundle, streams: int = 1) -> dict[str, np.ndarray]:
     h1, h2 = bundle.predictor.config.hidden, bundle.classifiers[0].config.hidden
     z = np.zeros
     return {
-        "h1": z((streams, h1), np.float32), "c1": z((streams, h1), np.float32),
-        "h2": z((m, streams, h2), np.float32), "c2": z((m, streams, h2), np.float32),
-        "prev": z((streams, c), np.float32), "started": z((streams, 1), np.float32),
-    }  # fmt: skip
+        "h1": z((streams, h1), np.float32),
+        "c1": z((streams, h1), np.float32),
+        "h2": z((m, streams, h2), np.float32),
+        "c2": z((m, streams, h2), np.float32),
+        "prev": z((streams, c), np.float32),
+        "started": z((streams, 1), np.float32),
+    }
 
 
 def export_onnx(bundle: ModelBundle, path: str | Path) -> Path:
     """Write the one-step model to ``path`` with a dynamic number of streams."""
     model = StepModel(bundle).eval()
-    args = tuple(torch.from_numpy(v) for v in {"x": np.zeros((2, len(bundle.channels)), np.float32),
-                                               **zero_state(bundle, 2)}.values())  # fmt: skip
+    args = tuple(
+        torch.from_numpy(v)
+        for v in {"x": np.zeros((2, len(bundle.channels)), np.float32), **zero_state(bundle, 2)}.values()
+    )
     batch = torch.export.Dim("streams", min=1, max=4096)
     shapes = ({0: batch}, {0: batch}, {0: batch}, {1: batch}, {1: batch}, {0: batch}, {0: batch})
     onnx_log = logging.getLogger("torch.onnx")

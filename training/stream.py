@@ -17,6 +17,7 @@ from torch import nn
 from .bundle import ModelBundle
 from .fused_step import Bf16Step, FusedStep
 from .models import stage1_features
+from .training_errors import BundleError
 
 
 def _cell(x: torch.Tensor, h: torch.Tensor, c: torch.Tensor, w_ih, w_hh, b) -> tuple[torch.Tensor, torch.Tensor]:
@@ -38,7 +39,7 @@ class StepModel(nn.Module):
     def __init__(self, bundle: ModelBundle) -> None:
         super().__init__()
         if not bundle.classifiers:
-            raise ValueError("the bundle has no classifier: train stage 2 first")
+            raise BundleError("the bundle has no classifier: train stage 2 first")
         p = bundle.predictor
         self.mode = bundle.feature_mode
         self.register_buffer("mean", torch.from_numpy(bundle.normalizer.mean))

@@ -111,16 +111,35 @@ def train_predictor(
     distributed.broadcast_json({"files": [str(session.path / x.file) for x in logs], "checkpoint": str(checkpoint)})
     params = {"config": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs], "processes": world.size}
     with _recorded_run(session, "predictor", params) as result:
-        fit = fit_predictor(rows, config=config, hidden=hidden, progress=progress, cancel=cancel,
-                            checkpoint=checkpoint, checkpoint_every=checkpoint_every, on_resume=on_resume)  # fmt: skip
-        info = {"logs": len(logs), "timesteps": int(sum(x.n_samples for x in logs)), "history": fit.history,
-                "processes": world.size, "resumed_from": fit.resumed_from}  # fmt: skip
+        fit = fit_predictor(
+            rows,
+            config=config,
+            hidden=hidden,
+            progress=progress,
+            cancel=cancel,
+            checkpoint=checkpoint,
+            checkpoint_every=checkpoint_every,
+            on_resume=on_resume,
+        )
+        info = {
+            "logs": len(logs),
+            "timesteps": int(sum(x.n_samples for x in logs)),
+            "history": fit.history,
+            "processes": world.size,
+            "resumed_from": fit.resumed_from,
+        }
         bundle = ModelBundle(
-            fit.model, fit.normalizer, logs[0].channel_names, logs[0].rate_hz,
-            metrics={"val_mse": min(h["val_loss"] for h in fit.history), "best_epoch": fit.best_epoch,
-                     "epochs": len(fit.history)},
+            fit.model,
+            fit.normalizer,
+            logs[0].channel_names,
+            logs[0].rate_hz,
+            metrics={
+                "val_mse": min(h["val_loss"] for h in fit.history),
+                "best_epoch": fit.best_epoch,
+                "epochs": len(fit.history),
+            },
             info=info,
-        )  # fmt: skip
+        )
         version = _save_version(
             session, "predictor", bundle, {"train": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs]}
         )
@@ -141,8 +160,14 @@ def follow_predictor_training(
     told = distributed.broadcast_json()
     assert isinstance(told, dict)
     rows = [FileRows.open_npy(f) for f in told["files"]]
-    fit_predictor(rows, config=config or TrainConfig(), hidden=hidden, cancel=cancel,
-                  checkpoint=Path(told["checkpoint"]), checkpoint_every=checkpoint_every)  # fmt: skip
+    fit_predictor(
+        rows,
+        config=config or TrainConfig(),
+        hidden=hidden,
+        cancel=cancel,
+        checkpoint=Path(told["checkpoint"]),
+        checkpoint_every=checkpoint_every,
+    )
     done = distributed.broadcast_json()
     assert isinstance(done, dict)
     return int(done["version"])
@@ -187,10 +212,20 @@ def stage1_outputs(
             try:
                 # hidden states lie in (-1, 1): float16 keeps them to 5e-4 at half the disk
                 for x in group:
-                    sinks.append(Stage1Outputs(part(x, "hidden", h, np.float16), part(x, "error", c, np.float32),
-                                               part(x, "estimate", c, np.float32)))  # fmt: skip
-                predictor_pass(bundle.predictor, bundle.normalizer, [session.rows(x.id) for x in group], sinks,
-                               batch=PREDICTOR_BATCH)  # fmt: skip
+                    sinks.append(
+                        Stage1Outputs(
+                            part(x, "hidden", h, np.float16),
+                            part(x, "error", c, np.float32),
+                            part(x, "estimate", c, np.float32),
+                        )
+                    )
+                predictor_pass(
+                    bundle.predictor,
+                    bundle.normalizer,
+                    [session.rows(x.id) for x in group],
+                    sinks,
+                    batch=PREDICTOR_BATCH,
+                )
                 for log, sink in zip(group, sinks, strict=True):
                     for name in ("hidden", "estimate", "error"):  # error last: its file marks the entry complete
                         writer = getattr(sink, name)
@@ -259,8 +294,9 @@ def consistency_pairs(
     (context and labelled stretch), one labelled stretch apart, no change point between their last steps; a pair
     starts every quarter stretch."""
     window = config.context + config.label_piece
-    return neighbour_pairs(lengths, window=window, gap=config.label_piece, stride=max(1, config.label_piece // 4),
-                           boundaries=change_points)  # fmt: skip
+    return neighbour_pairs(
+        lengths, window=window, gap=config.label_piece, stride=max(1, config.label_piece // 4), boundaries=change_points
+    )
 
 
 _CHANGE_POINTS: dict[tuple[str, int, int], np.ndarray] = {}  # (session, log, samples): a log's signals never change
@@ -325,20 +361,44 @@ def train_classifier(
         cps = [_signal_change_points(session, x) if x.n_samples >= fits else np.zeros(0, np.int64) for x in logs]
         pairs = consistency_pairs([x.n_samples for x in logs], cps, config)
     with _recorded_run(session, "classifier", {"config": to_dict(config), "segments": len(segments)}) as result:
-        fit = fit_classifier(features, segments, classes, config=config, hidden=hidden, init=init, new=new,
-                             pairs=pairs, progress=progress, cancel=cancel)  # fmt: skip
+        fit = fit_classifier(
+            features,
+            segments,
+            classes,
+            config=config,
+            hidden=hidden,
+            init=init,
+            new=new,
+            pairs=pairs,
+            progress=progress,
+            cancel=cancel,
+        )
         labelled = sum(s[2] - s[1] for s in segments)
         total = sum(x.n_samples for x in logs)
         metrics = {**fit.metrics, "labelled_fraction": labelled / total, "labelled_seconds": labelled / logs[0].rate_hz}
-        full = replace(bundle, classifiers=fit.models, classes=classes, feature_mode=feature_mode, metrics=metrics,
-                       info={**bundle.info, "predictor_version": p_version.id, "history": fit.history})  # fmt: skip
+        full = replace(
+            bundle,
+            classifiers=fit.models,
+            classes=classes,
+            feature_mode=feature_mode,
+            metrics=metrics,
+            info={**bundle.info, "predictor_version": p_version.id, "history": fit.history},
+        )
         version = _save_version(
-            session, "classifier", full,
-            {"train": to_dict(config), "hidden": hidden, "feature_mode": feature_mode, "predictor": p_version.id,
-             "warm_start": init is not None, "new_labels": None if new is None else len(new),
-             "consistency_pairs": len(pairs),
-             "labels": {"ids": [s.id for s in used], "as_of": max((s.updated_at for s in used), default="")}},
-        )  # fmt: skip
+            session,
+            "classifier",
+            full,
+            {
+                "train": to_dict(config),
+                "hidden": hidden,
+                "feature_mode": feature_mode,
+                "predictor": p_version.id,
+                "warm_start": init is not None,
+                "new_labels": None if new is None else len(new),
+                "consistency_pairs": len(pairs),
+                "labels": {"ids": [s.id for s in used], "as_of": max((s.updated_at for s in used), default="")},
+            },
+        )
         result["version"] = version.id
     return version
 

@@ -96,8 +96,11 @@ def align(
         raise IngestError(path, "no stream has at least two samples")
     rate = float(options.target_rate or _snap(max(r for *_, r in streams)))
     if not MIN_RATE_HZ <= rate < float("inf"):
-        raise IngestError(path, f"sample rate {rate:g} Hz: the stamps are not those of a sensor log "
-                                f"(at least {MIN_RATE_HZ:g} Hz, one sample every {1 / MIN_RATE_HZ:g} s)")  # fmt: skip
+        raise IngestError(
+            path,
+            f"sample rate {rate:g} Hz: the stamps are not those of a sensor log "
+            f"(at least {MIN_RATE_HZ:g} Hz, one sample every {1 / MIN_RATE_HZ:g} s)",
+        )
     start = max(float(t[0]) for _, t, _, _ in streams)
     stop = min(float(t[-1]) for _, t, _, _ in streams)
     if stop <= start:

@@ -73,8 +73,9 @@ def _check_text(path: Path, *, block: int = 1 << 20) -> None:
     line, run, offset = 1, 0, 0  # run: bytes of the current line so far
 
     def too_long(at_line: int) -> IngestError:
-        return IngestError(path, f"a line longer than {MAX_LINE_BYTES >> 20} MiB: not a sensor CSV",
-                           where=f"line {at_line}")  # fmt: skip
+        return IngestError(
+            path, f"a line longer than {MAX_LINE_BYTES >> 20} MiB: not a sensor CSV", where=f"line {at_line}"
+        )
 
     with open(path, "rb") as f:
         while chunk := f.read(block):

@@ -26,8 +26,9 @@ def stand_in(truth: list[np.ndarray], k: int):
 def test_simulate_labels_suggestions_through_the_oracle() -> None:
     truth = [np.repeat([0, 1, 2, 0], 250), np.repeat([3, 1], 500)]
     learner, calls = stand_in(truth, 4)
-    curve = simulate(learner, truth, strategy="surprise", rounds=3, batch=2, classes=list("abcd"), max_len=100,
-                     min_len=50)  # fmt: skip
+    curve = simulate(
+        learner, truth, strategy="surprise", rounds=3, batch=2, classes=list("abcd"), max_len=100, min_len=50
+    )
     assert len(curve) == 3 and len(calls) == 4  # a cold start, then one retrain per round
     assert [p.labelled_samples for p in curve] == [200, 400, 600]
     assert calls[0] == []
@@ -76,8 +77,10 @@ def test_bootstrap_final_ratio_resamples_seeds_in_pairs() -> None:
 def test_table() -> None:
     curves = {
         "random": [[CurvePoint(100, 0.5, 0.0), CurvePoint(200, 0.6, 0.0)]] * 2,
-        "combined": [[CurvePoint(100, 0.6, 0.0), CurvePoint(200, 0.7, 0.0)], [CurvePoint(100, 0.8, 0.0),
-                     CurvePoint(200, 0.9, 0.0)]],
-    }  # fmt: skip
+        "combined": [
+            [CurvePoint(100, 0.6, 0.0), CurvePoint(200, 0.7, 0.0)],
+            [CurvePoint(100, 0.8, 0.0), CurvePoint(200, 0.9, 0.0)],
+        ],
+    }
     text = table(curves, total_samples=1000, rate_hz=100.0)
     assert "| 2 | 2 (20.00) | 60.00 ± 0.00 | 2 (20.00) | 80.00 ± 10.00 |" in text

@@ -39,8 +39,18 @@ def test_suggestions_never_overlap_labels_or_each_other(situation, strategy, col
     scores = make_scores(lengths, 3, seed, cold=cold)
     rng = np.random.default_rng(seed)
     embeddings = [rng.normal(size=(m, 4)) for m in lengths] if with_embeddings else None
-    kwargs = dict(labelled=labelled, label_counts=np.array([100, 5, 0]), change_points=points, classes=["a", "b", "c"],
-                  strategy=strategy, n=n, max_len=200, min_len=20, window=9, seed=seed)  # fmt: skip
+    kwargs = dict(
+        labelled=labelled,
+        label_counts=np.array([100, 5, 0]),
+        change_points=points,
+        classes=["a", "b", "c"],
+        strategy=strategy,
+        n=n,
+        max_len=200,
+        min_len=20,
+        window=9,
+        seed=seed,
+    )
     kwargs["embeddings"] = embeddings
     got = suggest(scores, **kwargs)
     assert len(got) <= n
@@ -114,11 +124,26 @@ def test_combined_with_embeddings_covers_distinct_regimes_first() -> None:
     emb[2000:] = [0.0, 5.0]
     emb += np.random.default_rng(0).normal(scale=0.1, size=emb.shape)
     scores = [LogScores(np.ones(n))]
-    got = suggest(scores, strategy="combined", n=3, max_len=200, min_len=50, embeddings=[emb],
-                  change_points=[np.array([1000, 2000])])  # fmt: skip
+    got = suggest(
+        scores,
+        strategy="combined",
+        n=3,
+        max_len=200,
+        min_len=50,
+        embeddings=[emb],
+        change_points=[np.array([1000, 2000])],
+    )
     assert sorted(s.start // 1000 for s in got) == [0, 1, 2]
     assert all(s.reason == "typical of many unlabelled stretches" for s in got)
     # with the first regime labelled, the first pick is in another
-    again = suggest(scores, strategy="combined", n=1, max_len=200, min_len=50, embeddings=[emb],
-                    labelled=[(0, 0, 300)], change_points=[np.array([1000, 2000])])  # fmt: skip
+    again = suggest(
+        scores,
+        strategy="combined",
+        n=1,
+        max_len=200,
+        min_len=50,
+        embeddings=[emb],
+        labelled=[(0, 0, 300)],
+        change_points=[np.array([1000, 2000])],
+    )
     assert again[0].start >= 1000

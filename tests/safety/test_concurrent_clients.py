@@ -48,8 +48,10 @@ def person(url: str, region_s: float, ops: int, seed: int, acts: Acts) -> ViserC
         try:
             title, body = act(client, acts, mine, roll, rng, at, pressed)
         except TimeoutError as exc:
-            acts.errors.append(f"no answer within 20 s to action {roll:.2f} after {time.perf_counter() - t0:.1f} s "
-                               f"(at {time.strftime('%H:%M:%S')}): {exc}")  # fmt: skip
+            acts.errors.append(
+                f"no answer within 20 s to action {roll:.2f} after {time.perf_counter() - t0:.1f} s "
+                f"(at {time.strftime('%H:%M:%S')}): {exc}"
+            )
             return client
         if title == "Relabelled":
             terrain_now = body.split("→ ")[1].split(";")[0]
@@ -63,8 +65,9 @@ def person(url: str, region_s: float, ops: int, seed: int, acts: Acts) -> ViserC
     return client
 
 
-def act(client: ViserClient, acts: Acts, mine: list[int], roll: float, rng, at: float,
-        pressed: list[float]) -> tuple[str, str]:  # fmt: skip
+def act(
+    client: ViserClient, acts: Acts, mine: list[int], roll: float, rng, at: float, pressed: list[float]
+) -> tuple[str, str]:
     """One action: delete (20 %) or relabel (20 %) one of this person's segments, else label a new stretch."""
     if mine and roll < 0.2:
         seg = int(rng.choice(mine))
@@ -74,8 +77,9 @@ def act(client: ViserClient, acts: Acts, mine: list[int], roll: float, rng, at: 
         return title, body
     if mine and roll < 0.4:
         seg, terrain = int(rng.choice(mine)), str(rng.choice(["dirt", "sand", "gravel"]))
-        title, body = client.click("Relabel as chosen terrain", ("Relabelled",), Segment=option(client, seg),
-                                   Terrain=terrain)  # fmt: skip
+        title, body = client.click(
+            "Relabel as chosen terrain", ("Relabelled",), Segment=option(client, seg), Terrain=terrain
+        )
         if title == "Relabelled":
             acts.relabelled[int(SEGMENT.search(body).group(1))] = terrain
         return title, body
@@ -139,8 +143,10 @@ def run_people(path: Path, people: int, ops: int) -> tuple[int, list[float], lis
         app.job.start()
         acts = [Acts() for _ in range(people)]
         width = 1.5 * ops + 5  # each person labels in a region of their own
-        threads = [threading.Thread(target=lambda i=i: clients.append(person(app.url, 20 + width * i, ops, i, acts[i])))
-                   for i in range(people)]  # fmt: skip
+        threads = [
+            threading.Thread(target=lambda i=i: clients.append(person(app.url, 20 + width * i, ops, i, acts[i])))
+            for i in range(people)
+        ]
         for t in threads:
             t.start()
         for t in threads:
@@ -197,6 +203,8 @@ def test_eight_people_for_longer(trained: Path, promise) -> None:
 def summary(people: int, ops: int, n: int, save_ms: list[float], commit_ms: list[float]) -> str:
     s50, s99 = np.percentile(save_ms, [50, 99])
     c50, c99 = np.percentile(commit_ms, [50, 99])
-    return (f"promise 4 (several people at once): {people} clients x {ops} actions during a retrain, 0 failures, "
-            f"{n} labels checked; label save click -> committed p50 {c50:.1f} ms, p99 {c99:.1f} ms (server); "
-            f"Save -> acknowledgement p50 {s50:.0f} ms, p99 {s99:.0f} ms (client, incl. the round trip)")  # fmt: skip
+    return (
+        f"promise 4 (several people at once): {people} clients x {ops} actions during a retrain, 0 failures, "
+        f"{n} labels checked; label save click -> committed p50 {c50:.1f} ms, p99 {c99:.1f} ms (server); "
+        f"Save -> acknowledgement p50 {s50:.0f} ms, p99 {s99:.0f} ms (client, incl. the round trip)"
+    )

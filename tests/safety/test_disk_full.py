@@ -55,11 +55,13 @@ def test_a_read_only_session_refuses_every_change_and_keeps_its_state(labelled: 
     before = snapshot(s.path)
     s._conn.execute("PRAGMA query_only = ON")
     seg = s.segments()[0]
-    for change in (lambda: s.add_segment(log_id, 5000, 5100, "dirt", author="me"),
-                   lambda: s.change_segment(seg.id, author="me", terrain="sand"),
-                   lambda: s.delete_segment(seg.id, author="me"),
-                   lambda: s.undo(author="me"),
-                   lambda: s.add_terrain("mud")):  # fmt: skip
+    for change in (
+        lambda: s.add_segment(log_id, 5000, 5100, "dirt", author="me"),
+        lambda: s.change_segment(seg.id, author="me", terrain="sand"),
+        lambda: s.delete_segment(seg.id, author="me"),
+        lambda: s.undo(author="me"),
+        lambda: s.add_terrain("mud"),
+    ):
         with pytest.raises(SessionError, match="readonly"):
             change()
     assert snapshot(s.path) == before
@@ -71,8 +73,9 @@ def test_a_model_save_on_a_full_disk_leaves_the_active_models(tmp_path: Path, mo
     from workbench import cycle
     from workbench.demo import generate_demo_logs
 
-    s = build_trained(tmp_path / "s", generate_demo_logs(tmp_path / "logs", n_logs=2, minutes=1.0, seed=5),
-                      classifier=False)  # fmt: skip
+    s = build_trained(
+        tmp_path / "s", generate_demo_logs(tmp_path / "logs", n_logs=2, minutes=1.0, seed=5), classifier=False
+    )
     before = [(v.id, v.active) for v in s.model_versions()]
 
     def no_space(*args, **kwargs):

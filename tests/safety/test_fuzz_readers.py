@@ -22,8 +22,12 @@ from sessions.ingest.csv_reader import read_generic_csv
 from sessions.ingest.mcap_reader import read_mcap
 
 EXAMPLES = int(os.environ.get("WORKBENCH_FUZZ_EXAMPLES", "40"))
-FUZZ = settings(max_examples=EXAMPLES, deadline=None, derandomize=EXAMPLES <= 100,
-                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])  # fmt: skip
+FUZZ = settings(
+    max_examples=EXAMPLES,
+    deadline=None,
+    derandomize=EXAMPLES <= 100,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +91,10 @@ row = st.lists(cell, min_size=0, max_size=5).map(",".join)
 
 @pytest.mark.fuzz
 @FUZZ
-@given(header=st.sampled_from(["time,a,b", "t,x", "a,b,c", "", "\ufefftime,a"]), rows=st.lists(row, max_size=30),
-       newline=st.sampled_from(["\n", "\r\n", "\r"]))  # fmt: skip
+@given(
+    header=st.sampled_from(["time,a,b", "t,x", "a,b,c", "", "\ufefftime,a"]),
+    rows=st.lists(row, max_size=30),
+    newline=st.sampled_from(["\n", "\r\n", "\r"]),
+)
 def test_csv_reader_survives_hostile_text(header: str, rows: list[str], newline: str) -> None:
     _read(read_generic_csv, "fuzz.csv", newline.join([header, *rows]).encode("utf-8"))

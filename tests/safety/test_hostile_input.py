@@ -92,9 +92,13 @@ class Worker:
 
     def __init__(self, session: Path) -> None:
         self.session = session
-        self.proc = subprocess.Popen([sys.executable, str(REPO / "tests" / "safety" / "ingest_worker.py"),
-                                      str(session)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
-                                     cwd=REPO)  # fmt: skip
+        self.proc = subprocess.Popen(
+            [sys.executable, str(REPO / "tests" / "safety" / "ingest_worker.py"), str(session)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            cwd=REPO,
+        )
         assert json.loads(self._line(TIME_LIMIT_S)).get("ready")
 
     def _line(self, timeout: float) -> str:
@@ -159,9 +163,11 @@ def corpus(tmp_path: Path, demo_mcap: Path, *, long: bool) -> list[Path]:
 
 
 def summary(counts: dict[str, int]) -> str:
-    return (f"promise 3 (hostile input refused, not fatal): {counts['files']} files, 0 failures "
-            f"({counts['ingested']} ingested, {counts['refused']} refused with one line, none over "
-            f"{TIME_LIMIT_S:.0f} s or {PEAK_LIMIT_MB:.0f} MB)")  # fmt: skip
+    return (
+        f"promise 3 (hostile input refused, not fatal): {counts['files']} files, 0 failures "
+        f"({counts['ingested']} ingested, {counts['refused']} refused with one line, none over "
+        f"{TIME_LIMIT_S:.0f} s or {PEAK_LIMIT_MB:.0f} MB)"
+    )
 
 
 def test_a_short_hostile_corpus(tmp_path: Path, demo_mcap: Path, promise) -> None:

@@ -112,8 +112,10 @@ def run_kills(tmp_path: Path, walk_s: float, kills: int, seed: int) -> tuple[int
 
 
 def summary(kills: int, acked: int, stored: int) -> str:
-    return (f"promise 1 (labels survive SIGKILL): {kills} kills, 0 failures, {acked} acknowledged labels checked "
-            f"after every kill, {stored} in the session at the end")  # fmt: skip
+    return (
+        f"promise 1 (labels survive SIGKILL): {kills} kills, 0 failures, {acked} acknowledged labels checked "
+        f"after every kill, {stored} in the session at the end"
+    )
 
 
 def test_acknowledged_labels_survive_ten_kills(tmp_path: Path, promise) -> None:

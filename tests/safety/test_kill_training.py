@@ -67,8 +67,9 @@ CHILD = textwrap.dedent(
 
 
 def kill_training(path: Path, where: str, stage: str, steps: int = 1) -> None:
-    out = subprocess.run([sys.executable, "-c", CHILD, str(path), where, stage, str(steps)], capture_output=True,
-                         text=True, timeout=300)  # fmt: skip
+    out = subprocess.run(
+        [sys.executable, "-c", CHILD, str(path), where, stage, str(steps)], capture_output=True, text=True, timeout=300
+    )
     assert out.returncode == -signal.SIGKILL, out.stderr[-2000:]
 
 
@@ -99,9 +100,14 @@ def trained_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.mark.parametrize(
     ("where", "stage", "steps"),
-    [("epoch", "classifier", 2), ("epoch", "predictor", 2), ("save", "classifier", 0), ("save", "predictor", 0),
-     ("register", "classifier", 0)],
-)  # fmt: skip
+    [
+        ("epoch", "classifier", 2),
+        ("epoch", "predictor", 2),
+        ("save", "classifier", 0),
+        ("save", "predictor", 0),
+        ("register", "classifier", 0),
+    ],
+)
 def test_a_training_killed_anywhere_leaves_the_previous_models_working(
     trained_session: Path, where: str, stage: str, steps: int
 ) -> None:
@@ -122,10 +128,12 @@ def test_a_predictor_killed_while_saving_is_saved_by_the_next_run_without_traini
     resumed: list[tuple[int, int]] = []
     steps: list[object] = []
     with Session.open(path) as s:
-        config = TrainConfig(max_epochs=3, patience=2, chunk=32, piece=256, batch_size=16, label_piece=64,
-                             context=32, k_folds=3)  # what CHILD trains with  # fmt: skip
-        v = cycle.train_predictor(s, config=config, hidden=8, progress=steps.append,
-                                  on_resume=lambda e, b: resumed.append((e, b)))  # fmt: skip
+        config = TrainConfig(
+            max_epochs=3, patience=2, chunk=32, piece=256, batch_size=16, label_piece=64, context=32, k_folds=3
+        )  # what CHILD trains with
+        v = cycle.train_predictor(
+            s, config=config, hidden=8, progress=steps.append, on_resume=lambda e, b: resumed.append((e, b))
+        )
         assert v.active and len(s.model_versions("predictor")) == 2
         load_bundle(s.path / v.path)
     assert resumed and resumed[0][1] == 0 and steps == []  # the finished run's checkpoint: nothing left to train

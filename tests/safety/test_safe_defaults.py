@@ -23,7 +23,7 @@ from sessions.schema import SCHEMA_VERSION
 from tests.browser.conftest import free_port
 from tests.safety.viser_client import ViserClient
 from workbench.cli import serve
-from workbench.ui.panel_data import MAX_UPLOAD_MB, safe_name
+from workbench.ui import MAX_UPLOAD_MB, safe_name
 
 
 def test_the_server_binds_loopback_unless_told_and_warns_when_told(session: Session) -> None:
@@ -56,8 +56,9 @@ def test_an_upload_over_the_limit_is_refused_before_it_is_buffered(session: Sess
     try:
         client = ViserClient(app.url)
         button = client.wait_widget(f"Upload MCAP / CSV (≤ {MAX_UPLOAD_MB} MB)")
-        start = _messages.FileTransferStartUpload(button, uuid.uuid4().hex, "../../etc/big.mcap", "", 4096,
-                                                  (MAX_UPLOAD_MB << 20) + 1)  # fmt: skip
+        start = _messages.FileTransferStartUpload(
+            button, uuid.uuid4().hex, "../../etc/big.mcap", "", 4096, (MAX_UPLOAD_MB << 20) + 1
+        )
         client.ws.send(msgspec.msgpack.encode(start.as_serializable_dict()))
         note = client.wait_for(lambda m: m["type"] == "NotificationShowMessage")["props"]
         assert note["title"] == "Not done" and f"over the {MAX_UPLOAD_MB} MB upload limit" in note["body"]

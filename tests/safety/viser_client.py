@@ -23,16 +23,21 @@ class ViserClient:
     until a message matches."""
 
     def __init__(self, url: str, *, timeout: float = 20.0) -> None:
-        self.ws = connect(url.replace("http://", "ws://"), subprotocols=[f"viser-v{viser.__version__}"],
-                          max_size=None, open_timeout=timeout)  # fmt: skip
+        self.ws = connect(
+            url.replace("http://", "ws://"),
+            subprotocols=[f"viser-v{viser.__version__}"],
+            max_size=None,
+            open_timeout=timeout,
+        )
         self._unzip = zstandard.ZstdDecompressor()
         self.widgets: dict[str, str] = {}
         self.props: dict[str, dict] = {}  # uuid -> latest props
         self._inbox: deque[dict] = deque()  # received, not yet read
         self.recent: deque[str] = deque(maxlen=40)  # what came lately, for the message of a timeout
         # viser counts a client as connected (and builds its panel) at its first camera message, as a browser sends
-        camera = _messages.ViewerCameraMessage((1.0, 0.0, 0.0, 0.0), (3.0, 3.0, 3.0), 1.0, 0.01, 100.0, 800, 1200,
-                                               (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))  # fmt: skip
+        camera = _messages.ViewerCameraMessage(
+            (1.0, 0.0, 0.0, 0.0), (3.0, 3.0, 3.0), 1.0, 0.01, 100.0, 800, 1200, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0)
+        )
         self._send(camera)
 
     def close(self) -> None:
@@ -108,8 +113,12 @@ class ViserClient:
         """
         span = self.wait_widget("Range (s)")
         self.send_update(span, value=(round(start_s, 2), round(stop_s, 2)))
-        self.wait_for(lambda m: m["type"] == "GuiUpdateMessage" and any(
-            k in str(m["updates"].get("content", "")) for k in ("Snap proposal", "No change point")))  # fmt: skip
+        self.wait_for(
+            lambda m: (
+                m["type"] == "GuiUpdateMessage"
+                and any(k in str(m["updates"].get("content", "")) for k in ("Snap proposal", "No change point"))
+            )
+        )
         if sent is not None:
             sent()
         return self.click("Save label (Enter)", ("Saved",))

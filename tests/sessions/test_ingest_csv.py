@@ -89,8 +89,17 @@ def test_borealtc_run_pairs_imu_and_wheel_files(session: Session) -> None:
     (log,) = session.ingest([imu])
     assert log.format == "borealtc" and log.name == "ASPHALT_00"
     assert log.channel_names == (
-        "imu/wx", "imu/wy", "imu/wz", "imu/ax", "imu/ay", "imu/az", "pro/curL", "pro/curR", "pro/velL", "pro/velR",
-    )  # fmt: skip
+        "imu/wx",
+        "imu/wy",
+        "imu/wz",
+        "imu/ax",
+        "imu/ay",
+        "imu/az",
+        "pro/curL",
+        "pro/curR",
+        "pro/velL",
+        "pro/velR",
+    )
     assert log.rate_hz == 100.0 and log.reference_terrain == "asphalt"
     assert {c.unit for c in log.channels} == {"rad/s", "m/s²", "A", "m/s"}
     assert 6.0 < log.info["stream_rates_hz"]["pro"] < 7.0

@@ -24,10 +24,17 @@ def test_ros2_imu_wrench_vector3_are_recognised_and_aligned(session: Session, tm
     assert log.t0 == pytest.approx(1000.0)  # header stamps, not the recorder's log time (+0.5 s)
     names = log.channel_names
     assert names[:10] == (
-        "imu/orientation.x", "imu/orientation.y", "imu/orientation.z", "imu/orientation.w",
-        "imu/angular_velocity.x", "imu/angular_velocity.y", "imu/angular_velocity.z",
-        "imu/linear_acceleration.x", "imu/linear_acceleration.y", "imu/linear_acceleration.z",
-    )  # fmt: skip
+        "imu/orientation.x",
+        "imu/orientation.y",
+        "imu/orientation.z",
+        "imu/orientation.w",
+        "imu/angular_velocity.x",
+        "imu/angular_velocity.y",
+        "imu/angular_velocity.z",
+        "imu/linear_acceleration.x",
+        "imu/linear_acceleration.y",
+        "imu/linear_acceleration.z",
+    )
     assert {"fl/force.x", "fr/force.z", "contact/x"} <= set(names)
     assert not any("torque" in n for n in names)  # all-zero torque is an unused field, dropped
     assert not any("chatter" in n for n in names)

@@ -27,8 +27,17 @@ def tiny_bundle(mode: str = "hidden", seed: int = 0) -> tuple[ModelBundle, list[
     clfs = [Classifier(ClassifierConfig(n_feat, 4, 6, 0.2)).eval() for _ in range(3)]
     for c in clfs:  # a standardisation that is not the identity, so every path must apply it
         c.set_standardisation(rng.normal(0.0, 0.5, n_feat), rng.uniform(0.2, 3.0, n_feat))
-    bundle = ModelBundle(pred, Normalizer.fit(logs), ("a", "b", "c"), 100.0, clfs, ("w", "x", "y", "z"), mode,
-                         {"accuracy": 0.5}, {"note": "tiny"})  # fmt: skip
+    bundle = ModelBundle(
+        pred,
+        Normalizer.fit(logs),
+        ("a", "b", "c"),
+        100.0,
+        clfs,
+        ("w", "x", "y", "z"),
+        mode,
+        {"accuracy": 0.5},
+        {"note": "tiny"},
+    )
     return bundle, logs
 
 

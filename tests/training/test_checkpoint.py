@@ -27,9 +27,23 @@ def test_a_checkpoint_round_trips_and_refuses_another_run(tmp_path: Path) -> Non
     opt.step()
     rng = np.random.default_rng(1)
     rng.random(3)
-    ckpt = Checkpoint("abc", 3, 2, False, 1.5, 10.0, [{"epoch": 1, "train_loss": 2.0, "val_loss": float("inf")}],
-                      0.5, 2, 1, rng.bit_generator.state, torch.arange(5), model.state_dict(),
-                      {k: v * 2 for k, v in model.state_dict().items()}, opt.state_dict())  # fmt: skip
+    ckpt = Checkpoint(
+        "abc",
+        3,
+        2,
+        False,
+        1.5,
+        10.0,
+        [{"epoch": 1, "train_loss": 2.0, "val_loss": float("inf")}],
+        0.5,
+        2,
+        1,
+        rng.bit_generator.state,
+        torch.arange(5),
+        model.state_dict(),
+        {k: v * 2 for k, v in model.state_dict().items()},
+        opt.state_dict(),
+    )
     path = tmp_path / "c" / "ckpt.safetensors"
     save_checkpoint(ckpt, path)
     back = load_checkpoint(path, "abc")
@@ -75,8 +89,9 @@ def test_a_stopped_fit_goes_on_from_its_checkpoint_to_the_uninterrupted_result(t
     with pytest.raises(Cancelled):
         fit_predictor(logs, config=SMALL, hidden=8, checkpoint=path, checkpoint_every=3, cancel=stop_after(stop))
     heard: list[tuple[int, int]] = []
-    again = fit_predictor(logs, config=SMALL, hidden=8, checkpoint=path, checkpoint_every=3,
-                          on_resume=lambda e, b: heard.append((e, b)))  # fmt: skip
+    again = fit_predictor(
+        logs, config=SMALL, hidden=8, checkpoint=path, checkpoint_every=3, on_resume=lambda e, b: heard.append((e, b))
+    )
     # 7 batches an epoch, a checkpoint every 3 and at each epoch's end: stopped in batch 11 (the 4th of epoch 2)
     # -> (epoch 2, batch 3); stopped in batch 15 (the first of epoch 3) -> the end of epoch 2, i.e. (epoch 3, batch 0)
     assert heard == ([(2, 3)] if stop == 10 else [(3, 0)])
@@ -95,8 +110,13 @@ def test_another_configuration_ignores_the_checkpoint(tmp_path: Path) -> None:
     fit_predictor(logs, config=SMALL, hidden=8, checkpoint=path)
     assert load_checkpoint(path, "x") is None and path.exists()
     heard: list[tuple[int, int]] = []
-    other = fit_predictor(logs, config=TrainConfig(**{**SMALL.__dict__, "lr": 0.01}), hidden=8, checkpoint=path,
-                          on_resume=lambda e, b: heard.append((e, b)))  # fmt: skip
+    other = fit_predictor(
+        logs,
+        config=TrainConfig(**{**SMALL.__dict__, "lr": 0.01}),
+        hidden=8,
+        checkpoint=path,
+        on_resume=lambda e, b: heard.append((e, b)),
+    )
     assert heard == [] and other.resumed_from is None and len(other.history) == 4
 
 

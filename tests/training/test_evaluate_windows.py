@@ -45,8 +45,18 @@ def test_group_split_keeps_groups_whole() -> None:
 def test_borealtc_protocol_learns_easy_terrains() -> None:
     runs, labels = noisy_runs()
     proto = WindowProtocol(partition_s=1.0, window_s=0.3, stride_s=0.1, folds=2, train_stride_s=0.1)
-    res = borealtc_protocol(runs, labels, ["calm", "rough"], rate_hz=100.0, labelled=0.5, protocol=proto, stage1=S1,
-                            stage2=S2, hidden=8, log=lambda _: None)  # fmt: skip
+    res = borealtc_protocol(
+        runs,
+        labels,
+        ["calm", "rough"],
+        rate_hz=100.0,
+        labelled=0.5,
+        protocol=proto,
+        stage1=S1,
+        stage2=S2,
+        hidden=8,
+        log=lambda _: None,
+    )
     assert len(res) == 2
     assert all(r.windows == 24 * 8 for r in res)  # 24 test partitions of 100 samples, 8 windows of 30 each
     assert np.mean([r.accuracy for r in res]) > 0.8
@@ -56,8 +66,19 @@ def test_borealtc_strict_variant_trains_stage1_per_fold() -> None:
     runs, labels = noisy_runs(4, 300)
     proto = WindowProtocol(partition_s=1.0, window_s=0.3, stride_s=0.1, folds=2)
     seen = []
-    res = borealtc_protocol(runs, labels, ["calm", "rough"], rate_hz=100.0, labelled=0.5, strict=True, protocol=proto,
-                            stage1=S1, stage2=S2, hidden=8, log=seen.append)  # fmt: skip
+    res = borealtc_protocol(
+        runs,
+        labels,
+        ["calm", "rough"],
+        rate_hz=100.0,
+        labelled=0.5,
+        strict=True,
+        protocol=proto,
+        stage1=S1,
+        stage2=S2,
+        hidden=8,
+        log=seen.append,
+    )
     assert len(res) == 2 and not any("on all" in s for s in seen)
 
 
@@ -67,8 +88,18 @@ def test_qcat_protocol_both_variants() -> None:
     y = [lab for lab in labels for _ in range(4)]
     g = [i for i in range(len(runs)) for _ in range(4)]
     for leak_free in (False, True):
-        res = qcat_protocol(seqs, y, g, ["calm", "rough"], leak_free=leak_free, folds=2, stage1=S1, stage2=S2, hidden=8,
-                            log=lambda _: None)  # fmt: skip
+        res = qcat_protocol(
+            seqs,
+            y,
+            g,
+            ["calm", "rough"],
+            leak_free=leak_free,
+            folds=2,
+            stage1=S1,
+            stage2=S2,
+            hidden=8,
+            log=lambda _: None,
+        )
         assert len(res) == 2 and all(r["n"] >= 1 for r in res)
 
 
@@ -80,7 +111,16 @@ def test_held_out_logs_protocol_reports_each_mode() -> None:
         logs.append((rng.normal(size=(len(y), 3)) * np.where(y[:, None] == 1, 2.0, 0.4)).astype(np.float32))
         truth.append(y)
     res = held_out_logs_protocol(
-        logs, truth, ["calm", "rough"], labelled=0.2, segment=100, folds=2, modes=("hidden", "error"), stage1=S1,
-        stage2=S2, hidden=8, log=lambda _: None,
-    )  # fmt: skip
+        logs,
+        truth,
+        ["calm", "rough"],
+        labelled=0.2,
+        segment=100,
+        folds=2,
+        modes=("hidden", "error"),
+        stage1=S1,
+        stage2=S2,
+        hidden=8,
+        log=lambda _: None,
+    )
     assert set(res) == {"hidden", "error"} and all(len(v) == 2 for v in res.values())

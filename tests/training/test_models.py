@@ -106,8 +106,14 @@ def test_classifier_separates_two_easy_classes_from_sparse_labels() -> None:
         f = rng.normal(size=(800, 4)) * np.where(y[:, None] == 1, 2.0, 0.3)
         feats.append(f.astype(np.float32))
         truth.append(y)
-    segments = [(0, 10, 90, 0), (0, 110, 190, 1), (0, 410, 490, 0), (0, 510, 590, 1), (0, 610, 690, 0),
-                (0, 710, 790, 1)]  # fmt: skip
+    segments = [
+        (0, 10, 90, 0),
+        (0, 110, 190, 1),
+        (0, 410, 490, 0),
+        (0, 510, 590, 1),
+        (0, 610, 690, 0),
+        (0, 710, 790, 1),
+    ]
     fit = fit_classifier(
         feats,
         segments,
@@ -183,8 +189,16 @@ def test_consistency_pulls_the_paired_windows_predictions_together() -> None:
     pairs = [(Piece(2, s, s + 40, s), Piece(2, s + 200, s + 240, s + 200)) for s in range(0, 160, 10)]
 
     def pair_distance(weight: float) -> float:
-        cfg = TrainConfig(**{**TINY.__dict__, "max_epochs": 30, "patience": 30, "context": 0, "label_piece": 40,
-                             "consistency": weight})  # fmt: skip
+        cfg = TrainConfig(
+            **{
+                **TINY.__dict__,
+                "max_epochs": 30,
+                "patience": 30,
+                "context": 0,
+                "label_piece": 40,
+                "consistency": weight,
+            }
+        )
         fit = fit_classifier(feats, segments, ["low", "high"], config=cfg, hidden=8, pairs=pairs)
         windows = [feats[2][a.start : a.stop] for a, _ in pairs] + [feats[2][b.start : b.stop] for _, b in pairs]
         probs = run_classifiers(fit.models, windows)  # per window (M, 40, K)

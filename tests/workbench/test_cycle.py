@@ -118,8 +118,11 @@ def test_export_writes_bundle_card_checked_onnx_and_label_files(trained: Session
     assert set(written) >= {"bundle", "labels.csv", "labels.parquet", "labels.json", "predictions.parquet"}
     card = (out / "bundle" / "MODEL_CARD.md").read_text()
     assert "Out-of-fold metrics" in card and "imu/angular_velocity.x" in card
-    frames = [pd.read_csv(out / "labels.csv"), pd.read_parquet(out / "labels.parquet"),
-              pd.DataFrame(json.loads((out / "labels.json").read_text()))]  # fmt: skip
+    frames = [
+        pd.read_csv(out / "labels.csv"),
+        pd.read_parquet(out / "labels.parquet"),
+        pd.DataFrame(json.loads((out / "labels.json").read_text())),
+    ]
     for f in frames:
         assert len(f) == len(trained.segments())
         assert list(f.columns[:7]) == [
@@ -185,8 +188,21 @@ def test_cli_evaluate_qcat_on_a_generated_fixture(tmp_path: Path, capsys) -> Non
 
     for terrain in range(6):
         qcat_fixture(tmp_path, terrain=str(terrain), speed=1, trials=4, rows=80)
-    code = main(["evaluate", "qcat", str(tmp_path), "--hidden", "8", "--folds", "2", "--stage1-epochs", "2",
-                 "--stage2-epochs", "3"])  # fmt: skip
+    code = main(
+        [
+            "evaluate",
+            "qcat",
+            str(tmp_path),
+            "--hidden",
+            "8",
+            "--folds",
+            "2",
+            "--stage1-epochs",
+            "2",
+            "--stage2-epochs",
+            "3",
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0
     assert "24 trials, 192 step sequences" in out

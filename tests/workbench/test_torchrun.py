@@ -44,16 +44,34 @@ def run(args: list[str], *, procs: int = 1, script: str | None = None) -> subpro
     if procs == 1:
         cmd = [sys.executable, "-m", "workbench.cli", *args]
     else:
-        launcher = [sys.executable, "-m", "torch.distributed.run", f"--nproc-per-node={procs}",
-                    "--master-addr=127.0.0.1", f"--master-port={free_port()}"]  # fmt: skip
+        launcher = [
+            sys.executable,
+            "-m",
+            "torch.distributed.run",
+            f"--nproc-per-node={procs}",
+            "--master-addr=127.0.0.1",
+            f"--master-port={free_port()}",
+        ]
         cmd = [*launcher, script] if script else [*launcher, "-m", "workbench.cli"]
         cmd += args
     return subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
 
 
 def train_args(session: Path) -> list[str]:
-    return ["train", str(session), "--stage", "predictor", "--hidden", "8", "--batch-size", "4",
-            "--max-epochs", str(EPOCHS), "--patience", str(EPOCHS)]  # fmt: skip
+    return [
+        "train",
+        str(session),
+        "--stage",
+        "predictor",
+        "--hidden",
+        "8",
+        "--batch-size",
+        "4",
+        "--max-epochs",
+        str(EPOCHS),
+        "--patience",
+        str(EPOCHS),
+    ]
 
 
 def history(session: Path) -> list[dict[str, float]]:

@@ -16,6 +16,7 @@ import tyro
 from sessions import IngestError, IngestOptions, Session, WorkbenchError, load_mapping
 
 from ..retrain import RETRAIN
+from ..user_errors import USER_ERRORS, one_line
 from . import model_commands
 from .ingest_report import dry_run_report
 
@@ -245,8 +246,8 @@ def main(argv: list[str] | None = None) -> int:
             result = tyro.extras.subcommand_cli_from_dict(
                 COMMANDS, prog="workbench", description="Terrain workbench: label robot logs, train, export.", args=argv
             )
-    except WorkbenchError as exc:
-        _err(str(exc))
+    except USER_ERRORS as exc:
+        _err(one_line(exc))
         return 2
     except KeyboardInterrupt:
         return 130

@@ -90,8 +90,14 @@ def train(
         )
     if consistency < 0:
         raise WorkbenchError(f"--consistency must be 0 or more, got {consistency}")
-    config = TrainConfig(max_epochs=max_epochs, patience=patience, device=device, batch_size=batch_size, bf16=bf16,
-                         consistency=consistency)  # fmt: skip
+    config = TrainConfig(
+        max_epochs=max_epochs,
+        patience=patience,
+        device=device,
+        batch_size=batch_size,
+        bf16=bf16,
+        consistency=consistency,
+    )
     world = distributed.join(device)
     try:
         if not world.main:  # another torchrun process: it reads log files, never the session's database
@@ -118,8 +124,10 @@ def _train_predictor(s: Session, config: TrainConfig, hidden: int) -> None:
         v = cycle.train_predictor(s, config=config, hidden=hidden, progress=bar, on_resume=resumed)
     finally:
         bar.close()
-    print(f"predictor v{v.id}: validation MSE {v.metrics['val_mse']:.4f} (normalised units), "
-          f"best epoch {v.metrics['best_epoch']} of {v.metrics['epochs']}")  # fmt: skip
+    print(
+        f"predictor v{v.id}: validation MSE {v.metrics['val_mse']:.4f} (normalised units), "
+        f"best epoch {v.metrics['best_epoch']} of {v.metrics['epochs']}"
+    )
 
 
 def _train_classifier(s: Session, config: TrainConfig, hidden: int, feature_mode: FeatureMode, stage: str) -> None:
@@ -135,8 +143,10 @@ def _train_classifier(s: Session, config: TrainConfig, hidden: int, feature_mode
     finally:
         bar.close()
     m = v.metrics
-    print(f"classifier v{v.id}: out-of-fold accuracy {m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} "
-          f"on {m['n_segments']} segments ({m['labelled_seconds']:.0f} s labelled)")  # fmt: skip
+    print(
+        f"classifier v{v.id}: out-of-fold accuracy {m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} "
+        f"on {m['n_segments']} segments ({m['labelled_seconds']:.0f} s labelled)"
+    )
 
 
 def export(session: Pos[Path], out: Path, predictions: bool = False) -> None:
@@ -253,19 +263,48 @@ def evaluate(
 
     _check_device(device)
     if simulate:
-        print(ev.simulate(dataset, folder, strategies=strategies, seeds=seeds, rounds=rounds, batch=batch, out=out,
-                          feature_mode=feature_mode, warm_start=warm_start, segment_s=segment_s, members=members,
-                          device=device))  # fmt: skip
+        print(
+            ev.simulate(
+                dataset,
+                folder,
+                strategies=strategies,
+                seeds=seeds,
+                rounds=rounds,
+                batch=batch,
+                out=out,
+                feature_mode=feature_mode,
+                warm_start=warm_start,
+                segment_s=segment_s,
+                members=members,
+                device=device,
+            )
+        )
         return
 
     if dataset == "borealtc":
-        report = ev.evaluate_borealtc(folder, labelled=labelled, variant=variant, hidden=hidden, seed=seed,
-                                      stage1_epochs=stage1_epochs, stage2_epochs=stage2_epochs, out=out,
-                                      device=device)  # fmt: skip
+        report = ev.evaluate_borealtc(
+            folder,
+            labelled=labelled,
+            variant=variant,
+            hidden=hidden,
+            seed=seed,
+            stage1_epochs=stage1_epochs,
+            stage2_epochs=stage2_epochs,
+            out=out,
+            device=device,
+        )
     elif dataset == "qcat":
-        report = ev.evaluate_qcat(folder, hidden=hidden, seed=seed, folds=folds, epochs=(stage1_epochs, stage2_epochs),
-                                  device=device)  # fmt: skip
+        report = ev.evaluate_qcat(
+            folder, hidden=hidden, seed=seed, folds=folds, epochs=(stage1_epochs, stage2_epochs), device=device
+        )
     else:
-        report = ev.evaluate_demo(folder, labelled=labelled, hidden=hidden, seed=seed, folds=folds,
-                                  epochs=(stage1_epochs, stage2_epochs), device=device)  # fmt: skip
+        report = ev.evaluate_demo(
+            folder,
+            labelled=labelled,
+            hidden=hidden,
+            seed=seed,
+            folds=folds,
+            epochs=(stage1_epochs, stage2_epochs),
+            device=device,
+        )
     print(report)

@@ -29,8 +29,9 @@ def plot_curves(
     ax.set_title(title)
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right", fontsize=8)
-    top = ax.secondary_xaxis("top", functions=(lambda s: 100 * s * rate_hz / total_samples,
-                                               lambda p: p * total_samples / (100 * rate_hz)))  # fmt: skip
+    top = ax.secondary_xaxis(
+        "top", functions=(lambda s: 100 * s * rate_hz / total_samples, lambda p: p * total_samples / (100 * rate_hz))
+    )
     top.set_xlabel("labelled time (% of all time)")
     fig.tight_layout()
     fig.savefig(path)

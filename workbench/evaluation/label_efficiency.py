@@ -91,8 +91,15 @@ class FeatureLearner:
             self.models = None
             return labeling.Round([labeling.LogScores(e) for e in self.pool_error], float("nan"))
         feats, segments, pairs = self.train_features(labels)
-        fit = fit_classifier(feats, segments, self.classes, config=self.config, hidden=self.hidden,
-                             init=self.models if self.warm_start else None, pairs=pairs)  # fmt: skip
+        fit = fit_classifier(
+            feats,
+            segments,
+            self.classes,
+            config=self.config,
+            hidden=self.hidden,
+            init=self.models if self.warm_start else None,
+            pairs=pairs,
+        )
         self.models = fit.models
         scores = score_logs(self.models, self.pool_features, self.pool_error, batch=256, device=self.config.device)
         y_true, y_pred = self.test_predict(self.models)
@@ -105,10 +112,20 @@ def _run(learner_for_seed, truth, classes, settings: SimSettings, *, max_len, mi
     for seed in range(settings.seeds):
         for strategy in settings.strategies:
             learner = learner_for_seed(seed)
-            curve = labeling.simulate(learner, truth(seed), strategy=strategy, rounds=settings.rounds,
-                                      batch=settings.batch, classes=classes, change_points=change_points(seed),
-                                      max_len=max_len, min_len=min_len, embeddings=embeddings(seed), seed=seed,
-                                      log=log)  # fmt: skip
+            curve = labeling.simulate(
+                learner,
+                truth(seed),
+                strategy=strategy,
+                rounds=settings.rounds,
+                batch=settings.batch,
+                classes=classes,
+                change_points=change_points(seed),
+                max_len=max_len,
+                min_len=min_len,
+                embeddings=embeddings(seed),
+                seed=seed,
+                log=log,
+            )
             curves[strategy].append(curve)
     return curves
 
@@ -171,8 +188,13 @@ def simulate_logs(
     pool_truth = [truth[i] for i in pool]
     # change points on the signals and the surprise together, as the UI computes them
     cps = [labeling.change_points(np.column_stack([pfit.normalizer(logs[i]), errors[i]]), block=25) for i in pool]
-    cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=settings.stage2_patience, k_folds=settings.folds,
-                       consistency=settings.consistency, device=settings.device)  # fmt: skip
+    cfg2 = TrainConfig(
+        max_epochs=settings.stage2_epochs,
+        patience=settings.stage2_patience,
+        k_folds=settings.folds,
+        consistency=settings.consistency,
+        device=settings.device,
+    )
 
     def test_predict(models):
         probs = run_classifiers(models, [feats[i] for i in test], batch=256, device=settings.device)
@@ -189,20 +211,38 @@ def simulate_logs(
         log(f"consistency {settings.consistency:g}: {len(pairs)} pairs of unlabelled neighbouring windows in the pool")
 
     def learner(seed: int) -> FeatureLearner:
-        return FeatureLearner(pool_feats, [errors[i] for i in pool], classes, replace(cfg2, seed=seed),
-                              settings.hidden, lambda labels: (pool_feats, list(labels), pairs), test_predict,
-                              warm_start=settings.warm_start)  # fmt: skip
+        return FeatureLearner(
+            pool_feats,
+            [errors[i] for i in pool],
+            classes,
+            replace(cfg2, seed=seed),
+            settings.hidden,
+            lambda labels: (pool_feats, list(labels), pairs),
+            test_predict,
+            warm_start=settings.warm_start,
+        )
 
     total = sum(len(t) for t in pool_truth)
     longest, shortest = suggestion_lengths(rate_hz, seconds=settings.segment_s or SUGGESTION_S)
     # Accuracy moves in steps of whole terrain patches: with few held-out patches one patch is several points
     held = [truth[i] for i in test]
     patches = sum(int((t[np.r_[True, np.diff(t) != 0]] >= 0).sum()) for t in held if len(t))  # runs of a known class
-    log(f"pool: {len(pool)} logs, {total / rate_hz / 60:.1f} min; held out: {len(test)} logs, "
+    log(
+        f"pool: {len(pool)} logs, {total / rate_hz / 60:.1f} min; held out: {len(test)} logs, "
         f"{sum(map(len, held)) / rate_hz / 60:.1f} min, {patches} terrain patches; "
-        f"suggestions of {shortest / rate_hz:g}–{longest / rate_hz:g} s")  # fmt: skip
-    curves = _run(learner, lambda s: pool_truth, classes, settings, max_len=longest, min_len=shortest,
-                  change_points=lambda s: cps, embeddings=lambda s: [feats[i] for i in pool], log=log)  # fmt: skip
+        f"suggestions of {shortest / rate_hz:g}–{longest / rate_hz:g} s"
+    )
+    curves = _run(
+        learner,
+        lambda s: pool_truth,
+        classes,
+        settings,
+        max_len=longest,
+        min_len=shortest,
+        change_points=lambda s: cps,
+        embeddings=lambda s: [feats[i] for i in pool],
+        log=log,
+    )
     return report(curves, total=total, rate_hz=rate_hz, title="Demo logs (held-out logs)", out=out)
 
 
@@ -235,15 +275,22 @@ def simulate_partitions(
     )
     cuts = labeling.spans(size, np.zeros(0, np.int64), max_len=-(-size // pieces))
     units = [(i, a, b) for i in range(len(parts)) for a, b in cuts]  # the pool's "logs": pieces of partitions
-    outs = run_predictor(pfit.model, pfit.normalizer, [parts[i][a:b] for i, a, b in units], batch=512,
-                         device=settings.device)  # fmt: skip
+    outs = run_predictor(
+        pfit.model, pfit.normalizer, [parts[i][a:b] for i, a, b in units], batch=512, device=settings.device
+    )
     feats = [o.features(settings.feature_mode) for o in outs]
     errors = [np.square(o.error).mean(1) for o in outs]
     folds = list(StratifiedKFold(5, shuffle=True, random_state=0).split(np.zeros(len(y)), y))
     in_fold = [np.isin([i for i, _, _ in units], folds[f][0]).nonzero()[0] for f in range(len(folds))]
-    cfg2 = TrainConfig(max_epochs=settings.stage2_epochs, patience=settings.stage2_patience, k_folds=settings.folds,
-                       context=0, label_piece=win, consistency=settings.consistency,
-                       device=settings.device)  # fmt: skip
+    cfg2 = TrainConfig(
+        max_epochs=settings.stage2_epochs,
+        patience=settings.stage2_patience,
+        k_folds=settings.folds,
+        context=0,
+        label_piece=win,
+        consistency=settings.consistency,
+        device=settings.device,
+    )
     window_cache: dict[tuple[int, int, int], list[np.ndarray]] = {}
 
     def window_features(u: int, a: int, b: int) -> list[np.ndarray]:
@@ -276,9 +323,13 @@ def simulate_partitions(
             w, owner = windows([parts[i] for i in pool_parts], win, round(0.5 * rate_hz))
             outs_w = run_predictor(pfit.model, pfit.normalizer, w, batch=512, device=settings.device)
             at = {int(p): np.flatnonzero(owner == k) for k, p in enumerate(pool_parts)}
-            pairs = [(Piece(int(i), 0, win, 0), Piece(int(j), 0, win, 0))
-                     for p in pool_parts if p + 1 in at and run_of[p] == run_of[p + 1]
-                     for i in at[int(p)] for j in at[int(p) + 1]]  # fmt: skip
+            pairs = [
+                (Piece(int(i), 0, win, 0), Piece(int(j), 0, win, 0))
+                for p in pool_parts
+                if p + 1 in at and run_of[p] == run_of[p + 1]
+                for i in at[int(p)]
+                for j in at[int(p) + 1]
+            ]
             neighbour_cache[fold] = [o.features(settings.feature_mode) for o in outs_w], pairs
         return neighbour_cache[fold]
 
@@ -304,18 +355,36 @@ def simulate_partitions(
             probs = run_classifiers(models, test_feats, batch=512, device=settings.device)
             return y_test, np.array([p.mean(0)[-1].argmax() for p in probs])
 
-        return FeatureLearner([feats[u] for u in pool], [errors[u] for u in pool], classes,
-                              replace(cfg2, seed=seed), settings.hidden, train_features, test_predict,
-                              warm_start=settings.warm_start)  # fmt: skip
+        return FeatureLearner(
+            [feats[u] for u in pool],
+            [errors[u] for u in pool],
+            classes,
+            replace(cfg2, seed=seed),
+            settings.hidden,
+            train_features,
+            test_predict,
+            warm_start=settings.warm_start,
+        )
 
     def truth(seed: int) -> list[np.ndarray]:
         return [np.full(units[u][2] - units[u][1], y[units[u][0]]) for u in in_fold[seed % len(folds)]]
 
     total = sum(units[u][2] - units[u][1] for u in in_fold[0])
     longest, shortest = max(b - a for a, b in cuts), min(b - a for a, b in cuts)
-    log(f"pool: {len(folds[0][0])} training partitions ({total / rate_hz / 60:.1f} min) per fold, "
-        f"{pieces} suggestion(s) of {longest / rate_hz:.2f} s in each")  # fmt: skip
-    curves = _run(learner, truth, classes, settings, max_len=longest, min_len=shortest, change_points=lambda s: None,
-                  embeddings=lambda s: [feats[u] for u in in_fold[s % len(folds)]], log=log)  # fmt: skip
+    log(
+        f"pool: {len(folds[0][0])} training partitions ({total / rate_hz / 60:.1f} min) per fold, "
+        f"{pieces} suggestion(s) of {longest / rate_hz:.2f} s in each"
+    )
+    curves = _run(
+        learner,
+        truth,
+        classes,
+        settings,
+        max_len=longest,
+        min_len=shortest,
+        change_points=lambda s: None,
+        embeddings=lambda s: [feats[u] for u in in_fold[s % len(folds)]],
+        log=log,
+    )
     title = "BorealTC (partition protocol" + (f", {pieces} suggestions a partition)" if pieces > 1 else ")")
     return report(curves, total=total, rate_hz=rate_hz, title=title, out=out)

@@ -107,10 +107,17 @@ def evaluate_borealtc(
             f"--- stage 1 {'never sees test partitions' if v == 'strict' else 'trained on all partitions (no labels)'}"
         )
         res = borealtc_protocol(
-            runs, labels, classes, rate_hz=100.0, labelled=labelled, strict=v == "strict", hidden=hidden, seed=seed,
+            runs,
+            labels,
+            classes,
+            rate_hz=100.0,
+            labelled=labelled,
+            strict=v == "strict",
+            hidden=hidden,
+            seed=seed,
             stage1=TrainConfig(max_epochs=stage1_epochs, patience=5, seed=seed, device=device),
             stage2=TrainConfig(max_epochs=stage2_epochs, patience=15, seed=seed, device=device),
-        )  # fmt: skip
+        )
         a, a_sd, f, f_sd = summarize(res)
         name = f"this work, {labelled:.0%} labels, stage 1 " + ("strict" if v == "strict" else "on all signals")
         rows.append((name, a, a_sd, f, f_sd, res))
@@ -120,11 +127,17 @@ def evaluate_borealtc(
         lines.append(f"| {name} | {labelled:.0%} | {a:.2f} ± {a_sd:.2f} | {f:.3f} ± {f_sd:.3f} |")
     for name, acc in BOREALTC_PUBLISHED.items():
         lines.append(f"| {name} (published) | 100% of training partitions | {acc:.2f} | |")
-    per_fold = ["", "| variant | fold | accuracy (%) | macro-F1 | test windows | labelled partitions | s |",
-                "| --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    per_fold = [
+        "",
+        "| variant | fold | accuracy (%) | macro-F1 | test windows | labelled partitions | s |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
     for name, *_, res in rows:
-        per_fold += [f"| {name} | {r.fold} | {r.accuracy * 100:.2f} | {r.macro_f1:.3f} | {r.windows} | "
-                     f"{r.labelled_partitions} | {r.seconds:.0f} |" for r in res]  # fmt: skip
+        per_fold += [
+            f"| {name} | {r.fold} | {r.accuracy * 100:.2f} | {r.macro_f1:.3f} | {r.windows} | "
+            f"{r.labelled_partitions} | {r.seconds:.0f} |"
+            for r in res
+        ]
     report = "\n".join(lines + per_fold)
     if out is not None:
         out.write_text(json.dumps(detail, indent=1, default=str))
@@ -169,12 +182,25 @@ def evaluate_qcat(
     for leak_free in (False, True):
         print("--- " + ("whole trials held out" if leak_free else "the paper's random split of sequences"))
         res = qcat_protocol(
-            seqs, labels, groups, classes, leak_free=leak_free, folds=folds, hidden=hidden, seed=seed,
+            seqs,
+            labels,
+            groups,
+            classes,
+            leak_free=leak_free,
+            folds=folds,
+            hidden=hidden,
+            seed=seed,
             stage1=TrainConfig(max_epochs=epochs[0], patience=8, seed=seed, device=device),
             stage2=TrainConfig(max_epochs=epochs[1], patience=15, seed=seed, device=device),
-        )  # fmt: skip
-        rows.append(("this work, trials held out" if leak_free else "this work, paper's split (steps of a trial on "
-                     "both sides)", res))  # fmt: skip
+        )
+        rows.append(
+            (
+                "this work, trials held out"
+                if leak_free
+                else "this work, paper's split (steps of a trial on both sides)",
+                res,
+            )
+        )
     return _table(rows, ["| paper: proposed method (published) | 89.04 | | |", "| paper: TCN (published) | 87.5 | | |"])
 
 
@@ -199,10 +225,17 @@ def evaluate_demo(
     truth = truth_arrays(recs, classes)
     print(f"{len(recs)} logs, {sum(len(r.data) for r in recs) / 6000:.1f} min, {labelled:.0%} labelled")
     res = held_out_logs_protocol(
-        [r.data for r in recs], truth, classes, labelled=labelled, modes=modes, hidden=hidden, seed=seed, folds=folds,
+        [r.data for r in recs],
+        truth,
+        classes,
+        labelled=labelled,
+        modes=modes,
+        hidden=hidden,
+        seed=seed,
+        folds=folds,
         stage1=TrainConfig(max_epochs=epochs[0], patience=5, seed=seed, device=device),
         stage2=TrainConfig(max_epochs=epochs[1], patience=15, seed=seed, device=device),
-    )  # fmt: skip
+    )
     return _table([(f"stage 2 on `{m}` features, {labelled:.0%} labels", r) for m, r in res.items()])
 
 

@@ -3,6 +3,7 @@
 from .app import WorkbenchApp
 from .jobs import JobStatus, TrainJob
 from .state import Queued, SharedState
+from .uploads import MAX_UPLOAD_MB, safe_name
 from .view import ClientView
 
-__all__ = ["ClientView", "JobStatus", "Queued", "SharedState", "TrainJob", "WorkbenchApp"]
+__all__ = ["MAX_UPLOAD_MB", "ClientView", "JobStatus", "Queued", "SharedState", "TrainJob", "WorkbenchApp", "safe_name"]

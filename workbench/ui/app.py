@@ -66,8 +66,10 @@ class WorkbenchApp:
     def _upload_refused(self, client_id: int, name: str, size: int) -> None:
         client = self.server.get_clients().get(client_id)  # the client, not its view: that may still be building
         if client is not None:
-            body = (f"{safe_name(name)}: {size / 2**20:.0f} MB is over the {MAX_UPLOAD_MB} MB upload limit; "
-                    "ingest it with `workbench ingest` instead")  # fmt: skip
+            body = (
+                f"{safe_name(name)}: {size / 2**20:.0f} MB is over the {MAX_UPLOAD_MB} MB upload limit; "
+                "ingest it with `workbench ingest` instead"
+            )
             client.add_notification("Not done", body, auto_close_seconds=8.0, color="red")
 
     @property
@@ -76,8 +78,12 @@ class WorkbenchApp:
 
     def _fingerprint(self) -> tuple:
         history = self.session.history(limit=1)
-        return (len(self.session.logs()), history[0].op_id if history else 0,
-                len(self.session.segments()), tuple(v.id for v in self.session.model_versions()))  # fmt: skip
+        return (
+            len(self.session.logs()),
+            history[0].op_id if history else 0,
+            len(self.session.segments()),
+            tuple(v.id for v in self.session.model_versions()),
+        )
 
     def _poll(self) -> None:
         # Another process (a CLI ingest, import or train) may change the session: follow it.

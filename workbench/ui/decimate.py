@@ -67,9 +67,3 @@ def decimate(samples: np.ndarray, start: int, *, rate_hz: float, pixels: int) ->
     t[0::2] = start + edges
     t[1::2] = start + edges + widths / 2
     return Decimated(t / rate_hz, values, step)
-
-
-def decimate_track(track: np.ndarray, start: int, stop: int, t: np.ndarray, *, rate_hz: float) -> np.ndarray:
-    """A per-sample track (``(T,)``, any dtype) at the decimated times ``t`` (nearest sample at or before)."""
-    idx = np.clip(np.round(t * rate_hz).astype(np.int64), start, max(start, stop - 1))
-    return track[idx]

@@ -19,6 +19,7 @@ from training import Cancelled, Progress, TrainConfig
 
 from ..cycle import train_classifier, train_predictor
 from ..retrain import RETRAIN
+from ..user_errors import USER_ERRORS, one_line
 from .state import SharedState
 
 
@@ -172,8 +173,8 @@ class TrainJob:
             )
         except Cancelled:
             self.status = replace(self.status, state="cancelled", message="cancelled; nothing was saved")
-        except WorkbenchError as exc:
-            self.status = replace(self.status, state="failed", message=str(exc))
+        except USER_ERRORS as exc:
+            self.status = replace(self.status, state="failed", message=one_line(exc))
         except Exception as exc:
             traceback.print_exc()
             self.status = replace(self.status, state="failed", message=f"{type(exc).__name__}: {exc}")
@@ -226,12 +227,12 @@ class TrainJob:
                 self.status, state="done", message=f"quick model v{quick} is active; the retrain from scratch stopped"
             )
         except Exception as exc:
-            if not isinstance(exc, WorkbenchError):
+            if not isinstance(exc, USER_ERRORS):
                 traceback.print_exc()
             self.status = replace(
                 self.status,
                 state="failed",
-                message=f"the retrain from scratch failed ({exc}); quick model v{quick} stays active",
+                message=f"the retrain from scratch failed ({one_line(exc)}); quick model v{quick} stays active",
             )
         self.state.notify("models")
         self.state.notify("job")

@@ -19,6 +19,7 @@ def legend_html(
     cursor_s: float,
     selection: tuple[int, int] | None = None,
     busy: str = "",
+    problem: str = "",
 ) -> str:
     """HTML of the legend for ``log`` with samples ``window`` = ``[a, b)`` on screen."""
     chips = "".join(
@@ -31,6 +32,8 @@ def legend_html(
         s0, s1 = (x / log.rate_hz for x in selection)
         sel = f" · range <b>{s0:.2f}–{s1:.2f} s</b>"
     doing = f" · <i>{html.escape(busy)}…</i>" if busy else ""
+    if problem:
+        doing += f"<br><span style='color:#c62828'>{html.escape(problem)}</span>"
     a, b = window
     return (
         "<div style='font-size:0.8em;line-height:1.6'>"

@@ -18,6 +18,7 @@ from sessions import LogInfo, Segment, Session, Terrain, WorkbenchError
 from ..cycle import log_change_points
 from ..scores import SessionScores, compute_scores
 from ..suggestions import suggest_for_session
+from ..user_errors import USER_ERRORS, one_line
 
 Event = str  # "labels" | "scores" | "suggestions" | "job" | "models" | "logs"
 Listener = Callable[[Event], None]
@@ -64,6 +65,7 @@ class SharedState:
         self._stop = threading.Event()
         self._on_error = on_error or (lambda msg: print(msg, flush=True))
         self.busy = ""  # what the worker is doing, for the status line
+        self.problem = ""  # why the last refresh failed (one line), shown in every page until one succeeds
         self._pending: dict[Event, None] = {}  # events not yet delivered, in order
         self._pending_cv = threading.Condition()
         self._delivering = False
@@ -283,8 +285,17 @@ class SharedState:
                 with self._lock:
                     self.queue = queue
                 self.notify("suggestions")
+            except USER_ERRORS as exc:
+                # a damaged model or session: one line in every page and in the server's output, no traceback
+                self.problem = one_line(exc)
+                self._on_error(f"refresh failed: {self.problem}")
+                self.notify("scores")
             except Exception as exc:
+                self.problem = f"internal error while scoring: {type(exc).__name__}: {exc}"
                 self._on_error(f"refresh failed: {type(exc).__name__}: {exc}\n{traceback.format_exc()}")
+                self.notify("scores")
+            else:
+                self.problem = ""
             finally:
                 self.scored = True
                 self.busy = ""

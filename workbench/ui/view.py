@@ -15,8 +15,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sessions import LogInfo, WorkbenchError
+from sessions import LogInfo
 
+from ..user_errors import USER_ERRORS, one_line
 from . import charts
 from .decimate import decimate
 from .legend import legend_html
@@ -148,8 +149,8 @@ class ClientView:
         try:
             with self._lock:
                 fn()
-        except WorkbenchError as exc:
-            self.notify("Not done", str(exc), color="red")
+        except USER_ERRORS as exc:
+            self.notify("Not done", one_line(exc), color="red")
         except Exception as exc:
             traceback.print_exc()
             self.notify("Something went wrong", f"{type(exc).__name__}: {exc}", color="red")
@@ -332,6 +333,7 @@ class ClientView:
                     cursor_s=self.cursor_s,
                     selection=self.selection,
                     busy=self.state.busy,
+                    problem=self.state.problem,
                 )
             self.robot.update()
 

@@ -11,8 +11,9 @@ import numpy as np
 from labeling import CurvePoint
 from workbench.evaluation.label_efficiency import SimSettings, report, simulate_logs, simulate_partitions
 
-TINY = SimSettings(strategies=("random", "combined"), seeds=1, rounds=2, batch=2, hidden=8, stage1_epochs=1,
-                   stage2_epochs=2, folds=2)  # fmt: skip
+TINY = SimSettings(
+    strategies=("random", "combined"), seeds=1, rounds=2, batch=2, hidden=8, stage1_epochs=1, stage2_epochs=2, folds=2
+)
 
 
 def test_simulate_logs_reports_both_strategies(tmp_path: Path) -> None:
@@ -41,8 +42,9 @@ def _runs() -> list[np.ndarray]:
 
 def test_simulate_partitions_labels_whole_partitions(tmp_path: Path) -> None:
     lines: list[str] = []
-    text = simulate_partitions(_runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=TINY,
-                               out=tmp_path, log=lines.append)  # fmt: skip
+    text = simulate_partitions(
+        _runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=TINY, out=tmp_path, log=lines.append
+    )
     assert "BorealTC" in text
     # two partitions of 5 s (100 samples at 20 Hz) per round
     assert any("random seed 0 round 2: 400 samples labelled" in s for s in lines)
@@ -63,9 +65,15 @@ def test_simulate_partitions_pairs_windows_of_neighbouring_partitions_of_one_run
 
     monkeypatch.setattr(ws, "fit_classifier", spy)
     labels = [r % 2 for r in range(6)]
-    simulate_partitions(_runs(), labels, ["a", "b"], rate_hz=20.0,
-                        settings=replace(TINY, strategies=("random",), consistency=3.0), out=None,
-                        log=lambda s: None)  # fmt: skip
+    simulate_partitions(
+        _runs(),
+        labels,
+        ["a", "b"],
+        rate_hz=20.0,
+        settings=replace(TINY, strategies=("random",), consistency=3.0),
+        out=None,
+        log=lambda s: None,
+    )
     # 6 runs of 4 partitions (100 samples); seed 0 uses fold 0's training partitions as the pool
     y = np.repeat(labels, 4)
     pool = set(next(StratifiedKFold(5, shuffle=True, random_state=0).split(np.zeros(len(y)), y))[0].tolist())
@@ -80,8 +88,15 @@ def test_simulate_partitions_pairs_windows_of_neighbouring_partitions_of_one_run
 
 def test_simulate_partitions_can_label_thirds_of_partitions(tmp_path: Path) -> None:
     lines: list[str] = []
-    simulate_partitions(_runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0,
-                        settings=replace(TINY, segment_s=5 / 3), out=tmp_path, log=lines.append)  # fmt: skip
+    simulate_partitions(
+        _runs(),
+        [r % 2 for r in range(6)],
+        ["a", "b"],
+        rate_hz=20.0,
+        settings=replace(TINY, segment_s=5 / 3),
+        out=tmp_path,
+        log=lines.append,
+    )
     assert any("3 suggestion(s) of 1.70 s in each" in s for s in lines), lines
     # two thirds of a partition (pieces of 33 or 34 samples) per round
     done = [int(m.group(1)) for s in lines if (m := re.search(r"seed 0 round 2: (\d+) samples", s))]
@@ -115,12 +130,18 @@ def test_device_reaches_every_fit_and_pass(monkeypatch, tmp_path: Path) -> None:
 
         monkeypatch.setattr(ws, name, wrapped)
 
-    for name, config in [("fit_predictor", True), ("fit_classifier", True), ("run_predictor", False),
-                         ("run_classifiers", False), ("score_logs", False)]:  # fmt: skip
+    for name, config in [
+        ("fit_predictor", True),
+        ("fit_classifier", True),
+        ("run_predictor", False),
+        ("run_classifiers", False),
+        ("score_logs", False),
+    ]:
         spy(name, getattr(ws, name), config=config)
     gpu = replace(TINY, device="cuda")
-    simulate_partitions(_runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=gpu, out=None,
-                        log=lambda s: None)  # fmt: skip
+    simulate_partitions(
+        _runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=gpu, out=None, log=lambda s: None
+    )
     rng = np.random.default_rng(0)
     logs = [rng.normal(size=(300, 2)).astype(np.float32) for _ in range(3)]
     truth = [np.repeat(rng.permutation(3), 100) for _ in range(3)]

@@ -10,10 +10,20 @@ from workbench.ui.decimate import decimate
 from workbench.ui.panel_data import safe_name
 
 NAMES = (
-    "imu/orientation.x", "imu/orientation.y", "imu/orientation.z", "imu/orientation.w",
-    "imu/angular_velocity.x", "imu/angular_velocity.y", "imu/angular_velocity.z",
-    "fl/force.x", "fl/force.y", "fl/force.z", "fr/force.x", "fr/force.y", "fr/force.z",
-)  # fmt: skip
+    "imu/orientation.x",
+    "imu/orientation.y",
+    "imu/orientation.z",
+    "imu/orientation.w",
+    "imu/angular_velocity.x",
+    "imu/angular_velocity.y",
+    "imu/angular_velocity.z",
+    "fl/force.x",
+    "fl/force.y",
+    "fl/force.z",
+    "fr/force.x",
+    "fr/force.y",
+    "fr/force.z",
+)
 
 
 def test_short_windows_are_sent_whole() -> None:
@@ -94,8 +104,17 @@ def test_charts_have_one_series_per_data_column() -> None:
     labels = per_sample_labels(3000, [(100, 500, 1), (2000, 2500, 0)])
     assert labels[99] == -1 and labels[100] == 1 and labels[2499] == 0 and labels[2500] == -1
     idx = np.round(d.t * 100).astype(int).clip(0, 2999)
-    inputs = TrackInputs(d.t, labels[idx], np.zeros(p, int), np.full(p, 0.5), np.full(p, 0.2), np.zeros(p, bool),
-                         np.zeros(p, bool), np.zeros(p, bool), idx < 300)  # fmt: skip
+    inputs = TrackInputs(
+        d.t,
+        labels[idx],
+        np.zeros(p, int),
+        np.full(p, 0.5),
+        np.full(p, 0.2),
+        np.zeros(p, bool),
+        np.zeros(p, bool),
+        np.zeros(p, bool),
+        idx < 300,
+    )
     spec = tracks_chart(inputs, [("concrete", "#888888"), ("grass", "#2e7d32")], cursor_s=None)
     assert len(spec["data"]) == len(spec["series"])
     series = {s["label"]: i for i, s in enumerate(spec["series"])}
