@@ -247,7 +247,8 @@ def stage1_outputs(
 
 
 FEATURE_CACHE_BYTES = 2 << 30  # stage-2 inputs kept in memory between retrains when they fit (QCAT scale: 1 GB)
-_features_lock = threading.Lock()
+# The UI's threads (a Retrain's job, the scoring worker, viser's callbacks) share these caches: one lock guards both.
+_cache_lock = threading.Lock()
 _features: dict[tuple, list[np.ndarray]] = {}
 
 
@@ -261,7 +262,7 @@ def stage2_features(
     Features past the budget stay on disk: lazy features computed from the memory-mapped cache, batch by batch.
     """
     key = (str(session.path), version.id, mode, tuple(x.id for x in logs))
-    with _features_lock:
+    with _cache_lock:
         hit = _features.get(key)
     if hit is not None:
         return hit
@@ -272,7 +273,7 @@ def stage2_features(
     features = [outs[x.id].features(mode) for x in logs]
     for f in features:
         f.setflags(write=False)  # shared between retrains: nobody may change them
-    with _features_lock:
+    with _cache_lock:
         _features.clear()
         _features[key] = features
     return features
@@ -304,9 +305,13 @@ _CHANGE_POINTS: dict[tuple[str, int, int], np.ndarray] = {}  # (session, log, sa
 
 def _signal_change_points(session: Session, log: LogInfo) -> np.ndarray:
     key = (str(session.path), log.id, log.n_samples)
-    if key not in _CHANGE_POINTS:
-        _CHANGE_POINTS[key] = log_change_points(session.array(log.id), None, rate_hz=log.rate_hz)
-    return _CHANGE_POINTS[key]
+    with _cache_lock:
+        hit = _CHANGE_POINTS.get(key)
+    if hit is None:  # computed outside the lock: seconds on a long log; two threads at once compute the same
+        hit = log_change_points(session.array(log.id), None, rate_hz=log.rate_hz)
+        with _cache_lock:
+            _CHANGE_POINTS[key] = hit
+    return hit
 
 
 def train_classifier(

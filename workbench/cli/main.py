@@ -17,7 +17,7 @@ from sessions import IngestError, IngestOptions, Session, WorkbenchError, load_m
 
 from ..retrain import RETRAIN
 from ..user_errors import USER_ERRORS, one_line
-from . import model_commands
+from . import evaluate_command, label_commands, model_commands
 from .ingest_report import dry_run_report
 
 Pos = tyro.conf.Positional
@@ -226,12 +226,12 @@ COMMANDS = {
     "train": model_commands.train,
     "export": model_commands.export,
     "classify": model_commands.classify,
-    "evaluate": model_commands.evaluate,
+    "evaluate": evaluate_command.evaluate,
     "labels": labels,
     "serve": serve,
     "demo": demo,
 }
-LABEL_COMMANDS = {"export": model_commands.labels_export, "import": model_commands.labels_import}
+LABEL_COMMANDS = {"export": label_commands.labels_export, "import": label_commands.labels_import}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,8 +1,7 @@
-"""CLI commands for models and label files: train, export, classify, labels export / import."""
+"""CLI commands for models: train, export, classify."""
 
 from __future__ import annotations
 
-import getpass
 import sys
 from pathlib import Path
 from typing import Literal
@@ -39,7 +38,8 @@ class _Bar:
         self.bar.close()
 
 
-def _check_device(device: str) -> None:
+def check_device(device: str) -> None:
+    """Refuse ``--device cuda`` in one line when this machine has no CUDA device."""
     if device == "cuda":
         import torch
 
@@ -82,7 +82,7 @@ def train(
 
     from .. import cycle
 
-    _check_device(device)
+    check_device(device)
     if distributed.launched() and stage != "predictor":
         raise WorkbenchError(
             "under torchrun only the predictor trains (--stage predictor); the classifier learns from a few labels "
@@ -179,132 +179,3 @@ def classify(bundle: Pos[Path], files: Pos[list[Path]], out: Path) -> int:
     for line in lines:
         print(line, file=sys.stderr if line.startswith("error:") else sys.stdout)
     return code
-
-
-def labels_export(session: Pos[Path], out: Path) -> None:
-    """Write every label segment to a .csv, .parquet or .json file.
-
-    Args:
-        session: The session folder.
-        out: The label file to write.
-    """
-    with Session.open(session) as s:
-        s.export_labels(out)
-        print(f"wrote {len(s.segments())} segment(s) to {out}")
-
-
-def labels_import(session: Pos[Path], file: Pos[Path], author: str = "") -> None:
-    """Import a label file: every row, or nothing when any row names an unknown log or terrain.
-
-    Args:
-        session: The session folder.
-        file: A .csv, .parquet or .json label file.
-        author: Author for rows that name none (default: your user name).
-    """
-    with Session.open(session) as s:
-        added = s.import_labels(file, author=author or getpass.getuser())
-        print(f"imported {len(added)} segment(s) from {file}")
-
-
-def evaluate(
-    dataset: Pos[Literal["borealtc", "qcat", "demo"]],
-    folder: Pos[Path],
-    labelled: float = 0.1,
-    variant: Literal["both", "shared", "strict"] = "both",
-    hidden: int = 200,
-    seed: int = 0,
-    stage1_epochs: int = 40,
-    stage2_epochs: int = 150,
-    folds: int = 5,
-    out: Path | None = None,
-    simulate: bool = False,
-    strategies: tuple[str, ...] = ("random", "combined"),
-    seeds: int = 3,
-    rounds: int = 8,
-    batch: int = 4,
-    feature_mode: FeatureMode = "hidden+surprise",
-    warm_start: bool = False,
-    segment_s: float | None = None,
-    members: int = 3,
-    device: Literal["cpu", "cuda"] = "cpu",
-) -> None:
-    """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
-
-    With ``--simulate``, compare suggestion strategies instead: an oracle labels each suggestion from the truth,
-    stage 2 retrains after every batch, and held-out accuracy is printed against labelled time (table + PNG plot).
-
-    Args:
-        dataset: Which protocol. borealtc: 5 s partitions, stratified 5-fold CV, 1.7 s windows at 0.1 s stride.
-            qcat: the paper's 90 % / 5 % / 5 % split of step sequences, and one holding out whole trials.
-            demo: leave-logs-out on demo logs against their truth, for each stage-1 feature mode.
-        folder: The dataset folder (e.g. ../shared/data/borealtc, a QCAT folder, demo logs).
-        labelled: Fraction labelled: of the training partitions (borealtc), of the training logs' time (demo).
-        variant: "shared": stage 1 trains once on all partitions' signals (no labels); "strict": stage 1 never sees
-            the test partitions; "both".
-        hidden: LSTM width of both stages.
-        seed: Seed of folds, labelled subset and training.
-        stage1_epochs: Most epochs of stage 1 (early stopping on validation loss).
-        stage2_epochs: Most epochs of stage 2.
-        folds: Outer folds of the qcat and demo protocols (borealtc keeps the authors' 5).
-        out: Also write per-fold details as JSON here (with --simulate: the folder for the plot).
-        simulate: Run the label-efficiency simulation (borealtc and demo).
-        strategies: Strategies to compare: random, entropy, margin, disagreement, surprise, combined.
-        seeds: Seeds per strategy (BorealTC: seed s uses outer fold s + 1).
-        rounds: Rounds of labelling, each followed by a retrain.
-        batch: Suggestions labelled per round.
-        feature_mode: With --simulate: what stage 1 hands stage 2.
-        warm_start: With --simulate: each round fine-tunes the previous round's models instead of training afresh.
-        segment_s: With --simulate: length of one suggestion in seconds (default: the UI's 1 s on demo logs, a whole
-            5 s partition on borealtc, which then labels 5 / segment_s equal pieces of a partition).
-        members: With --simulate: stage-2 ensemble members per retrain (the UI's Retrain trains 5).
-        device: Where both stages train and run.
-    """
-    from ..evaluation import protocols as ev
-
-    _check_device(device)
-    if simulate:
-        print(
-            ev.simulate(
-                dataset,
-                folder,
-                strategies=strategies,
-                seeds=seeds,
-                rounds=rounds,
-                batch=batch,
-                out=out,
-                feature_mode=feature_mode,
-                warm_start=warm_start,
-                segment_s=segment_s,
-                members=members,
-                device=device,
-            )
-        )
-        return
-
-    if dataset == "borealtc":
-        report = ev.evaluate_borealtc(
-            folder,
-            labelled=labelled,
-            variant=variant,
-            hidden=hidden,
-            seed=seed,
-            stage1_epochs=stage1_epochs,
-            stage2_epochs=stage2_epochs,
-            out=out,
-            device=device,
-        )
-    elif dataset == "qcat":
-        report = ev.evaluate_qcat(
-            folder, hidden=hidden, seed=seed, folds=folds, epochs=(stage1_epochs, stage2_epochs), device=device
-        )
-    else:
-        report = ev.evaluate_demo(
-            folder,
-            labelled=labelled,
-            hidden=hidden,
-            seed=seed,
-            folds=folds,
-            epochs=(stage1_epochs, stage2_epochs),
-            device=device,
-        )
-    print(report)
