@@ -88,6 +88,8 @@ class SuggestPanel:
         state = self.host.state
         if state.busy or not state.scored:
             return f"suggestions are being computed ({state.busy or 'starting'}); they appear here in a moment"
+        if state.problem:
+            return f"no suggestions: {state.problem}"
         if state.scores.predictor is None:
             return "no suggestions before a predictor exists: press Retrain (R) to train it on all logs"
         return "no suggestions left (everything worth labelling is labelled, or all were skipped)"
