@@ -17,8 +17,19 @@ if TYPE_CHECKING:
     import viser
 
     from .jobs import TrainJob
-    from .panel_label import LabelPanel
     from .state import SharedState
+
+
+class RangeLabeller(Protocol):
+    """What the Suggest tab asks of the Label tab: select a suggestion's range, and save it."""
+
+    def select(self, start: int, stop: int, terrain: str | None = None) -> None:
+        """Select samples ``[start, stop)`` of the log on screen, and optionally a terrain."""
+        ...
+
+    def save(self, *, terrain: str | None = None, source: str = "manual") -> None:
+        """Label the selected range (one SQLite transaction); ``source`` records where the label came from."""
+        ...
 
 
 class PanelHost(Protocol):
@@ -42,7 +53,7 @@ class PanelHost(Protocol):
     log: LogInfo | None
     selection: tuple[int, int] | None
     cursor_s: float
-    label_panel: LabelPanel
+    label_panel: RangeLabeller
 
     def guard(self, fn: Callable[[], None]) -> None:
         """Run a widget callback under the page's lock unless the server itself moved the widget; a user's error
