@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pandas as pd
@@ -56,11 +57,40 @@ def file_format(path: Path) -> str:
     return fmt
 
 
+# A spreadsheet runs a cell that starts with one of these as a formula (OWASP's CSV injection list).
+FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def neutralise_formulas(frame: pd.DataFrame) -> pd.DataFrame:
+    """A copy where every text cell a spreadsheet would run as a formula starts with ``'``, which it shows as text.
+
+    Log names, file paths and authors are data: a log named ``=HYPERLINK(...)`` must not run when a colleague opens
+    the exported CSV. Numbers are left alone (``-0.5`` is a number, not a formula).
+    """
+    out = frame.copy()
+    for column in out.columns:
+        if not pd.api.types.is_numeric_dtype(out[column]):
+            out[column] = out[column].map(
+                lambda v: "'" + v if isinstance(v, str) and v.startswith(FORMULA_START) else v
+            )
+    return out
+
+
+def restore_formulas(frame: pd.DataFrame) -> pd.DataFrame:
+    """Undo :func:`neutralise_formulas`, so a label file exported as CSV imports back to the same names."""
+    for column in frame.columns:
+        if not pd.api.types.is_numeric_dtype(frame[column]):
+            frame[column] = frame[column].map(
+                lambda v: v[1:] if isinstance(v, str) and v.startswith("'") and v[1:].startswith(FORMULA_START) else v
+            )
+    return frame
+
+
 def write_frame(frame: pd.DataFrame, path: Path) -> Path:
     """Write a table as CSV, Parquet or JSON (records), chosen by the file's suffix."""
     fmt = file_format(path)
     if fmt == "csv":
-        frame.to_csv(path, index=False)
+        neutralise_formulas(frame).to_csv(path, index=False)
     elif fmt == "parquet":
         frame.to_parquet(path, index=False)
     else:
@@ -72,7 +102,7 @@ def read_frame(path: Path) -> pd.DataFrame:
     fmt = file_format(path)
     try:
         if fmt == "csv":
-            return pd.read_csv(path)
+            return restore_formulas(pd.read_csv(path))
         if fmt == "parquet":
             return pd.read_parquet(path)
         return pd.read_json(path, orient="records")
@@ -92,6 +122,8 @@ def import_rows(
         {"start_sample", "end_sample"} <= set(frame.columns) or {"start_s", "end_s"} <= set(frame.columns)
     ):
         raise LabelError(f"{path}: label file needs columns log, terrain and start_sample/end_sample or start_s/end_s")
+    has_samples = {"start_sample", "end_sample"} <= set(frame.columns)
+    has_seconds = {"start_s", "end_s"} <= set(frame.columns)
     by_name: dict[str, LogInfo] = {}
     for log in logs:
         by_name.setdefault(log.name, log)
@@ -102,10 +134,12 @@ def import_rows(
             raise LabelError(f"{path}: row {i}: unknown log {row.log!r}; nothing was imported")
         if str(row.terrain) not in terrains:
             raise LabelError(f"{path}: row {i}: unknown terrain {row.terrain!r}; nothing was imported")
-        if "start_sample" in frame.columns and pd.notna(row.start_sample):
-            start, stop = int(row.start_sample), int(row.end_sample)
+        if has_samples and (not has_seconds or pd.notna(row.start_sample)):
+            start = _whole(row.start_sample, "start_sample", path=path, row=i)
+            stop = _whole(row.end_sample, "end_sample", path=path, row=i)
         else:
-            start, stop = round(float(row.start_s) * log.rate_hz), round(float(row.end_s) * log.rate_hz)
+            start = _whole(_number(row.start_s, "start_s", path=path, row=i) * log.rate_hz, "start_s", path=path, row=i)
+            stop = _whole(_number(row.end_s, "end_s", path=path, row=i) * log.rate_hz, "end_s", path=path, row=i)
         who = str(row.author) if "author" in frame.columns and pd.notna(row.author) else author
         try:
             out.append(
@@ -123,3 +157,24 @@ def import_rows(
         except LabelError as exc:
             raise LabelError(f"{path}: row {i}: {exc}; nothing was imported") from None
     return out
+
+
+def _number(value: object, column: str, *, path: Path, row: int) -> float:
+    """A finite number from a cell, or a ``LabelError`` naming the file, the row and the column."""
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise LabelError(f"{path}: row {row}: {column} is {value!r}, not a number; nothing was imported") from None
+    if math.isnan(x):
+        raise LabelError(f"{path}: row {row}: {column} is empty; nothing was imported")
+    if not math.isfinite(x):
+        raise LabelError(f"{path}: row {row}: {column} is {value!r}, not a finite number; nothing was imported")
+    return x
+
+
+def _whole(value: object, column: str, *, path: Path, row: int) -> int:
+    """A sample index from a cell (a whole number, or seconds times the rate rounded), else a ``LabelError``."""
+    x = _number(value, column, path=path, row=row)
+    if abs(x) > 2**62:
+        raise LabelError(f"{path}: row {row}: {column} is {value!r}, out of range; nothing was imported")
+    return round(x)

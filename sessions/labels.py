@@ -76,12 +76,24 @@ def _record(conn: sqlite3.Connection, op_id: int, segment_id: int, before: tuple
 
 
 def _neighbours(conn: sqlite3.Connection, log_id: int, start: int, stop: int, exclude: int | None) -> list[tuple]:
-    # Touching segments count too, so that same-terrain neighbours merge.
-    return conn.execute(
-        f"SELECT {_SEGMENT_COLS} FROM segments WHERE log_id = ? AND start <= ? AND stop >= ? AND id != ? "
-        "ORDER BY start",
-        (log_id, stop, start, -1 if exclude is None else exclude),
-    ).fetchall()
+    """Segments of ``log_id`` overlapping or touching ``[start, stop)`` (touching ones merge when of one terrain).
+
+    Segments of a log never overlap, so ordered by start their stops rise too: walking back from the last segment
+    starting at or before ``stop`` (the ``(log_id, start)`` index, read backwards), the first one ending before
+    ``start`` ends the search. A filter on ``stop`` alone scanned every earlier segment, and importing n rows took
+    O(n²) (10k one-sample rows 11.7 s, 20k 32.2 s).
+    """
+    found = []
+    rows = conn.execute(
+        f"SELECT {_SEGMENT_COLS} FROM segments WHERE log_id = ? AND start <= ? ORDER BY start DESC",
+        (log_id, stop),
+    )
+    for row in rows:
+        if row[3] < start:  # row[3] is stop
+            break
+        if row[0] != exclude:
+            found.append(row)
+    return found[::-1]
 
 
 def _place(

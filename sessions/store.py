@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import re
 import shutil
 import sqlite3
 import threading
@@ -15,6 +16,7 @@ import numpy as np
 
 from . import labels as _labels
 from .errors import LabelError, SessionError
+from .log_files import checked_log_file
 from .log_ingest import LOGS_DIR, LogIngest
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import CACHE_DIR, ModelRegistry
@@ -23,6 +25,9 @@ from .schema import SCHEMA_VERSION, migrate
 
 DB_NAME = "session.sqlite"
 _STALE_TMP_S = 600.0  # leftovers older than this are from a crashed ingest, not one in progress
+
+# Terrain colours reach the page as CSS: only this form is stored (a colour is data a session file could carry).
+TERRAIN_COLOR = re.compile(r"#[0-9a-fA-F]{6}")
 
 
 class Session(LogIngest, ModelRegistry):
@@ -191,8 +196,8 @@ class Session(LogIngest, ModelRegistry):
         with self._lock:
             arr = self._arrays.get(log_id)
             if arr is None:
-                info = self.log(log_id)
-                arr = self._arrays[log_id] = np.load(self.path / info.file, mmap_mode="r")
+                path, _ = checked_log_file(self.path, self.log(log_id))
+                arr = self._arrays[log_id] = np.load(path, mmap_mode="r", allow_pickle=False)
             return arr
 
     def rows(self, log_id: int) -> FileRows:
@@ -201,7 +206,8 @@ class Session(LogIngest, ModelRegistry):
         For passes over whole long logs: what a map has read stays in the process's resident memory, these reads do
         not.
         """
-        return FileRows.open_npy(self.path / self.log(log_id).file)
+        path, _ = checked_log_file(self.path, self.log(log_id))
+        return FileRows.open_npy(path)
 
     def samples(self, log_id: int, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Samples ``[start, stop)`` of a log as a ``(stop - start, C)`` float32 array; reads only that slice."""
@@ -225,11 +231,13 @@ class Session(LogIngest, ModelRegistry):
         """Add a terrain class at the end of the list.
 
         Raises:
-            LabelError: The name is empty or taken.
+            LabelError: The name is empty or taken, or the colour is not ``#rrggbb``.
         """
         name = name.strip()
         if not name:
             raise LabelError("a terrain needs a name")
+        if not TERRAIN_COLOR.fullmatch(color):
+            raise LabelError(f"terrain colour {color!r} is not #rrggbb (six hex digits), e.g. #607d8b")
         with self._write() as conn:
             if conn.execute("SELECT 1 FROM terrains WHERE name = ?", (name,)).fetchone():
                 raise LabelError(f"terrain {name!r} exists already")

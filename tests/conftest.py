@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
+import shutil
 import sqlite3
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -52,3 +54,53 @@ def demo_mcap(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     out = tmp_path_factory.mktemp("demo") / "walk.mcap"
     return write_walk(generate_walk(3, 90.0), out, seed=3)
+
+
+# Browser fixtures, shared by tests/browser/ and tests/safety/: one session-wide Playwright (a second one in the same
+# process fails, "Sync API inside the asyncio loop").
+from tests.browser.conftest import CHROMIUM, CHROMIUM_FLAGS, Server, save_screenshot  # noqa: E402
+
+
+@pytest.fixture
+def serve() -> Iterator:
+    servers: list[Server] = []
+
+    def start(session: Path, *extra: str) -> Server:
+        servers.append(Server(session, *extra))
+        return servers[-1]
+
+    yield start
+    for s in servers:
+        s.stop()
+
+
+@pytest.fixture(scope="session")
+def browser():
+    if not Path(CHROMIUM).exists() and shutil.which("chromium") is None:
+        pytest.skip("Debian chromium is not installed (make test installs it: apt-get install chromium)")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        pytest.skip("the playwright Python package is not installed (pip install -e '.[dev]')")
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
+        yield b
+        b.close()
+
+
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_runtest_makereport(item, call):
+    report = yield
+    if report.when == "call":
+        item.browser_failed = report.failed
+    return report
+
+
+@pytest.fixture
+def page(browser, request):
+    context = browser.new_context(viewport={"width": 1400, "height": 850})
+    page = context.new_page()
+    yield page
+    if getattr(request.node, "browser_failed", False):
+        save_screenshot(page, f"failed-{request.node.name}")  # what the page showed when the test failed
+    context.close()

@@ -9,7 +9,8 @@ import uuid
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from safetensors import SafetensorError
+import torch
+from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
 
 from .config import ClassifierConfig, FeatureMode, PredictorConfig
@@ -111,6 +112,7 @@ def load_bundle(directory: str | Path) -> ModelBundle:
     if int(cfg.get("schema", 0)) > BUNDLE_SCHEMA:
         raise BundleError(f"{directory}: bundle schema {cfg['schema']} is newer than this workbench ({BUNDLE_SCHEMA})")
     try:
+        _check_shapes(directory, cfg)  # before any module is built: model.json's sizes allocate memory
         predictor = Predictor(PredictorConfig(**cfg["predictor"]))
         predictor.load_state_dict(load_file(directory / PREDICTOR_FILE))
         classifiers = []
@@ -138,6 +140,47 @@ def load_bundle(directory: str | Path) -> ModelBundle:
         metrics=cfg.get("metrics", {}),
         info=cfg.get("info", {}),
     )
+
+
+def _header_shapes(path: Path) -> dict[str, tuple[int, ...]]:
+    """Tensor shapes from a safetensors file's header (read without loading a weight)."""
+    with safe_open(path, framework="pt") as f:
+        return {k: tuple(f.get_slice(k).get_shape()) for k in f.keys()}  # noqa: SIM118 (safe_open is no dict)
+
+
+def _check_shapes(directory: Path, cfg: dict) -> None:
+    """Refuse a bundle whose ``model.json`` sizes disagree with its weights' headers, before allocating anything.
+
+    The modules are built on PyTorch's meta device (shapes only, no memory), so a tampered ``hidden: 10**9`` costs
+    nothing and is refused instead of allocating hundreds of GB.
+    """
+
+    def compare(expected: dict, found: dict[str, tuple[int, ...]], prefix: str = "") -> None:
+        for key, value in expected.items():
+            if key.startswith("in_") and prefix + key not in found:
+                continue  # bundles from before the input standardisation lack it: loaded as identity
+            if found.get(prefix + key) != tuple(value.shape):
+                raise BundleError(
+                    f"{directory}: model.json does not match the weights ({prefix}{key}: {tuple(value.shape)} "
+                    f"expected, {found.get(prefix + key, 'missing')} stored); the bundle was changed or damaged"
+                )
+
+    with torch.device("meta"):
+        try:
+            predictor = Predictor(PredictorConfig(**cfg["predictor"]))
+        except RuntimeError as exc:  # sizes past what any tensor can hold
+            raise BundleError(f"{directory}: model.json's predictor sizes are impossible ({exc})") from None
+        compare(predictor.state_dict(), _header_shapes(directory / PREDICTOR_FILE))
+        if cfg.get("classifier"):
+            header = _header_shapes(directory / CLASSIFIER_FILE)
+            folds = {k.split(".", 1)[0] for k in header}
+            if int(cfg["n_folds"]) != len(folds):
+                raise BundleError(
+                    f"{directory}: model.json names {cfg['n_folds']} ensemble members, the weights hold {len(folds)}"
+                )
+            fold = Classifier(ClassifierConfig(**cfg["classifier"])).state_dict()
+            for i in range(len(folds)):
+                compare(fold, header, f"fold{i}.")
 
 
 def parameter_count(bundle: ModelBundle) -> int:

@@ -9,7 +9,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sessions import IngestError, IngestOptions, Session, WorkbenchError, align, plan_sources, read_source, write_frame
+from sessions import (
+    IngestError,
+    IngestOptions,
+    ModelVersion,
+    Session,
+    WorkbenchError,
+    align,
+    plan_sources,
+    read_source,
+    write_frame,
+)
 from training import BundleError, ModelBundle, load_bundle, parameter_count, run_predictor
 
 ONNX_TOLERANCE = 1e-4
@@ -100,16 +110,34 @@ def export_all(session: Session, out: Path, *, predictions: bool = False) -> lis
     Returns:
         What was written, one (path, description) per item.
     """
-    from training import check_onnx, export_onnx
-
-    from .cycle import active_bundle, model_logs
-    from .scores import score_session
+    from .cycle import active_bundle
 
     out = Path(out)
     if out.exists():
         raise WorkbenchError(f"{out}: exists already; choose a new folder")
     version, bundle = active_bundle(session)
-    out.mkdir(parents=True)
+    # written under a temporary name and renamed when whole: a refused export leaves no half-written folder
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    try:
+        written = _write_export(session, tmp, version, bundle, predictions=predictions)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return [(out / path.relative_to(tmp), what) for path, what in written]
+
+
+def _write_export(
+    session: Session, out: Path, version: ModelVersion, bundle: ModelBundle, *, predictions: bool
+) -> list[tuple[Path, str]]:
+    from training import check_onnx, export_onnx
+
+    from .cycle import model_logs
+    from .scores import score_session
+
     written: list[tuple[Path, str]] = []
     shutil.copytree(session.path / version.path, out / "bundle")
     (out / "bundle" / "MODEL_CARD.md").write_text(model_card(bundle, version=version.id, session=session.path.name))

@@ -1,19 +1,18 @@
-"""Browser fixtures: a real ``workbench serve`` process on a free loopback port, and headless Debian Chromium."""
+"""Browser helpers: a real ``workbench serve`` process on a free loopback port, headless Debian Chromium, tabs.
+
+The fixtures (``serve``, ``browser``, ``page``) live in ``tests/conftest.py``: ``tests/safety/`` drives the browser
+too, and a second definition here would start a second Playwright beside the first."""
 
 from __future__ import annotations
 
 import contextlib
 import os
-import shutil
 import socket
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
 from pathlib import Path
-
-import pytest
 
 from tests.conftest import REPO
 
@@ -76,51 +75,6 @@ class Server:
             print(f"--- server output ({self.log_path}) ---\n{self.output()}")
         else:
             self.log_path.unlink(missing_ok=True)
-
-
-@pytest.fixture
-def serve() -> Iterator:
-    servers: list[Server] = []
-
-    def start(session: Path, *extra: str) -> Server:
-        servers.append(Server(session, *extra))
-        return servers[-1]
-
-    yield start
-    for s in servers:
-        s.stop()
-
-
-@pytest.fixture(scope="session")
-def browser():
-    if not Path(CHROMIUM).exists() and shutil.which("chromium") is None:
-        pytest.skip("Debian chromium is not installed (make test installs it: apt-get install chromium)")
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        pytest.skip("the playwright Python package is not installed (pip install -e '.[dev]')")
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
-        yield b
-        b.close()
-
-
-@pytest.hookimpl(wrapper=True, tryfirst=True)
-def pytest_runtest_makereport(item, call):
-    report = yield
-    if report.when == "call":
-        item.browser_failed = report.failed
-    return report
-
-
-@pytest.fixture
-def page(browser, request):
-    context = browser.new_context(viewport={"width": 1400, "height": 850})
-    page = context.new_page()
-    yield page
-    if getattr(request.node, "browser_failed", False):
-        save_screenshot(page, f"failed-{request.node.name}")  # what the page showed when the test failed
-    context.close()
 
 
 def save_screenshot(page, name: str) -> Path:

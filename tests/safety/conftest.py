@@ -15,8 +15,18 @@ COUNTED = {  # module -> the promise its tests check
     "test_fuzz_readers": "promise 3 (fuzz targets: the MCAP and CSV readers)",
     "test_safe_defaults": "promise 5 (safe by default: loopback, upload limit and names, no pickle, newer schema)",
     "test_disk_full": "promise 6 (full and read-only disk: labels and models, store, CLI and UI)",
+    "test_security": "promise 7 (security: same origin and token, escaped names, uploads cut at the limit, label "
+    "import, CSV formulas, tampered files, taken port)",
 }
+DETAILS: dict[str, list[str]] = {}  # module -> figures its tests measured, appended to its line
 COUNTS: dict[str, list[int]] = {}  # module -> [tests, failures]
+
+
+@pytest.fixture
+def detail(request):
+    """Call with a measured figure to append to the line of the test's module."""
+    module = Path(str(request.node.fspath)).stem
+    return DETAILS.setdefault(module, []).append
 
 
 @pytest.fixture
@@ -39,7 +49,8 @@ def pytest_terminal_summary(terminalreporter) -> None:
     lines = list(LINES)
     for module, (tests, failures) in sorted(COUNTS.items(), key=lambda kv: COUNTED[kv[0]]):
         extra = f", {os.environ.get('WORKBENCH_FUZZ_EXAMPLES', '40')} examples each" if "fuzz" in module else ""
-        lines.append(f"{COUNTED[module]}: {tests} tests{extra}, {failures} failures")
+        figures = "".join(f"; {d}" for d in DETAILS.get(module, []))
+        lines.append(f"{COUNTED[module]}: {tests} tests{extra}, {failures} failures{figures}")
     if lines:
         terminalreporter.section("promises (issue 7)")
         for line in sorted(lines, key=lambda s: s.split(":")[0]):

@@ -125,30 +125,44 @@ def serve(
     session: Pos[Path],
     host: str = "127.0.0.1",
     port: int = 8080,
+    token: str | None = None,
+    no_token: bool = False,
     hidden: int = RETRAIN.hidden,
     stage1_epochs: int = RETRAIN.predictor.max_epochs,
     stage2_epochs: int = RETRAIN.classifier.max_epochs,
 ) -> None:
     """Serve the workbench UI for a session in the browser.
 
+    Only pages this server serves may use it (requests naming another Host or Origin get 403). Beyond loopback
+    every request also needs the token, printed in the URL at start.
+
     Args:
         session: The session folder.
-        host: Address to bind. The default serves this machine only; viser has no authentication.
-        port: Port to listen on.
+        host: Address to bind. The default serves this machine only.
+        port: Port to listen on; a taken port is an error. 0 picks any free one.
+        token: The token requests must carry (default: none on loopback, a new random one beyond it).
+        no_token: Serve without a token; allowed on loopback only.
         hidden: LSTM width of a predictor trained from the UI (a classifier takes its predictor's width).
         stage1_epochs: Most epochs of a predictor retrain from the UI (early stopping may end it sooner).
         stage2_epochs: Most epochs of a classifier retrain from the UI.
     """
     from ..ui.app import WorkbenchApp
+    from ..ui.gate import is_loopback, new_token
 
+    if no_token and token is not None:
+        raise WorkbenchError("--token and --no-token contradict each other: choose one")
+    if no_token and not is_loopback(host):
+        raise WorkbenchError(f"--no-token serves {host} to anyone who reaches the port: allowed on loopback only")
+    if token is None and not no_token and not is_loopback(host):
+        token = new_token()
     s = Session.open(session)
-    if host not in ("127.0.0.1", "localhost", "::1"):
+    if not is_loopback(host):
         print(
-            f"warning: serving on {host}: anyone who can reach this port can read and change the session "
-            "(viser has no authentication); prefer an SSH tunnel, see README",
+            f"warning: serving on {host}: anyone who can reach this port and has the token in the URL can read and "
+            "change the session, over plain HTTP; prefer an SSH tunnel to a loopback server, see README",
             file=sys.stderr,
         )
-    app = WorkbenchApp(s, host=host, port=port, hidden=hidden, max_epochs=(stage1_epochs, stage2_epochs))
+    app = WorkbenchApp(s, host=host, port=port, token=token, hidden=hidden, max_epochs=(stage1_epochs, stage2_epochs))
     print(f"workbench serving {s.path} at {app.url}", flush=True)
     app.serve_forever()
 

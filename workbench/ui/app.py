@@ -23,15 +23,19 @@ class WorkbenchApp:
         *,
         host: str = "127.0.0.1",
         port: int = 8080,
+        token: str | None = None,
         hidden: int = RETRAIN.hidden,
         max_epochs: tuple[int, int] = (RETRAIN.predictor.max_epochs, RETRAIN.classifier.max_epochs),
     ) -> None:
         import viser
 
+        from .gate import Gate
         from .jobs import TrainJob
         from .state import SharedState
         from .view import ClientView
 
+        # the gate first: a taken port is refused before anything else starts
+        self.gate = Gate(host=host, port=port, token=token)
         self.session = session
         self.state = SharedState(session)
         self.job = TrainJob(
@@ -40,12 +44,15 @@ class WorkbenchApp:
             predictor_config=replace(RETRAIN.predictor, max_epochs=max_epochs[0]),
             classifier_config=replace(RETRAIN.classifier, max_epochs=max_epochs[1]),
         )
-        self.server = viser.ViserServer(host=host, port=port, label="Terrain workbench", verbose=False)
+        # viser serves on a private loopback port; people reach it only through the gate
+        self.server = viser.ViserServer(host="127.0.0.1", port=0, label="Terrain workbench", verbose=False)
+        self.gate.inner_port = self.server.get_port()
         self.server.gui.set_panel_label(f"Terrain workbench · {Path(session.path).name}")
         self.views: dict[int, ClientView] = {}
         self._views_lock = threading.Lock()
 
         def connect(client) -> None:
+            limit_uploads(client, MAX_UPLOAD_MB << 20, self._upload_refused)  # before its upload button exists
             view = ClientView(client, self.state, self.job)
             with self._views_lock:
                 self.views[client.client_id] = view
@@ -67,14 +74,17 @@ class WorkbenchApp:
         client = self.server.get_clients().get(client_id)  # the client, not its view: that may still be building
         if client is not None:
             body = (
-                f"{safe_name(name)}: {size / 2**20:.0f} MB is over the {MAX_UPLOAD_MB} MB upload limit; "
-                "ingest it with `workbench ingest` instead"
+                f"{safe_name(name)}: refused at {size / 2**20:.1f} MB: over the {MAX_UPLOAD_MB} MB upload limit "
+                "or the size the browser declared; ingest large logs with `workbench ingest` instead"
             )
             client.add_notification("Not done", body, auto_close_seconds=8.0, color="red")
 
     @property
     def url(self) -> str:
-        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+        """The address to open, with the token when the server has one."""
+        host = self.gate.host if ":" not in self.gate.host else f"[{self.gate.host}]"
+        query = f"/?token={self.gate.token}" if self.gate.token else ""
+        return f"http://{host}:{self.gate.port}{query}"
 
     def _fingerprint(self) -> tuple:
         history = self.session.history(limit=1)
@@ -107,6 +117,7 @@ class WorkbenchApp:
 
     def stop(self) -> None:
         self._stop.set()
+        self.gate.stop()
         self.state.stop()
         self.server.stop()
 

@@ -205,7 +205,7 @@ class LabelPanel:
             per[s.terrain] = per.get(s.terrain, 0) + s.length
         rate = log.rate_hz if log is not None else 100.0
         rows = "".join(
-            f"<tr><td><span style='color:{t.color}'>■</span> {html.escape(t.name)}</td>"
+            f"<tr><td><span style='color:{html.escape(t.color, quote=True)}'>■</span> {html.escape(t.name)}</td>"
             f"<td style='text-align:right'>{per.get(t.name, 0) / rate:.1f} s</td></tr>"
             for t in state.terrains()
         )

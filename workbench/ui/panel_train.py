@@ -125,7 +125,7 @@ class TrainPanel:
             else:
                 what = f"val MSE {m.get('val_mse', float('nan')):.4f}, {m.get('epochs', '?')} epochs"
             act = " <b style='color:#2e7d32'>active</b>" if v.active else ""
-            rows.append(f"<tr><td>v{v.id}</td><td>{v.stage}</td><td>{what}{act}</td></tr>")
+            rows.append(f"<tr><td>v{v.id}</td><td>{html.escape(v.stage)}</td><td>{html.escape(what)}{act}</td></tr>")
         self.versions.content = (
             "<table style='width:100%;font-size:0.75em'>" + "".join(rows) + "</table>"
             if rows

@@ -118,6 +118,8 @@ class SharedState:
                 for fn in listeners:
                     try:
                         fn(event)
+                    except USER_ERRORS as exc:  # a damaged session file: one line, as everywhere
+                        self._on_error(f"view update failed on {event!r}: {one_line(exc)}")
                     except Exception:  # one broken view must not stop the others
                         self._on_error(f"view update failed on {event!r}:\n{traceback.format_exc()}")
             with self._pending_cv:

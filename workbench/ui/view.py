@@ -8,6 +8,7 @@ outside it.
 from __future__ import annotations
 
 import contextlib
+import html
 import threading
 import traceback
 from collections.abc import Callable, Iterator
@@ -309,7 +310,12 @@ class ClientView:
             with self.quiet():
                 self.cursor_slider.max = round(log.duration_s, 2)
                 self.cursor_slider.value = round(min(self.cursor_s, log.duration_s), 2)
-            dec = decimate(self.state.session.array(log.id)[a:b], a, rate_hz=log.rate_hz, pixels=self.pixels)
+            try:
+                samples = self.state.session.array(log.id)[a:b]
+            except USER_ERRORS as exc:  # a log file changed under the session: say so where the traces would be
+                self.legend.content = f"<p style='color:#c62828'>{html.escape(one_line(exc))}</p>"
+                return
+            dec = decimate(samples, a, rate_hz=log.rate_hz, pixels=self.pixels)
             groups = charts.channel_groups(log.channel_names, forces_by=self.forces_by)
             specs = [
                 charts.trace_chart(dec, g, cursor_s=self.cursor_s, show_x=(i == len(groups) - 1))
