@@ -27,6 +27,15 @@ from .metrics import classification_metrics
 from .models import Classifier, Predictor
 from .onnx_export import check_onnx, export_onnx, run_onnx
 from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from .spectral import (
+    SpectralConfig,
+    SpectralStream,
+    frame_ends,
+    frame_features,
+    per_step,
+    split_channels,
+    summary_windows,
+)
 from .stream import StreamingClassifier
 from .training_errors import BundleError, TrainingError
 
@@ -51,6 +60,8 @@ __all__ = [
     "PredictorFit",
     "Progress",
     "ProgressFn",
+    "SpectralConfig",
+    "SpectralStream",
     "Stage1Outputs",
     "StreamingClassifier",
     "TrainConfig",
@@ -67,6 +78,8 @@ __all__ = [
     "export_onnx",
     "fit_classifier",
     "fit_predictor",
+    "frame_ends",
+    "frame_features",
     "held_out_logs_protocol",
     "load_bundle",
     "load_checkpoint",
@@ -75,6 +88,7 @@ __all__ = [
     "padded_groups",
     "parameter_count",
     "partitions",
+    "per_step",
     "predictor_loss",
     "predictor_pass",
     "qcat_protocol",
@@ -83,8 +97,10 @@ __all__ = [
     "run_predictor",
     "save_bundle",
     "save_checkpoint",
+    "split_channels",
     "split_pieces",
     "stage1_batch",
+    "summary_windows",
     "to_dict",
     "windows",
 ]

@@ -2,7 +2,7 @@
 report and plot."""
 
 from .label_efficiency import SimSettings, report, simulate_logs, simulate_partitions
-from .protocols import BOREALTC_PUBLISHED, evaluate_borealtc, evaluate_demo, evaluate_qcat, simulate
+from .protocols import BOREALTC_PUBLISHED, evaluate_borealtc, evaluate_demo, evaluate_qcat, load_runs, simulate
 
 __all__ = [
     "BOREALTC_PUBLISHED",
@@ -10,6 +10,7 @@ __all__ = [
     "evaluate_borealtc",
     "evaluate_demo",
     "evaluate_qcat",
+    "load_runs",
     "report",
     "simulate",
     "simulate_logs",

@@ -1,0 +1,150 @@
+"""How far the spectral front end alone carries on BorealTC: a logistic regression on window summaries of
+``training.spectral`` frames, under both protocols, with its one setting chosen on inner folds only.
+
+The first measurement of the classifier issue's default family: no stage 1, no semi-supervision, the simplest
+learner on the front end, so later parts can be measured against it by leaving them out.
+
+- **partition protocol** (the authors'): 5 s partitions, stratified 5 folds over partitions, test windows of 1.7 s
+  every 0.1 s classified on their own;
+- **unseen runs**: the same windows, folds that hold out whole runs (neighbouring partitions of one run never sit
+  on both sides).
+
+Labelled: a stratified share of the training partitions (seeded as ``workbench evaluate borealtc`` does). The
+regularisation ``C`` is chosen by grouped inner folds over the labelled partitions; the test fold scores once.
+
+    python benchmarks/spectral_baseline.py ../shared/data/borealtc --labelled 0.05 0.1 1.0
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from sklearn.linear_model import LogisticRegression
+from sklearn.model_selection import GroupKFold, StratifiedGroupKFold, StratifiedKFold
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+
+from training import SpectralConfig, classification_metrics, frame_features, partitions, split_channels
+from workbench.evaluation import load_runs
+
+RATE = 100.0
+PARTITION, WINDOW, STRIDE, TRAIN_STRIDE = 500, 170, 10, 50  # samples: 5 s, 1.7 s, 0.1 s, 0.5 s
+C_GRID = (0.01, 0.1, 1.0, 10.0)
+
+
+def window_features(part: np.ndarray, config: SpectralConfig, stride: int) -> np.ndarray:
+    """Mean and spread of the frames inside each window of one partition: ``(W, 2F)``."""
+    out = []
+    for start in range(0, len(part) - WINDOW + 1, stride):
+        f = frame_features(part[start : start + WINDOW], config)  # (frames, F)
+        out.append(np.concatenate([f.mean(0), f.std(0)]))
+    return np.asarray(out, np.float32)
+
+
+def fit(xs: dict[str, np.ndarray], y: np.ndarray, groups: np.ndarray, seed: int) -> tuple[object, str, float]:
+    """Logistic regression with the front-end variant and ``C`` chosen by grouped inner folds (groups: partitions)
+    on the labelled training data only."""
+    n_inner = min(3, len(np.unique(groups)))
+    best, choice = -1.0, (next(iter(xs)), C_GRID[0])
+    if n_inner >= 2:
+        for variant, x in xs.items():
+            for c in C_GRID:
+                scores = []
+                for tr, va in GroupKFold(n_inner).split(x, y, groups):
+                    model = make_pipeline(StandardScaler(), LogisticRegression(C=c, max_iter=2000))
+                    model.fit(x[tr], y[tr])
+                    scores.append((model.predict(x[va]) == y[va]).mean())
+                if np.mean(scores) > best:
+                    best, choice = float(np.mean(scores)), (variant, c)
+    variant, c = choice
+    model = make_pipeline(StandardScaler(), LogisticRegression(C=c, max_iter=2000, random_state=seed))
+    model.fit(xs[variant], y)
+    return model, variant, c
+
+
+def run(folder: Path, labelled: list[float], seed: int, variants: list[str]) -> None:
+    runs, terrains, _ = load_runs(folder)
+    classes = sorted(set(terrains))
+    labels = [classes.index(t) for t in terrains]
+    fast, slow = split_channels(np.concatenate(runs[:5]))
+    configs = {v: SpectralConfig(frame=40, hop=20, fast=fast, slow=slow, detrend=v == "detrend") for v in variants}
+    config = next(iter(configs.values()))
+    parts, y, run_of = partitions(runs, labels, PARTITION)
+    t0 = time.perf_counter()
+    test_x = {v: [window_features(p, cfg, STRIDE) for p in parts] for v, cfg in configs.items()}
+    train_x = {v: [window_features(p, cfg, TRAIN_STRIDE) for p in parts] for v, cfg in configs.items()}
+    print(
+        f"BorealTC: {len(runs)} runs, {len(parts)} partitions; fast channels {fast}, slow {slow}; "
+        f"{config.width} features a frame; features in {time.perf_counter() - t0:.0f} s",
+        flush=True,
+    )
+    splits = {
+        "partitions (authors' 5 folds)": list(StratifiedKFold(5, shuffle=True, random_state=seed).split(parts, y)),
+        "unseen runs (5 folds by run)": list(
+            StratifiedGroupKFold(5, shuffle=True, random_state=seed).split(parts, y, run_of)
+        ),
+    }
+    print("| protocol | labelled | fold accuracies (%) | mean (%) | macro-F1 | front end, C chosen |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for name, folds in splits.items():
+        for share in labelled:
+            accs, f1s, cs = [], [], []
+            for fold, (train_idx, test_idx) in enumerate(folds, start=1):
+                rng = np.random.default_rng(seed + fold)
+                chosen = _stratified_share(train_idx, y, share, rng)
+                first = train_x[variants[0]]
+                xs = {v: np.concatenate([train_x[v][i] for i in chosen]) for v in variants}
+                yy = np.concatenate([np.full(len(first[i]), y[i]) for i in chosen])
+                groups = np.concatenate([np.full(len(first[i]), i) for i in chosen])
+                model, variant, c = fit(xs, yy, groups, seed)
+                tx = np.concatenate([test_x[variant][i] for i in test_idx])
+                ty = np.concatenate([np.full(len(test_x[variant][i]), y[i]) for i in test_idx])
+                m = classification_metrics(ty, model.predict(tx), classes)
+                accs.append(100 * m["accuracy"])
+                f1s.append(m["macro_f1"])
+                cs.append(f"{variant} {c:g}")
+            cells = ", ".join(f"{a:.1f}" for a in accs)
+            c_cell = ", ".join(cs)
+            print(
+                f"| {name} | {share:.0%} | {cells} | {np.mean(accs):.2f} ± {np.std(accs):.2f} | "
+                f"{np.mean(f1s):.3f} | {c_cell} |",
+                flush=True,
+            )
+
+
+def _stratified_share(train_idx: np.ndarray, y: np.ndarray, share: float, rng: np.random.Generator) -> np.ndarray:
+    if share >= 1.0:
+        return np.asarray(train_idx)
+    chosen = []
+    for c in np.unique(y[train_idx]):
+        members = train_idx[y[train_idx] == c]
+        k = max(1, round(share * len(members)))
+        chosen.extend(rng.choice(members, size=k, replace=False))
+    return np.asarray(sorted(chosen))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("folder", type=Path)
+    parser.add_argument("--labelled", type=float, nargs="+", default=[0.05, 0.1, 1.0])
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--front-ends",
+        nargs="+",
+        default=["detrend", "level"],
+        choices=["detrend", "level"],
+        help="front-end variants the inner folds choose from (detrend: each frame's mean removed)",
+    )
+    args = parser.parse_args()
+    run(args.folder, args.labelled, args.seed, args.front_ends)
+
+
+if __name__ == "__main__":
+    main()

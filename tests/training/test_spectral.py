@@ -1,0 +1,71 @@
+"""The spectral front end: the right bins, causal, the stream equal to the offline pass, slow channels found."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from training.spectral import (
+    SpectralConfig,
+    SpectralStream,
+    frame_ends,
+    frame_features,
+    per_step,
+    split_channels,
+    summary_windows,
+)
+
+
+def _log(n: int = 1000, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 100.0
+    fast = np.sin(2 * np.pi * 25.0 * t) + 0.1 * rng.normal(size=n)  # 25 Hz at 100 Hz
+    held = np.repeat(rng.normal(size=n // 15 + 1), 15)[:n]  # a 6.7 Hz stream held at 100 Hz
+    return np.column_stack([fast, held]).astype(np.float32)
+
+
+def test_a_sine_lands_in_its_bin_and_slow_channels_are_found() -> None:
+    x = _log()
+    fast, slow = split_channels(x)
+    assert fast == (0,) and slow == (1,)
+    cfg = SpectralConfig(frame=40, hop=20, fast=fast, slow=slow)
+    f = frame_features(x, cfg)
+    assert f.shape == (len(frame_ends(len(x), cfg)), cfg.width) == (49, 21 + 4)
+    # 25 Hz in 40-sample frames at 100 Hz: bin 25 / (100 / 40) = 10
+    assert (f[:, :21].argmax(axis=1) == 10).all()
+    stats = f[:, 21:]  # mean, std, min, max of the held channel over each frame
+    np.testing.assert_allclose(
+        stats[0], [x[:40, 1].mean(), x[:40, 1].std(), x[:40, 1].min(), x[:40, 1].max()], rtol=1e-5
+    )
+
+
+def test_features_are_causal() -> None:
+    x = _log()
+    cfg = SpectralConfig(fast=(0,), slow=(1,))
+    before, known = per_step(frame_features(x, cfg), len(x), cfg)
+    changed = x.copy()
+    changed[500:] = 99.0
+    after, _ = per_step(frame_features(changed, cfg), len(x), cfg)
+    np.testing.assert_array_equal(before[:500], after[:500])  # nothing after step 499 reaches step 499
+    assert not known[:39].any() and known[39:].all()
+    assert not np.array_equal(before[519], after[519])  # the frame ending at 519 holds changed samples
+
+
+def test_the_stream_gives_the_offline_features() -> None:
+    logs = [_log(300, seed=1), _log(300, seed=2)]
+    cfg = SpectralConfig(frame=40, hop=20, fast=(0,), slow=(1,))
+    offline = [per_step(frame_features(x, cfg), len(x), cfg) for x in logs]
+    stream = SpectralStream(cfg, 2, streams=2)
+    for t in range(300):
+        feats, known = stream.step(np.stack([logs[0][t], logs[1][t]]))
+        for b in range(2):
+            assert known[b] == offline[b][1][t]
+            np.testing.assert_allclose(feats[b], offline[b][0][t], rtol=1e-4, atol=1e-4)
+
+
+def test_summary_windows_are_mean_and_spread_of_the_last_frames() -> None:
+    frames = np.random.default_rng(3).normal(size=(30, 4)).astype(np.float32)
+    s = summary_windows(frames, frames_per_window=8)
+    assert s.shape == (30, 8)
+    np.testing.assert_allclose(s[20, :4], frames[13:21].mean(0), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(s[20, 4:], frames[13:21].std(0), rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(s[2, :4], frames[:3].mean(0), rtol=1e-5, atol=1e-6)  # short at the start
