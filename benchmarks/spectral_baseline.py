@@ -18,6 +18,7 @@ regularisation ``C`` is chosen by grouped inner folds over the labelled partitio
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 import time
 from pathlib import Path
@@ -37,6 +38,7 @@ from workbench.evaluation import load_runs
 RATE = 100.0
 PARTITION, WINDOW, STRIDE, TRAIN_STRIDE = 500, 170, 10, 50  # samples: 5 s, 1.7 s, 0.1 s, 0.5 s
 C_GRID = (0.01, 0.1, 1.0, 10.0)
+AGREE = 0.9  # share of a partition's windows that must agree before it is pseudo-labelled
 
 
 def window_features(part: np.ndarray, config: SpectralConfig, stride: int) -> np.ndarray:
@@ -69,7 +71,7 @@ def fit(xs: dict[str, np.ndarray], y: np.ndarray, groups: np.ndarray, seed: int)
     return model, variant, c
 
 
-def run(folder: Path, labelled: list[float], seed: int, variants: list[str]) -> None:
+def run(folder: Path, labelled: list[float], seed: int, variants: list[str], self_training: list[bool]) -> None:
     runs, terrains, _ = load_runs(folder)
     classes = sorted(set(terrains))
     labels = [classes.index(t) for t in terrains]
@@ -93,30 +95,65 @@ def run(folder: Path, labelled: list[float], seed: int, variants: list[str]) -> 
     }
     print("| protocol | labelled | fold accuracies (%) | mean (%) | macro-F1 | front end, C chosen |")
     print("| --- | --- | --- | --- | --- | --- |")
-    for name, folds in splits.items():
-        for share in labelled:
-            accs, f1s, cs = [], [], []
-            for fold, (train_idx, test_idx) in enumerate(folds, start=1):
-                rng = np.random.default_rng(seed + fold)
-                chosen = _stratified_share(train_idx, y, share, rng)
-                first = train_x[variants[0]]
-                xs = {v: np.concatenate([train_x[v][i] for i in chosen]) for v in variants}
-                yy = np.concatenate([np.full(len(first[i]), y[i]) for i in chosen])
-                groups = np.concatenate([np.full(len(first[i]), i) for i in chosen])
-                model, variant, c = fit(xs, yy, groups, seed)
-                tx = np.concatenate([test_x[variant][i] for i in test_idx])
-                ty = np.concatenate([np.full(len(test_x[variant][i]), y[i]) for i in test_idx])
-                m = classification_metrics(ty, model.predict(tx), classes)
-                accs.append(100 * m["accuracy"])
-                f1s.append(m["macro_f1"])
-                cs.append(f"{variant} {c:g}")
-            cells = ", ".join(f"{a:.1f}" for a in accs)
-            c_cell = ", ".join(cs)
-            print(
-                f"| {name} | {share:.0%} | {cells} | {np.mean(accs):.2f} ± {np.std(accs):.2f} | "
-                f"{np.mean(f1s):.3f} | {c_cell} |",
-                flush=True,
-            )
+    for (name, folds), self_train, share in itertools.product(splits.items(), self_training, labelled):
+        if share >= 1.0 and self_train:
+            continue  # nothing is unlabelled
+        accs, f1s, cs, pseudo = [], [], [], []
+        for fold, (train_idx, test_idx) in enumerate(folds, start=1):
+            rng = np.random.default_rng(seed + fold)
+            chosen = _stratified_share(train_idx, y, share, rng)
+            first = train_x[variants[0]]
+            xs = {v: np.concatenate([train_x[v][i] for i in chosen]) for v in variants}
+            yy = np.concatenate([np.full(len(first[i]), y[i]) for i in chosen])
+            groups = np.concatenate([np.full(len(first[i]), i) for i in chosen])
+            model, variant, c = fit(xs, yy, groups, seed)
+            if self_train:
+                unlabelled = np.setdiff1d(train_idx, chosen)
+                model, n_pseudo = pseudo_label_refit(
+                    model, train_x[variant], chosen, unlabelled, y, variant_c=c, seed=seed
+                )
+                pseudo.append(n_pseudo)
+            tx = np.concatenate([test_x[variant][i] for i in test_idx])
+            ty = np.concatenate([np.full(len(test_x[variant][i]), y[i]) for i in test_idx])
+            m = classification_metrics(ty, model.predict(tx), classes)
+            accs.append(100 * m["accuracy"])
+            f1s.append(m["macro_f1"])
+            cs.append(f"{variant} {c:g}")
+        cells = ", ".join(f"{a:.1f}" for a in accs)
+        c_cell = ", ".join(cs)
+        what = f"{share:.0%}" + (f" + self-training ({np.mean(pseudo):.0f} partitions)" if self_train else "")
+        print(
+            f"| {name} | {what} | {cells} | {np.mean(accs):.2f} ± {np.std(accs):.2f} | {np.mean(f1s):.3f} | {c_cell} |",
+            flush=True,
+        )
+
+
+def pseudo_label_refit(
+    model,
+    windows: list[np.ndarray],
+    chosen: np.ndarray,
+    unlabelled: np.ndarray,
+    y: np.ndarray,
+    *,
+    variant_c: float,
+    seed: int,
+    agree: float = AGREE,
+) -> tuple[object, int]:
+    """Self-training over stretches: an unlabelled training partition whose windows agree on one terrain (at least
+    ``agree`` of them) takes it as a pseudo-label for all its windows; the model is fitted again on labels and
+    pseudo-labels. The rule is fixed in advance, not tuned; test partitions are never read."""
+    xs, ys = [windows[i] for i in chosen], [np.full(len(windows[i]), y[i]) for i in chosen]
+    n = 0
+    for u in unlabelled:
+        guess = model.predict(windows[u])
+        values, counts = np.unique(guess, return_counts=True)
+        if counts.max() >= agree * len(guess):
+            xs.append(windows[u])
+            ys.append(np.full(len(guess), values[counts.argmax()]))
+            n += 1
+    refit = make_pipeline(StandardScaler(), LogisticRegression(C=variant_c, max_iter=2000, random_state=seed))
+    refit.fit(np.concatenate(xs), np.concatenate(ys))
+    return refit, n
 
 
 def _stratified_share(train_idx: np.ndarray, y: np.ndarray, share: float, rng: np.random.Generator) -> np.ndarray:
@@ -142,8 +179,11 @@ def main() -> None:
         choices=["detrend", "level"],
         help="front-end variants the inner folds choose from (detrend: each frame's mean removed)",
     )
+    parser.add_argument(
+        "--self-training", nargs="+", default=["off", "on"], choices=["off", "on"], help="rows without and with it"
+    )
     args = parser.parse_args()
-    run(args.folder, args.labelled, args.seed, args.front_ends)
+    run(args.folder, args.labelled, args.seed, args.front_ends, [x == "on" for x in args.self_training])
 
 
 if __name__ == "__main__":

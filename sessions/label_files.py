@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from itertools import pairwise
 from pathlib import Path
 
 import pandas as pd
@@ -110,10 +112,20 @@ def read_frame(path: Path) -> pd.DataFrame:
         raise LabelError(f"{path}: cannot read label file ({type(exc).__name__}: {exc})") from None
 
 
-def import_rows(
-    conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path, author: str
-) -> list[Segment]:
-    """Add every row as a segment inside the caller's transaction; any bad row refuses the whole file.
+@dataclass(frozen=True)
+class Row:
+    """One row of a label file, resolved: its line in the file, log, range in samples, terrain and author."""
+
+    line: int
+    log: LogInfo
+    start: int
+    stop: int
+    terrain: str
+    author: str | None
+
+
+def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path) -> list[Row]:
+    """Every row of a label file resolved against the session, or a ``LabelError`` naming the first bad row.
 
     Rows name their log by ``log`` (name) and give ``start_sample``/``end_sample`` or ``start_s``/``end_s``.
     """
@@ -140,23 +152,62 @@ def import_rows(
         else:
             start = _whole(_number(row.start_s, "start_s", path=path, row=i) * log.rate_hz, "start_s", path=path, row=i)
             stop = _whole(_number(row.end_s, "end_s", path=path, row=i) * log.rate_hz, "end_s", path=path, row=i)
-        who = str(row.author) if "author" in frame.columns and pd.notna(row.author) else author
+        who = str(row.author) if "author" in frame.columns and pd.notna(row.author) else None
+        out.append(Row(i, log, start, stop, str(row.terrain), who))
+    return out
+
+
+def import_rows(
+    conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path, author: str
+) -> list[Segment]:
+    """Add every row as a segment inside the caller's transaction; any bad row refuses the whole file."""
+    out = []
+    for row in parse_rows(frame, logs, terrains, path=path):
         try:
             out.append(
                 add_segment(
                     conn,
-                    log_id=log.id,
-                    start=start,
-                    stop=stop,
-                    terrain=str(row.terrain),
-                    author=who,
+                    log_id=row.log.id,
+                    start=row.start,
+                    stop=row.stop,
+                    terrain=row.terrain,
+                    author=row.author or author,
                     source="import",
                     kind="import",
                 )
             )
         except LabelError as exc:
-            raise LabelError(f"{path}: row {i}: {exc}; nothing was imported") from None
+            raise LabelError(f"{path}: row {row.line}: {exc}; nothing was imported") from None
     return out
+
+
+def import_reference_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path) -> int:
+    """Replace the reference truth of every log the file names with its rows, inside the caller's transaction.
+
+    Reference truth is for evaluation only: it never becomes labels, and labels never become it. Rows of one log
+    must not overlap. Returns the rows written.
+    """
+    rows = parse_rows(frame, logs, terrains, path=path)
+    by_log: dict[int, list[Row]] = {}
+    for row in rows:
+        if not 0 <= row.start < row.stop <= row.log.n_samples:
+            raise LabelError(
+                f"{path}: row {row.line}: [{row.start}, {row.stop}) is not inside log {row.log.name!r} "
+                f"(samples 0 to {row.log.n_samples}); nothing was imported"
+            )
+        by_log.setdefault(row.log.id, []).append(row)
+    for log_rows in by_log.values():
+        log_rows.sort(key=lambda r: r.start)
+        for a, b in pairwise(log_rows):
+            if b.start < a.stop:
+                raise LabelError(f"{path}: row {b.line}: overlaps row {a.line} of the same log; nothing was imported")
+    for log_id, log_rows in by_log.items():
+        conn.execute("DELETE FROM reference WHERE log_id = ?", (log_id,))
+        conn.executemany(
+            "INSERT INTO reference (log_id, start, stop, terrain) VALUES (?, ?, ?, ?)",
+            [(log_id, r.start, r.stop, r.terrain) for r in log_rows],
+        )
+    return len(rows)
 
 
 def _number(value: object, column: str, *, path: Path, row: int) -> float:

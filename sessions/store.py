@@ -341,6 +341,21 @@ class Session(LogIngest, ModelRegistry):
         with self._write() as conn:
             return import_rows(conn, frame, logs, terrains, path=path, author=author)
 
+    def import_reference(self, path: str | Path) -> int:
+        """Reference truth from a label file, for evaluation only: it replaces the reference of every log the file
+        names, in one transaction, and never becomes labels. Returns the rows read.
+
+        Raises:
+            LabelError: Unreadable file, missing columns, unknown logs or terrains, bad cells, overlapping rows.
+        """
+        from .label_files import import_reference_rows, read_frame
+
+        path = Path(path)
+        frame = read_frame(path)
+        logs, terrains = self.logs(), [t.name for t in self.terrains()]
+        with self._write() as conn:
+            return import_reference_rows(conn, frame, logs, terrains, path=path)
+
     def history(self, *, limit: int | None = None) -> list[HistoryEntry]:
         """Label actions, newest first."""
         with self._lock:

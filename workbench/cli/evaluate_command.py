@@ -15,7 +15,7 @@ Pos = tyro.conf.Positional
 
 
 def evaluate(
-    dataset: Pos[Literal["borealtc", "qcat", "demo"]],
+    dataset: Pos[Literal["borealtc", "qcat", "demo", "session"]],
     folder: Pos[Path],
     labelled: float = 0.1,
     variant: Literal["both", "shared", "strict"] = "both",
@@ -35,6 +35,7 @@ def evaluate(
     segment_s: float | None = None,
     members: int = 3,
     device: Literal["cpu", "cuda"] = "cpu",
+    reference: Path | None = None,
 ) -> None:
     """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
 
@@ -45,7 +46,9 @@ def evaluate(
         dataset: Which protocol. borealtc: 5 s partitions, stratified 5-fold CV, 1.7 s windows at 0.1 s stride.
             qcat: the paper's 90 % / 5 % / 5 % split of step sequences, and one holding out whole trials.
             demo: leave-logs-out on demo logs against their truth, for each stage-1 feature mode.
-        folder: The dataset folder (e.g. ../shared/data/borealtc, a QCAT folder, demo logs).
+            session: your own session, leave-logs-out: stage 2 retrained per fold on the other logs' labels and
+            scored against reference labels (--reference FILE, kept apart from the labels).
+        folder: The dataset folder (e.g. ../shared/data/borealtc, a QCAT folder, demo logs), or the session.
         labelled: Fraction labelled: of the training partitions (borealtc), of the training logs' time (demo).
         variant: "shared": stage 1 trains once on all partitions' signals (no labels); "strict": stage 1 never sees
             the test partitions; "both".
@@ -66,10 +69,20 @@ def evaluate(
             5 s partition on borealtc, which then labels 5 / segment_s equal pieces of a partition).
         members: With --simulate: stage-2 ensemble members per retrain (the UI's Retrain trains 5).
         device: Where both stages train and run.
+        reference: With session: a label file (the columns of `workbench labels export`) stored as the reference
+            labels of the logs it names before scoring.
     """
     from ..evaluation import protocols as ev
 
     check_device(device)
+    if dataset == "session":
+        from sessions import Session
+
+        from ..evaluation import evaluate_session
+
+        with Session.open(folder) as s:
+            print(evaluate_session(s, reference=reference, folds=folds, seed=seed))
+        return
     if simulate:
         print(
             ev.simulate(

@@ -3,6 +3,7 @@ report and plot."""
 
 from .label_efficiency import SimSettings, report, simulate_logs, simulate_partitions
 from .protocols import BOREALTC_PUBLISHED, evaluate_borealtc, evaluate_demo, evaluate_qcat, load_runs, simulate
+from .session_eval import evaluate_session
 
 __all__ = [
     "BOREALTC_PUBLISHED",
@@ -10,6 +11,7 @@ __all__ = [
     "evaluate_borealtc",
     "evaluate_demo",
     "evaluate_qcat",
+    "evaluate_session",
     "load_runs",
     "report",
     "simulate",

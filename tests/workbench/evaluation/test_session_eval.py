@@ -1,0 +1,66 @@
+"""``workbench evaluate session``: leave-logs-out against reference labels given as a file."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from sessions import Session
+from tests.workbench.test_cycle import TINY
+from workbench import cycle
+from workbench.cli import main
+from workbench.demo import generate_demo_logs, seed_labels
+
+
+@pytest.fixture
+def three_logs(tmp_path: Path) -> Path:
+    logs = generate_demo_logs(tmp_path / "logs", n_logs=3, minutes=1.0, seed=7)
+    s = Session.create(tmp_path / "s")
+    s.ingest(logs)
+    seed_labels(s, 0.3, seed=2)
+    cycle.train_predictor(s, config=TINY, hidden=8)
+    cycle.train_classifier(s, config=TINY, hidden=8)
+    s.close()
+    return tmp_path / "s"
+
+
+def test_reference_from_a_file_scores_held_out_logs(three_logs: Path, tmp_path: Path, capsys) -> None:
+    with Session.open(three_logs) as s:
+        labels_before = s.segments()
+        rows = [
+            (x.name, a, b, t)
+            for x in s.logs()
+            for a, b, t in s.reference(x.id)  # the demo's truth, written out as a person's reference file
+        ]
+        with s._write() as conn:  # start from a session without reference, as a user's own logs are
+            conn.execute("DELETE FROM reference")
+        n_samples = sum(b - a for _, a, b, _ in rows)
+    frame = pd.DataFrame(rows, columns=["log", "start_sample", "end_sample", "terrain"])
+    frame.to_csv(tmp_path / "reference.csv", index=False)
+
+    code = main(
+        ["evaluate", "session", str(three_logs), "--reference", str(tmp_path / "reference.csv"), "--folds", "3"]
+    )
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert f"reference: {len(rows)} row(s)" in out and "3 logs with reference, 3 folds" in out
+    accuracy = float(re.search(r"\*\*Accuracy ([0-9.]+) %", out).group(1))
+    assert 0.0 <= accuracy <= 100.0
+    rows_after = out.split("Confusion")[1].splitlines()[4:]  # after the heading, a blank line, header and rule
+    confusion = [line for line in rows_after if line.startswith("| ")]
+    assert len(confusion) == 6
+    assert sum(int(v) for line in confusion for v in line.strip("|").split("|")[1:]) == n_samples
+    with Session.open(three_logs) as s:
+        assert s.segments() == labels_before  # the reference trained nothing and became no label
+        assert sum(b - a for x in s.logs() for a, b, _ in s.reference(x.id)) == n_samples
+
+
+def test_without_reference_it_says_what_is_missing(three_logs: Path, capsys) -> None:
+    with Session.open(three_logs) as s, s._write() as conn:
+        conn.execute("DELETE FROM reference")
+    assert main(["evaluate", "session", str(three_logs)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "0 log(s) have reference labels" in err[0] and "--reference FILE" in err[0]

@@ -1,0 +1,130 @@
+"""Evaluation a user can run on their own logs: the session's recipe scored leave-logs-out against reference labels.
+
+A model card's out-of-fold figure holds back labelled segments, but the other segments of the same log train the
+fold model, and a log's neighbouring seconds look alike: that figure flatters. Here every fold holds out whole
+logs: stage 2 trains on the labels of the other logs (stage 1, trained without labels on every log, is shared, as
+the method prescribes), and the held-out logs are scored against reference labels the person gave as a file. The
+reference is kept apart from the labels (the session's ``reference`` table, like BorealTC's folder names): it never
+trains anything.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from sklearn.model_selection import KFold
+
+from sessions import Session, WorkbenchError
+from training import TrainConfig, classification_metrics, fit_classifier
+
+from ..cycle import active_predictor, model_logs, stage1_outputs, stage2_features
+from ..retrain import RETRAIN
+from ..scores import score_logs
+
+
+def evaluate_session(
+    session: Session,
+    *,
+    reference: Path | None = None,
+    folds: int = 5,
+    config: TrainConfig | None = None,
+    seed: int = 0,
+    log: Callable[[str], None] = print,
+) -> str:
+    """Score the session's recipe by held-out logs against its reference labels; returns a Markdown report.
+
+    Args:
+        session: The session, with a predictor, labels of at least two terrains, and reference labels.
+        reference: A label file (CSV, Parquet, JSON: the columns of ``workbench labels export``) to store as the
+            reference of the logs it names first; without it, the reference already in the session (e.g. from
+            BorealTC folder names or demo sidecars).
+        folds: Folds over the logs that have reference labels (at most one per log).
+        config: Stage 2's training settings (default: the Retrain's, from scratch).
+        seed: Seed of the fold split and of training.
+        log: Where progress lines go.
+    """
+    if reference is not None:
+        n = session.import_reference(reference)
+        log(f"reference: {n} row(s) from {reference} (kept apart from labels)")
+    p_version, bundle = active_predictor(session)
+    logs = model_logs(session, bundle.channels)
+    classes = tuple(t.name for t in session.terrains())
+    truth = {x.id: session.reference(x.id) for x in logs}
+    judged = [i for i, x in enumerate(logs) if truth[x.id]]
+    if len(judged) < 2:
+        raise WorkbenchError(
+            f"{session.path}: {len(judged)} log(s) have reference labels; held-out logs need at least 2 "
+            "(give them with --reference FILE)"
+        )
+    active = session.active_model("classifier")
+    recipe = active.config if active is not None else {}
+    hidden = int(recipe.get("hidden", RETRAIN.hidden))
+    feature_mode = recipe.get("feature_mode", "hidden+surprise")
+    config = replace(config or RETRAIN.classifier, seed=seed)
+    features = stage2_features(session, p_version, bundle, logs, feature_mode)
+    outs = stage1_outputs(session, p_version, bundle, logs)
+    index = {x.id: i for i, x in enumerate(logs)}
+    segments = [
+        (index[s.log_id], s.start, s.stop, classes.index(s.terrain)) for s in session.segments() if s.log_id in index
+    ]
+    k = min(folds, len(judged))
+    y_true, y_pred, rows = [], [], []
+    for fold, (_, held) in enumerate(KFold(k, shuffle=True, random_state=seed).split(judged), start=1):
+        held_logs = {judged[j] for j in held}
+        train = [s for s in segments if s[0] not in held_logs]
+        if len({s[3] for s in train}) < 2:
+            rows.append(
+                f"| {fold} | {_names(logs, held_logs)} | – | labels of fewer than 2 terrains outside the fold |"
+            )
+            continue
+        fit = fit_classifier(features, train, classes, config=config, hidden=hidden)
+        order = sorted(held_logs)
+        scored = score_logs(fit.models, [features[i] for i in order], [outs[logs[i].id].surprise() for i in order])
+        fold_true, fold_pred = [], []
+        for i, s in zip(order, scored, strict=True):
+            predicted = s.predicted
+            for a, b, terrain in truth[logs[i].id]:
+                fold_true.append(np.full(b - a, classes.index(terrain)))
+                fold_pred.append(predicted[a:b])
+        t, p = np.concatenate(fold_true), np.concatenate(fold_pred)
+        y_true.append(t)
+        y_pred.append(p)
+        acc = float((t == p).mean())
+        rows.append(f"| {fold} | {_names(logs, held_logs)} | {100 * acc:.2f} | {len(train)} labelled segments |")
+        log(f"fold {fold}: {100 * acc:.2f} % on {len(held_logs)} held-out log(s)")
+    if not y_true:
+        raise WorkbenchError(f"{session.path}: no fold had labels of two terrains outside its held-out logs")
+    m = classification_metrics(np.concatenate(y_true), np.concatenate(y_pred), classes)
+    rate = logs[0].rate_hz
+    lines = [
+        f"# Session {session.path.name}: leave-logs-out against reference labels",
+        "",
+        f"Recipe: the active predictor v{p_version.id}; stage 2 hidden {hidden}, features `{feature_mode}`, retrained "
+        f"per fold on the other logs' labels. {len(judged)} logs with reference, {k} folds, "
+        f"{m['n'] / rate:.0f} s of reference time scored.",
+        "",
+        "| fold | held-out logs | accuracy (%) | trained on |",
+        "| --- | --- | --- | --- |",
+        *rows,
+        "",
+        f"**Accuracy {100 * m['accuracy']:.2f} %, macro-F1 {m['macro_f1']:.3f}** over all held-out reference time.",
+        "",
+        "| terrain | recall (%) |",
+        "| --- | --- |",
+        *(f"| {c} | {100 * r:.1f} |" for c, r in m["per_class_recall"].items()),
+        "",
+        "Confusion (rows: reference, columns: predicted; samples):",
+        "",
+        "| | " + " | ".join(classes) + " |",
+        "| --- | " + " | ".join("---" for _ in classes) + " |",
+        *(f"| {c} | " + " | ".join(str(v) for v in row) + " |" for c, row in zip(classes, m["confusion"], strict=True)),
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _names(logs, held: set[int]) -> str:
+    names = [logs[i].name for i in sorted(held)]
+    return ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
