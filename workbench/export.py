@@ -68,9 +68,12 @@ def model_card(bundle: ModelBundle, *, version: int, session: str) -> str:
         f"- stage 2: {m.get('n_segments', '?')} labelled segments, {m.get('labelled_seconds', 0):.0f} s "
         f"({m.get('labelled_fraction', 0):.1%} of the time)",
         "",
-        "## Out-of-fold metrics",
+        "## Out-of-fold metrics (same logs)",
         "",
-        "Each labelled step predicted, in a pass over its whole log, by the fold model that did not train on it.",
+        "Each labelled step predicted, in a pass over its whole log, by the fold model that did not train on it. The "
+        "other labelled segments of the same logs did train that model, so these figures flatter what to expect on "
+        "logs the model never saw; `workbench evaluate session SESSION --reference FILE` measures that, holding out "
+        "whole logs.",
         "",
         f"- accuracy: {m.get('accuracy', float('nan')):.1%}",
         f"- macro-F1: {m.get('macro_f1', float('nan')):.3f}",

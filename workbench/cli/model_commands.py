@@ -144,7 +144,7 @@ def _train_classifier(s: Session, config: TrainConfig, hidden: int, feature_mode
         bar.close()
     m = v.metrics
     print(
-        f"classifier v{v.id}: out-of-fold accuracy {m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} "
+        f"classifier v{v.id}: out-of-fold accuracy (same logs) {m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} "
         f"on {m['n_segments']} segments ({m['labelled_seconds']:.0f} s labelled)"
     )
 

@@ -47,7 +47,7 @@ class TrainPanel:
             self.activate_button = gui.add_button("Make active", icon="player-play")
             self.activate_button.on_click(lambda _: host.guard(self.activate))
             self.confusion = gui.add_image(
-                np.full((10, 10, 3), 255, np.uint8), label="Confusion (out of fold)", visible=False
+                np.full((10, 10, 3), 255, np.uint8), label="Confusion (out of fold, same logs)", visible=False
             )
         with gui.add_folder("Learning curve"):
             self.curve = gui.add_image(np.full((10, 10, 3), 255, np.uint8), visible=False)
@@ -118,7 +118,8 @@ class TrainPanel:
             m = v.metrics
             if v.stage == "classifier":
                 what = (
-                    f"acc {100 * m.get('accuracy', float('nan')):.1f} %, F1 {m.get('macro_f1', float('nan')):.2f}, "
+                    f"acc {100 * m.get('accuracy', float('nan')):.1f} % (same logs), "
+                    f"F1 {m.get('macro_f1', float('nan')):.2f}, "
                     f"{m.get('labelled_seconds', 0):.0f} s labelled"
                     + (", quick fine-tune" if v.config.get("new_labels") is not None else "")
                 )
