@@ -21,16 +21,18 @@ import argparse
 import itertools
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.linear_model import LogisticRegression
 from sklearn.model_selection import GroupKFold, StratifiedGroupKFold, StratifiedKFold
+from sklearn.neural_network import MLPClassifier
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from training import SpectralConfig, classification_metrics, frame_features, partitions, split_channels
 from workbench.evaluation import load_runs
@@ -50,6 +52,20 @@ def window_features(part: np.ndarray, config: SpectralConfig, stride: int) -> np
     return np.asarray(out, np.float32)
 
 
+LEARNER = "logistic"  # set from --learner
+
+
+def make_model(c: float, seed: int):
+    """The learner at inverse regularisation ``c``: a logistic regression, or a one-hidden-layer network with
+    weight decay ``1 / c`` (128 units, Adam, 200 epochs at most)."""
+    if LEARNER == "mlp":
+        # 200 epochs at most is the setting, not a failure: one warning a fit would bury the table
+        warnings.filterwarnings("ignore", category=ConvergenceWarning)
+        net = MLPClassifier(hidden_layer_sizes=(128,), alpha=1.0 / c, max_iter=200, random_state=seed)
+        return make_pipeline(StandardScaler(), net)
+    return make_pipeline(StandardScaler(), LogisticRegression(C=c, max_iter=2000, random_state=seed))
+
+
 def fit(xs: dict[str, np.ndarray], y: np.ndarray, groups: np.ndarray, seed: int) -> tuple[object, str, float]:
     """Logistic regression with the front-end variant and ``C`` chosen by grouped inner folds (groups: partitions)
     on the labelled training data only."""
@@ -60,13 +76,13 @@ def fit(xs: dict[str, np.ndarray], y: np.ndarray, groups: np.ndarray, seed: int)
             for c in C_GRID:
                 scores = []
                 for tr, va in GroupKFold(n_inner).split(x, y, groups):
-                    model = make_pipeline(StandardScaler(), LogisticRegression(C=c, max_iter=2000))
+                    model = make_model(c, seed)
                     model.fit(x[tr], y[tr])
                     scores.append((model.predict(x[va]) == y[va]).mean())
                 if np.mean(scores) > best:
                     best, choice = float(np.mean(scores)), (variant, c)
     variant, c = choice
-    model = make_pipeline(StandardScaler(), LogisticRegression(C=c, max_iter=2000, random_state=seed))
+    model = make_model(c, seed)
     model.fit(xs[variant], y)
     return model, variant, c
 
@@ -151,7 +167,7 @@ def pseudo_label_refit(
             xs.append(windows[u])
             ys.append(np.full(len(guess), values[counts.argmax()]))
             n += 1
-    refit = make_pipeline(StandardScaler(), LogisticRegression(C=variant_c, max_iter=2000, random_state=seed))
+    refit = make_model(variant_c, seed)
     refit.fit(np.concatenate(xs), np.concatenate(ys))
     return refit, n
 
@@ -182,7 +198,10 @@ def main() -> None:
     parser.add_argument(
         "--self-training", nargs="+", default=["off", "on"], choices=["off", "on"], help="rows without and with it"
     )
+    parser.add_argument("--learner", default="logistic", choices=["logistic", "mlp"])
     args = parser.parse_args()
+    global LEARNER
+    LEARNER = args.learner
     run(args.folder, args.labelled, args.seed, args.front_ends, [x == "on" for x in args.self_training])
 
 
