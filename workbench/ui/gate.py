@@ -172,7 +172,7 @@ class Gate:
             async with connect(
                 f"ws://127.0.0.1:{self.inner_port}",
                 subprotocols=[sub] if sub else None,
-                max_size=MAX_MESSAGE,
+                max_size=None,  # viser's own messages to a browser have no limit (a raw window can be 60 MB)
                 compression=None,
                 open_timeout=30,
             ) as inner:
@@ -182,9 +182,13 @@ class Gate:
                         await sink.send(message)
 
                 tasks = [asyncio.create_task(pump(outer, inner)), asyncio.create_task(pump(inner, outer))]
-                _, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+                done, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
                 for task in pending:
                     task.cancel()
+                for task in done:  # a side that closed, cleanly or not, ends the relay: nothing to report
+                    if not task.cancelled():
+                        task.exception()
+                await asyncio.gather(*pending, return_exceptions=True)
         except (ConnectionClosed, OSError):
             pass
 
