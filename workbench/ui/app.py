@@ -65,7 +65,6 @@ class WorkbenchApp:
 
         self.server.on_client_connect(connect)
         self.server.on_client_disconnect(disconnect)
-        limit_uploads(self.server, MAX_UPLOAD_MB << 20, self._upload_refused)
         self._stop = threading.Event()
         self._watch = threading.Thread(target=self._poll, name="session-watch", daemon=True)
         self._watch.start()

@@ -24,8 +24,8 @@ def limit_uploads(owner, max_bytes: int, refused: Callable[[int, str, int], None
     server by 1.2 GB. This wraps viser's handlers of the upload's start and parts (its internal handler registry):
     a start declaring more than ``max_bytes`` is refused, and so is the first part that would take the bytes
     received past the declared size or ``max_bytes``; the transfer is then dropped with what it had buffered, and
-    its later parts are dropped as parts of an unknown transfer. ``owner`` is a viser client (each holds its uploads
-    in its own GUI, so this runs for every client as it connects) or the server. Returns False, leaving the check
+    its later parts are dropped as parts of an unknown transfer. ``owner`` is a viser client: each holds its uploads in
+    its own GUI, so this runs for every client as it connects. Returns False, leaving the check
     after the upload as the only one, when this viser has no such registry.
     """
     from viser import _messages
