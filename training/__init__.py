@@ -10,9 +10,11 @@ from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint
 from .config import FEATURE_MODES, ClassifierConfig, ElasticNet, FeatureMode, PredictorConfig, TrainConfig, to_dict
 from .data import Normalizer, Piece, cut_pieces, neighbour_pairs, stage1_batch
 from .evaluate_sequences import held_out_logs_protocol, qcat_protocol
-from .evaluate_windows import FoldResult, WindowProtocol, borealtc_protocol, partitions, windows
+from .evaluate_spectral import borealtc_window_protocol, window_summaries
+from .evaluate_windows import FoldResult, Split, WindowProtocol, borealtc_protocol, outer_folds, partitions, windows
 from .fit_classifier import ClassifierFit, fit_classifier
 from .fit_predictor import PredictorFit, fit_predictor, split_pieces
+from .fit_window import Stretch, WindowFitConfig, fit_window_classifier
 from .inference import (
     LazyFeatures,
     Stage1Outputs,
@@ -29,15 +31,19 @@ from .onnx_export import check_onnx, export_onnx, run_onnx
 from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
 from .spectral import (
     SpectralConfig,
+    SpectralSteps,
     SpectralStream,
     frame_ends,
     frame_features,
+    log_frames,
+    log_summaries,
     per_step,
     split_channels,
     summary_windows,
 )
 from .stream import StreamingClassifier
 from .training_errors import BundleError, TrainingError
+from .window_classifier import WindowClassifier, WindowClassifierConfig
 
 __all__ = [
     "FEATURE_MODES",
@@ -61,13 +67,20 @@ __all__ = [
     "Progress",
     "ProgressFn",
     "SpectralConfig",
+    "SpectralSteps",
     "SpectralStream",
+    "Split",
     "Stage1Outputs",
     "StreamingClassifier",
+    "Stretch",
     "TrainConfig",
     "TrainingError",
+    "WindowClassifier",
+    "WindowClassifierConfig",
+    "WindowFitConfig",
     "WindowProtocol",
     "borealtc_protocol",
+    "borealtc_window_protocol",
     "check_onnx",
     "classification_metrics",
     "classifier_loss",
@@ -78,13 +91,17 @@ __all__ = [
     "export_onnx",
     "fit_classifier",
     "fit_predictor",
+    "fit_window_classifier",
     "frame_ends",
     "frame_features",
     "held_out_logs_protocol",
     "load_bundle",
     "load_checkpoint",
+    "log_frames",
+    "log_summaries",
     "neighbour_pairs",
     "never",
+    "outer_folds",
     "padded_groups",
     "parameter_count",
     "partitions",
@@ -102,5 +119,6 @@ __all__ = [
     "stage1_batch",
     "summary_windows",
     "to_dict",
+    "window_summaries",
     "windows",
 ]

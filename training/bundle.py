@@ -16,7 +16,9 @@ from safetensors.torch import load_file, save_file
 from .config import ClassifierConfig, FeatureMode, PredictorConfig
 from .data import Normalizer
 from .models import Classifier, Predictor
+from .spectral import SpectralConfig
 from .training_errors import BundleError
+from .window_classifier import WINDOW_KIND, WindowClassifier, WindowClassifierConfig
 
 BUNDLE_SCHEMA = 1
 CONFIG_FILE = "model.json"
@@ -38,6 +40,7 @@ class ModelBundle:
         feature_mode: What stage 1 hands stage 2.
         metrics: Out-of-fold metrics of the classifier.
         info: Free-form description: training data summary, versions, dates.
+        spectral: The default family's front end (``feature_mode == "spectral"``); ``None`` for the paper family.
     """
 
     predictor: Predictor
@@ -49,6 +52,12 @@ class ModelBundle:
     feature_mode: FeatureMode = "hidden"
     metrics: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
+    spectral: SpectralConfig | None = None
+
+    @property
+    def family(self) -> str:
+        """``"default"`` (spectral front end, window classifier) or ``"paper"`` (stage-1 features, LSTM)."""
+        return "default" if self.feature_mode == "spectral" else "paper"
 
     def config(self) -> dict:
         """Everything but the weights, as JSON-able data."""
@@ -64,7 +73,15 @@ class ModelBundle:
             "feature_mode": self.feature_mode,
             "metrics": self.metrics,
             "info": self.info,
+            "spectral": None if self.spectral is None else self.spectral.to_dict(),
         }
+
+
+def _classifier(cfg: dict) -> Classifier | WindowClassifier:
+    """An untrained stage-2 module of the kind and sizes ``cfg`` (a bundle's ``classifier`` entry) names."""
+    if cfg.get("kind") == WINDOW_KIND:
+        return WindowClassifier(WindowClassifierConfig(**cfg))
+    return Classifier(ClassifierConfig(**cfg))
 
 
 def save_bundle(bundle: ModelBundle, directory: str | Path) -> Path:
@@ -113,13 +130,14 @@ def load_bundle(directory: str | Path) -> ModelBundle:
         raise BundleError(f"{directory}: bundle schema {cfg['schema']} is newer than this workbench ({BUNDLE_SCHEMA})")
     try:
         _check_shapes(directory, cfg)  # before any module is built: model.json's sizes allocate memory
+        spectral = _spectral(directory, cfg)
         predictor = Predictor(PredictorConfig(**cfg["predictor"]))
         predictor.load_state_dict(load_file(directory / PREDICTOR_FILE))
         classifiers = []
         if cfg.get("classifier"):
             weights = load_file(directory / CLASSIFIER_FILE)
             for i in range(int(cfg["n_folds"])):
-                model = Classifier(ClassifierConfig(**cfg["classifier"]))
+                model = _classifier(cfg["classifier"])
                 prefix = f"fold{i}."
                 state = {k[len(prefix) :]: v for k, v in weights.items() if k.startswith(prefix)}
                 for key, value in model.state_dict().items():
@@ -139,7 +157,25 @@ def load_bundle(directory: str | Path) -> ModelBundle:
         feature_mode=cfg["feature_mode"],
         metrics=cfg.get("metrics", {}),
         info=cfg.get("info", {}),
+        spectral=spectral,
     )
+
+
+def _spectral(directory: Path, cfg: dict) -> SpectralConfig | None:
+    """The front end of ``model.json``, refused when its sizes disagree with the channels and the classifier."""
+    if not cfg.get("spectral"):
+        return None
+    spectral = SpectralConfig.from_dict(cfg["spectral"])
+    n = len(cfg["channels"])
+    sane = (
+        0 < spectral.hop <= spectral.frame <= 1 << 16
+        and 0 < spectral.window <= 1 << 12
+        and all(0 <= c < n for c in (*spectral.fast, *spectral.slow))
+        and (not cfg.get("classifier") or cfg["classifier"]["n_features"] == spectral.summary_width)
+    )
+    if not sane:
+        raise BundleError(f"{directory}: model.json's spectral front end does not fit its channels and classifier")
+    return spectral
 
 
 def _header_shapes(path: Path) -> dict[str, tuple[int, ...]]:
@@ -178,7 +214,7 @@ def _check_shapes(directory: Path, cfg: dict) -> None:
                 raise BundleError(
                     f"{directory}: model.json names {cfg['n_folds']} ensemble members, the weights hold {len(folds)}"
                 )
-            fold = Classifier(ClassifierConfig(**cfg["classifier"])).state_dict()
+            fold = _classifier(cfg["classifier"]).state_dict()
             for i in range(len(folds)):
                 compare(fold, header, f"fold{i}.")
 

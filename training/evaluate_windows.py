@@ -11,9 +11,10 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
-from sklearn.model_selection import StratifiedKFold, train_test_split
+from sklearn.model_selection import StratifiedGroupKFold, StratifiedKFold, train_test_split
 
 from .config import FeatureMode, TrainConfig
 from .fit_classifier import fit_classifier
@@ -71,6 +72,19 @@ def windows(parts: Sequence[np.ndarray], window: int, stride: int) -> tuple[list
     return out, np.asarray(owner)
 
 
+Split = Literal["partitions", "runs"]
+
+
+def outer_folds(
+    y: np.ndarray, run_of: np.ndarray, *, split: Split, folds: int, seed: int
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Stratified folds over partitions (the authors'), or over whole runs: neighbouring partitions of one run look
+    alike, and the authors' folds put them on both sides."""
+    if split == "runs":
+        return list(StratifiedGroupKFold(folds, shuffle=True, random_state=seed).split(np.zeros(len(y)), y, run_of))
+    return list(StratifiedKFold(folds, shuffle=True, random_state=seed).split(np.zeros(len(y)), y))
+
+
 def labelled_subset(train_idx: np.ndarray, y: np.ndarray, labelled: float, *, seed: int) -> np.ndarray:
     """The labelled share of the training partitions, stratified by terrain (all of them when ``labelled >= 1``)."""
     if labelled >= 1.0:
@@ -105,6 +119,7 @@ def borealtc_protocol(
     stage2: TrainConfig | None = None,
     hidden: int = 200,
     feature_mode: FeatureMode = "hidden",
+    split: Split = "partitions",
     seed: int = 0,
     log: Callable[[str], None] = print,
 ) -> list[FoldResult]:
@@ -123,6 +138,7 @@ def borealtc_protocol(
             windows classified on their own).
         hidden: LSTM width of both stages.
         feature_mode: What stage 1 hands stage 2.
+        split: ``"partitions"`` (the authors' folds) or ``"runs"`` (whole runs held out).
         seed: Seed of the folds, the labelled subset and training.
         log: Where progress lines go.
     """
@@ -132,10 +148,9 @@ def borealtc_protocol(
         round(protocol.window_s * rate),
         round(protocol.stride_s * rate),
     )
-    parts, y, _ = partitions(runs, labels, size)
+    parts, y, run_of = partitions(runs, labels, size)
     stage1 = stage1 or TrainConfig(max_epochs=40, patience=5, seed=seed)
     stage2 = replace(stage2 or TrainConfig(max_epochs=150, patience=15, seed=seed), context=0, label_piece=win)
-    cv = StratifiedKFold(protocol.folds, shuffle=True, random_state=seed)
     shared = None
     if not strict:
         t = time.monotonic()
@@ -145,7 +160,9 @@ def borealtc_protocol(
             f"{time.monotonic() - t:.0f} s"
         )
     results = []
-    for fold, (train_idx, test_idx) in enumerate(cv.split(np.zeros(len(y)), y), start=1):
+    for fold, (train_idx, test_idx) in enumerate(
+        outer_folds(y, run_of, split=split, folds=protocol.folds, seed=seed), start=1
+    ):
         t0 = time.monotonic()
         pfit = shared or fit_predictor([parts[i] for i in train_idx], config=replace(stage1, piece=size), hidden=hidden)
         chosen = labelled_subset(train_idx, y, labelled, seed=seed + fold)

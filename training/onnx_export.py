@@ -11,13 +11,23 @@ import torch
 
 from .bundle import ModelBundle
 from .stream import StepModel, StreamingClassifier
+from .window_step import WindowStepModel, window_zero_state
 
 INPUTS = ("x", "h1", "c1", "h2", "c2", "prev", "started")
 OUTPUTS = ("probs", "h1_out", "c1_out", "h2_out", "c2_out", "prev_out")
+WINDOW_INPUTS = ("x", "ring", "count", "frames", "n_frames")  # the default family's step
+WINDOW_OUTPUTS = ("probs", "ring_out", "count_out", "frames_out", "n_frames_out")
+
+
+def io_names(bundle: ModelBundle) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The exported step's input and output names: the state a robot's loop carries differs by family."""
+    return (WINDOW_INPUTS, WINDOW_OUTPUTS) if bundle.family == "default" else (INPUTS, OUTPUTS)
 
 
 def zero_state(bundle: ModelBundle, streams: int = 1) -> dict[str, np.ndarray]:
     """The inputs of a stream's first step, apart from ``x``."""
+    if bundle.family == "default":
+        return window_zero_state(bundle, streams)
     m, c = len(bundle.classifiers), len(bundle.channels)
     h1, h2 = bundle.predictor.config.hidden, bundle.classifiers[0].config.hidden
     z = np.zeros
@@ -33,13 +43,17 @@ def zero_state(bundle: ModelBundle, streams: int = 1) -> dict[str, np.ndarray]:
 
 def export_onnx(bundle: ModelBundle, path: str | Path) -> Path:
     """Write the one-step model to ``path`` with a dynamic number of streams."""
-    model = StepModel(bundle).eval()
+    model = (WindowStepModel(bundle) if bundle.family == "default" else StepModel(bundle)).eval()
+    inputs, outputs = io_names(bundle)
     args = tuple(
         torch.from_numpy(v)
         for v in {"x": np.zeros((2, len(bundle.channels)), np.float32), **zero_state(bundle, 2)}.values()
     )
     batch = torch.export.Dim("streams", min=1, max=4096)
-    shapes = ({0: batch}, {0: batch}, {0: batch}, {1: batch}, {1: batch}, {0: batch}, {0: batch})
+    if bundle.family == "default":
+        shapes = tuple({0: batch} for _ in inputs)
+    else:
+        shapes = ({0: batch}, {0: batch}, {0: batch}, {1: batch}, {1: batch}, {0: batch}, {0: batch})
     onnx_log = logging.getLogger("torch.onnx")
     level = onnx_log.level
     onnx_log.setLevel(logging.ERROR)  # "torchvision is not installed" and similar are not the user's business
@@ -48,8 +62,8 @@ def export_onnx(bundle: ModelBundle, path: str | Path) -> Path:
         program = torch.onnx.export(
             model,
             args,
-            input_names=list(INPUTS),
-            output_names=list(OUTPUTS),
+            input_names=list(inputs),
+            output_names=list(outputs),
             dynamic_shapes=shapes,
             dynamo=True,
             verbose=False,
@@ -65,11 +79,14 @@ def run_onnx(path: str | Path, bundle: ModelBundle, samples: np.ndarray) -> np.n
     import onnxruntime as ort
 
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    inputs, outputs = io_names(bundle)
     feed = zero_state(bundle, 1)
     out = np.empty((len(samples), len(bundle.classes)), np.float32)
     for t, x in enumerate(np.asarray(samples, np.float32)):
-        probs, h1, c1, h2, c2, prev = session.run(list(OUTPUTS), {"x": x[None], **feed})
-        feed = {"h1": h1, "c1": c1, "h2": h2, "c2": c2, "prev": prev, "started": np.ones((1, 1), np.float32)}
+        probs, *state = session.run(list(outputs), {"x": x[None], **feed})
+        feed = dict(zip(inputs[1:], state, strict=False))  # each state output feeds its input back
+        if bundle.family != "default":
+            feed["started"] = np.ones((1, 1), np.float32)
         out[t] = probs[0]
     return out
 

@@ -32,6 +32,8 @@ class SpectralConfig:
         eps: Floor of the power before the log (normalised units squared).
         detrend: Remove each frame's mean before its spectrum (the vibration only); False keeps the level in the
             lowest bin (gravity's direction, a steady turn).
+        window: Frames a step's summary spans (mean and spread of the last ``window`` frames): 7 frames of 0.4 s
+            every 0.2 s cover 1.6 s, BorealTC's 1.7 s window.
     """
 
     frame: int = 40
@@ -40,6 +42,7 @@ class SpectralConfig:
     slow: tuple[int, ...] = ()
     eps: float = 1e-6
     detrend: bool = True
+    window: int = 7
 
     @property
     def bins(self) -> int:
@@ -50,6 +53,36 @@ class SpectralConfig:
     def width(self) -> int:
         """Features per frame: ``bins`` per fast channel, 4 statistics per slow channel."""
         return self.bins * len(self.fast) + 4 * len(self.slow)
+
+    @property
+    def summary_width(self) -> int:
+        """Features per step: the mean and spread of each frame feature over the window."""
+        return 2 * self.width
+
+    @property
+    def span(self) -> int:
+        """Samples one summary covers."""
+        return self.frame + (self.window - 1) * self.hop
+
+    @classmethod
+    def for_log(cls, x: np.ndarray, rate_hz: float, *, detrend: bool = False) -> SpectralConfig:
+        """Sizes for a log at ``rate_hz`` (0.4 s frames every 0.2 s, 1.6 s windows) and its fast and slow channels.
+
+        ``detrend`` is off by default: on BorealTC's inner folds the level kept in the lowest bin was chosen on most
+        folds (``benchmarks/spectral_baseline.py``).
+        """
+        fast, slow = split_channels(x)
+        frame = max(4, round(0.4 * rate_hz))
+        return cls(frame=frame, hop=max(1, round(0.2 * rate_hz)), fast=fast, slow=slow, detrend=detrend)
+
+    def to_dict(self) -> dict:
+        """JSON-able (the bundle's ``model.json``)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in self.__dict__.items()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> SpectralConfig:
+        """Inverse of :meth:`to_dict`."""
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
 
 
 def split_channels(x: np.ndarray, *, held: float = 0.5) -> tuple[tuple[int, ...], tuple[int, ...]]:
@@ -152,6 +185,75 @@ class SpectralStream:
             self.last[b] = frame_features(frame, cfg)[0]
             self.known[b] = True
         return self.last.copy(), self.known.copy()
+
+
+def log_frames(rows, config: SpectralConfig, *, transform=None, chunk_frames: int = CHUNK_FRAMES) -> np.ndarray:
+    """Frame features of a whole log read a chunk at a time: a 10-hour log at 100 Hz is never held whole.
+
+    Args:
+        rows: ``(T, C)`` samples, or anything sliced like them (a memory-mapped file).
+        config: Sizes and channels.
+        transform: Applied to each chunk of samples first (the model's input normalisation).
+        chunk_frames: Frames per read.
+
+    Returns:
+        ``(N, F)`` float32, equal to ``frame_features(transform(rows[:]), config)``.
+    """
+    n = len(rows)
+    ends = frame_ends(n, config)
+    out = np.empty((len(ends), config.width), np.float32)
+    for a in range(0, len(ends), chunk_frames):
+        e = ends[a : a + chunk_frames]
+        lo, hi = int(e[0]) - config.frame + 1, int(e[-1]) + 1
+        x = np.asarray(rows[lo:hi], np.float32)
+        if transform is not None:
+            x = transform(x)
+        out[a : a + len(e)] = frame_features(x, config)
+    return out
+
+
+def log_summaries(rows, config: SpectralConfig, *, transform=None) -> np.ndarray:
+    """``(N, 2F)`` float32: the mean and spread of the last ``config.window`` frames at every frame of a log."""
+    return summary_windows(log_frames(rows, config, transform=transform), frames_per_window=config.window)
+
+
+class SpectralSteps:
+    """A log's per-step stage-2 inputs from its frame summaries: each step holds the summary of the last frame
+    complete at or before it (zeros before the first), computed for the rows sliced only.
+
+    Supports ``len``, ``shape`` and ``[start:stop]`` along the first axis, as the passes read features. A 10-hour
+    log's summaries are 5 Hz rows; expanded to 100 Hz steps they would be twenty times the memory.
+    """
+
+    def __init__(self, summaries: np.ndarray, n_samples: int, config: SpectralConfig) -> None:
+        self.summaries, self.config = summaries, config
+        self.shape = (n_samples, config.summary_width)
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, key: slice) -> np.ndarray:
+        if not isinstance(key, slice) or key.step not in (None, 1):
+            raise TypeError("SpectralSteps supports [start:stop] slices only")
+        start, stop, _ = key.indices(self.shape[0])
+        stop = max(start, stop)
+        cfg = self.config
+        steps = np.arange(start, stop)
+        which = np.where(steps >= cfg.frame - 1, (steps - (cfg.frame - 1)) // cfg.hop, -1)  # (L,) last frame
+        out = np.zeros((stop - start, self.shape[1]), np.float32)
+        known = which >= 0
+        if known.any():
+            first = int(which[known][0])
+            block = np.asarray(self.summaries[first : int(which[-1]) + 1], np.float32)  # read only what is used
+            out[known] = block[which[known] - first]
+        return out
+
+    def frame_rows(self, start: int, stop: int) -> np.ndarray:
+        """The steps of ``[start, stop)`` at which a frame completes: one row per distinct input."""
+        cfg = self.config
+        first = max(start, cfg.frame - 1)
+        first += (cfg.hop - (first - (cfg.frame - 1)) % cfg.hop) % cfg.hop
+        return np.arange(first, stop, cfg.hop, dtype=np.int64)
 
 
 def summary_windows(frames: np.ndarray, *, frames_per_window: int, ends: Sequence[int] | None = None) -> np.ndarray:

@@ -1,5 +1,8 @@
 """Both stages one sample at a time, for the robot: the same numbers as the offline pass over a whole log.
 
+The paper family is below; the default family's step is :mod:`training.window_step`, and
+:class:`StreamingClassifier` runs whichever the bundle holds.
+
 :class:`StepModel` is the one-step computation in PyTorch (stage-1 LSTM cell, features, every ensemble member's LSTM
 cell, mean probabilities); the ONNX export is that module, traced. :class:`StreamingClassifier`, the runtime, computes
 the same step with fused weights in NumPy (:mod:`training.fused_step`), which is what a robot's loop wants: no
@@ -18,6 +21,7 @@ from .bundle import ModelBundle
 from .fused_step import Bf16Step, FusedStep
 from .models import stage1_features
 from .training_errors import BundleError
+from .window_step import WindowStep
 
 
 def _cell(x: torch.Tensor, h: torch.Tensor, c: torch.Tensor, w_ih, w_hh, b) -> tuple[torch.Tensor, torch.Tensor]:
@@ -101,13 +105,20 @@ class StreamingClassifier:
         """
         if precision not in ("float32", "bfloat16"):
             raise ValueError(f"precision must be float32 or bfloat16, not {precision!r}")
+        if precision != "float32" and bundle.family == "default":
+            raise ValueError("the default family streams in float32 only (its step is a frame's products every hop)")
         if members is not None:
             if not 1 <= members <= len(bundle.classifiers):
                 raise ValueError(f"members must be 1 to {len(bundle.classifiers)}, not {members}")
             bundle = replace(bundle, classifiers=bundle.classifiers[:members])
         self.bundle = bundle
         self.streams = streams
-        self._step = FusedStep(bundle, streams=streams) if precision == "float32" else Bf16Step(bundle, streams=streams)
+        if bundle.family == "default":
+            self._step = WindowStep(bundle, streams=streams)
+        elif precision == "float32":
+            self._step = FusedStep(bundle, streams=streams)
+        else:
+            self._step = Bf16Step(bundle, streams=streams)
 
     def reset(self) -> None:
         """Forget every stream's past (a new log, a robot restarted)."""

@@ -5,10 +5,7 @@ labels, score every log. Composes ``sessions`` (data, labels, versions) and ``tr
 from __future__ import annotations
 
 import contextlib
-import os
 import shutil
-import threading
-import uuid
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
@@ -16,30 +13,32 @@ from pathlib import Path
 
 import numpy as np
 
-import labeling
-from sessions import FileRows, LogInfo, ModelVersion, NpyWriter, Segment, Session, WorkbenchError
+from sessions import FileRows, LogInfo, ModelVersion, Segment, Session, WorkbenchError
 from training import (
     CancelFn,
     Cancelled,
+    ClassifierFit,
     FeatureMode,
-    LazyFeatures,
     ModelBundle,
-    Piece,
     ProgressFn,
-    Stage1Outputs,
     TrainConfig,
+    WindowFitConfig,
     distributed,
     fit_classifier,
     fit_predictor,
+    fit_window_classifier,
     load_bundle,
-    neighbour_pairs,
     never,
-    predictor_pass,
     save_bundle,
     to_dict,
 )
 
+from .front_end import choose_front_end, spectral_features, unlabelled_stretches
 from .retrain import RETRAIN
+from .stage_inputs import consistency_pairs, signal_change_points, stage2_features
+
+MODEL_FAMILIES = ("default", "paper")  # `--model`: the spectral window classifier, or the paper's LSTMs
+PAPER_FEATURES: FeatureMode = "hidden+surprise"  # what the paper family's stage 2 reads of stage 1
 
 
 def model_logs(session: Session, channels: Sequence[str] | None = None) -> list[LogInfo]:
@@ -182,143 +181,29 @@ def active_predictor(session: Session) -> tuple[ModelVersion, ModelBundle]:
     return version, load_bundle(session.path / version.path)
 
 
-PREDICTOR_BATCH = 64  # logs per stage-1 call when filling the cache
+def classifier_family(session: Session) -> str:
+    """The family of the active classifier (what a Retrain trains again), ``"default"`` before any."""
+    active = session.active_model("classifier")
+    return "default" if active is None else str(active.config.get("model", "paper"))
 
 
-def stage1_outputs(
-    session: Session, version: ModelVersion, bundle: ModelBundle, logs: Sequence[LogInfo]
-) -> dict[int, Stage1Outputs]:
-    """Stage-1 outputs of ``logs``, computed once per predictor version and cached in the session folder.
-
-    Stage 1 is frozen, so every stage-2 retrain reuses these instead of running it again. The outputs are written
-    chunk by chunk to files and handed back as rows read on demand (``FileRows``), so a 10-hour log never sits in
-    memory.
-    """
-    cache = session.cache_dir(f"stage1-v{version.id:04d}")
-    missing = [x for x in logs if not (cache / f"{x.id:06d}.error.npy").exists()]
-    if missing:
-        h, c = bundle.predictor.config.hidden, bundle.predictor.config.n_channels
-        tag = uuid.uuid4().hex[:8]  # another process may fill the same cache: each writes its own files
-
-        def part(log: LogInfo, name: str, width: int, dtype: type) -> NpyWriter:
-            return NpyWriter(cache / f".{log.id:06d}.{name}.{tag}.npy", (log.n_samples, width), dtype)
-
-        # rows go to disk as they are computed and are read a chunk at a time: a long log never sits in memory;
-        # a group of logs at a time, each log's files open only while its group runs
-        missing.sort(key=lambda x: -x.n_samples)
-        for g0 in range(0, len(missing), PREDICTOR_BATCH):
-            group = missing[g0 : g0 + PREDICTOR_BATCH]
-            sinks: list[Stage1Outputs] = []
-            try:
-                # hidden states lie in (-1, 1): float16 keeps them to 5e-4 at half the disk
-                for x in group:
-                    sinks.append(
-                        Stage1Outputs(
-                            part(x, "hidden", h, np.float16),
-                            part(x, "error", c, np.float32),
-                            part(x, "estimate", c, np.float32),
-                        )
-                    )
-                predictor_pass(
-                    bundle.predictor,
-                    bundle.normalizer,
-                    [session.rows(x.id) for x in group],
-                    sinks,
-                    batch=PREDICTOR_BATCH,
-                )
-                for log, sink in zip(group, sinks, strict=True):
-                    for name in ("hidden", "estimate", "error"):  # error last: its file marks the entry complete
-                        writer = getattr(sink, name)
-                        writer.close(sync=False)  # a cache: recomputed if lost, as np.save never synced it either
-                        os.replace(writer.path, cache / f"{log.id:06d}.{name}.npy")
-            finally:
-                for sink in sinks:
-                    for writer in (sink.hidden, sink.error, sink.estimate):
-                        writer.abort()  # a no-op for the files already in place
-    result = {}
-    for x in logs:
-        base = cache / f"{x.id:06d}"
-        result[x.id] = Stage1Outputs(
-            FileRows.open_npy(f"{base}.hidden.npy"),
-            FileRows.open_npy(f"{base}.error.npy"),
-            FileRows.open_npy(f"{base}.estimate.npy"),
-        )
-    return result
-
-
-FEATURE_CACHE_BYTES = 2 << 30  # stage-2 inputs kept in memory between retrains when they fit (QCAT scale: 1 GB)
-# The UI's threads (a Retrain's job, the scoring worker, viser's callbacks) share these caches: one lock guards both.
-_cache_lock = threading.Lock()
-_features: dict[tuple, list[np.ndarray]] = {}
-
-
-def stage2_features(
-    session: Session, version: ModelVersion, bundle: ModelBundle, logs: Sequence[LogInfo], mode: FeatureMode
-) -> list[np.ndarray] | list[LazyFeatures]:
-    """Stage 2's ``(T, F)`` inputs of ``logs``, kept in memory for the next retrain when they fit the budget.
-
-    A Retrain in the UI reads the same frozen features every time; loading thousands of cached files and building
-    the inputs took 7 s of a 40 s retrain at QCAT scale. One entry is kept (the latest session, predictor, logs).
-    Features past the budget stay on disk: lazy features computed from the memory-mapped cache, batch by batch.
-    """
-    key = (str(session.path), version.id, mode, tuple(x.id for x in logs))
-    with _cache_lock:
-        hit = _features.get(key)
-    if hit is not None:
-        return hit
-    outs = stage1_outputs(session, version, bundle, logs)
-    lazy = [outs[x.id].lazy(mode) for x in logs]
-    if sum(f.shape[0] * f.shape[1] * 4 for f in lazy) > FEATURE_CACHE_BYTES:
-        return lazy  # too big to hold: each batch computes its rows from the memory-mapped cache
-    features = [outs[x.id].features(mode) for x in logs]
-    for f in features:
-        f.setflags(write=False)  # shared between retrains: nobody may change them
-    with _cache_lock:
-        _features.clear()
-        _features[key] = features
-    return features
-
-
-def log_change_points(samples: np.ndarray, surprise: np.ndarray | None, *, rate_hz: float) -> np.ndarray:
-    """Change points (sample indices) of one log over its z-scored channels and, when known, its surprise."""
-    x = np.asarray(samples, np.float32)
-    z = (x - x.mean(axis=0)) / (x.std(axis=0) + 1e-6)  # (T, C)
-    if surprise is not None:
-        z = np.column_stack([z, surprise])
-    return labeling.change_points(z, block=max(1, round(0.25 * rate_hz)))
-
-
-def consistency_pairs(
-    lengths: Sequence[int], change_points: Sequence[np.ndarray], config: TrainConfig
-) -> list[tuple[Piece, Piece]]:
-    """Stage 2's unlabelled neighbour pairs over logs of ``lengths`` samples: windows as long as a training piece
-    (context and labelled stretch), one labelled stretch apart, no change point between their last steps; a pair
-    starts every quarter stretch."""
-    window = config.context + config.label_piece
-    return neighbour_pairs(
-        lengths, window=window, gap=config.label_piece, stride=max(1, config.label_piece // 4), boundaries=change_points
-    )
-
-
-_CHANGE_POINTS: dict[tuple[str, int, int], np.ndarray] = {}  # (session, log, samples): a log's signals never change
-
-
-def _signal_change_points(session: Session, log: LogInfo) -> np.ndarray:
-    key = (str(session.path), log.id, log.n_samples)
-    with _cache_lock:
-        hit = _CHANGE_POINTS.get(key)
-    if hit is None:  # computed outside the lock: seconds on a long log; two threads at once compute the same
-        hit = log_change_points(session.array(log.id), None, rate_hz=log.rate_hz)
-        with _cache_lock:
-            _CHANGE_POINTS[key] = hit
-    return hit
+def _labelled(session: Session, logs: Sequence[LogInfo]) -> tuple[tuple[str, ...], list[Segment], list]:
+    index = {x.id: i for i, x in enumerate(logs)}
+    classes = tuple(t.name for t in session.terrains())
+    used = [s for s in session.segments() if s.log_id in index]
+    segments = [(index[s.log_id], s.start, s.stop, classes.index(s.terrain)) for s in used]
+    if len({s[3] for s in segments}) < 2:
+        raise WorkbenchError(f"{session.path}: label segments of at least two terrains before training the classifier")
+    return classes, used, segments
 
 
 def train_classifier(
     session: Session,
     *,
+    model: str | None = None,
     config: TrainConfig | None = None,
-    feature_mode: FeatureMode = "hidden+surprise",
+    window: WindowFitConfig | None = None,
+    feature_mode: FeatureMode = PAPER_FEATURES,
     hidden: int = 200,
     warm_start: bool = True,
     warm_epochs: int | None = None,
@@ -329,26 +214,29 @@ def train_classifier(
 
     Args:
         session: The session.
-        config: Training settings of a fresh start.
-        feature_mode: What stage 1 hands stage 2.
+        model: ``"default"`` (the window classifier on spectral summaries, fitted with self-training) or
+            ``"paper"`` (the paper's LSTM on stage-1 features); ``None``: the active classifier's family.
+        config: Paper family: training settings of a fresh start.
+        window: Default family: fit settings (``RETRAIN.window`` when ``None``).
+        feature_mode: Paper family: what stage 1 hands stage 2.
         hidden: LSTM width.
         warm_start: Start from the active classifier's weights when it fits (same predictor, terrains and features).
         warm_epochs: When warm-starting, train at most this many epochs (patience 1) instead of ``config``'s: the
             UI's Retrain is a short fine-tune, since the previous models already fit all but the newest labels. It
             trains on the labels added or changed since the active version and as many older ones replayed, at
             ``RETRAIN.warm_lr_scale`` of the learning rate.
-        progress: Called after every optimiser step.
-        cancel: Polled after every step.
+        progress: Called after every optimiser step (paper) or fold (default).
+        cancel: Polled after every step (paper) or fit (default).
     """
+    family = model or classifier_family(session)
+    if family not in MODEL_FAMILIES:
+        raise WorkbenchError(f"unknown model family {family!r}; choose one of {', '.join(MODEL_FAMILIES)}")
+    if family == "default":
+        return _train_window(session, window or RETRAIN.window, progress=progress, cancel=cancel)
     config = config or TrainConfig()
     p_version, bundle = active_predictor(session)
     logs = model_logs(session, bundle.channels)
-    index = {x.id: i for i, x in enumerate(logs)}
-    classes = tuple(t.name for t in session.terrains())
-    used = [s for s in session.segments() if s.log_id in index]
-    segments = [(index[s.log_id], s.start, s.stop, classes.index(s.terrain)) for s in used]
-    if len({s[3] for s in segments}) < 2:
-        raise WorkbenchError(f"{session.path}: label segments of at least two terrains before training the classifier")
+    classes, used, segments = _labelled(session, logs)
     features = stage2_features(session, p_version, bundle, logs, feature_mode)
     init = None
     previous = session.active_model("classifier")
@@ -363,7 +251,7 @@ def train_classifier(
     pairs = []
     if config.consistency > 0:
         fits = config.context + 2 * config.label_piece  # a log shorter holds no pair: skip its change points
-        cps = [_signal_change_points(session, x) if x.n_samples >= fits else np.zeros(0, np.int64) for x in logs]
+        cps = [signal_change_points(session, x) if x.n_samples >= fits else np.zeros(0, np.int64) for x in logs]
         pairs = consistency_pairs([x.n_samples for x in logs], cps, config)
     with _recorded_run(session, "classifier", {"config": to_dict(config), "segments": len(segments)}) as result:
         fit = fit_classifier(
@@ -378,22 +266,16 @@ def train_classifier(
             progress=progress,
             cancel=cancel,
         )
-        labelled = sum(s[2] - s[1] for s in segments)
-        total = sum(x.n_samples for x in logs)
-        metrics = {**fit.metrics, "labelled_fraction": labelled / total, "labelled_seconds": labelled / logs[0].rate_hz}
-        full = replace(
-            bundle,
-            classifiers=fit.models,
-            classes=classes,
-            feature_mode=feature_mode,
-            metrics=metrics,
-            info={**bundle.info, "predictor_version": p_version.id, "history": fit.history},
-        )
-        version = _save_version(
+        version = _save_classifier(
             session,
-            "classifier",
-            full,
+            bundle,
+            fit,
+            logs,
+            used,
+            segments,
+            {"classes": classes, "feature_mode": feature_mode},
             {
+                "model": "paper",
                 "train": to_dict(config),
                 "hidden": hidden,
                 "feature_mode": feature_mode,
@@ -401,11 +283,79 @@ def train_classifier(
                 "warm_start": init is not None,
                 "new_labels": None if new is None else len(new),
                 "consistency_pairs": len(pairs),
-                "labels": {"ids": [s.id for s in used], "as_of": max((s.updated_at for s in used), default="")},
             },
         )
         result["version"] = version.id
     return version
+
+
+def _train_window(
+    session: Session, settings: WindowFitConfig, *, progress: ProgressFn | None, cancel: CancelFn
+) -> ModelVersion:
+    """The default family's stage 2: the window classifier on the front end's summaries, with self-training over
+    the unlabelled stretches of every log; a new, active version (the predictor's bundle with it)."""
+    p_version, bundle = active_predictor(session)
+    logs = model_logs(session, bundle.channels)
+    classes, used, segments = _labelled(session, logs)
+    front = choose_front_end(session, logs)
+    features = spectral_features(session, p_version.id, bundle, logs, front)
+    stretches = []
+    if settings.self_training:
+        stretches = unlabelled_stretches(logs, used, lambda x: signal_change_points(session, x), shortest=front.span)
+    params = {"model": "default", "window": to_dict(settings), "segments": len(segments)}
+    with _recorded_run(session, "classifier", params) as result:
+        fit = fit_window_classifier(
+            features, segments, classes, config=settings, stretches=stretches, progress=progress, cancel=cancel
+        )
+        version = _save_classifier(
+            session,
+            bundle,
+            fit,
+            logs,
+            used,
+            segments,
+            {"classes": classes, "feature_mode": "spectral", "spectral": front},
+            {
+                "model": "default",
+                "window": to_dict(settings),
+                "feature_mode": "spectral",
+                "predictor": p_version.id,
+                "warm_start": False,
+                "self_training_stretches": len(stretches),
+            },
+        )
+        result["version"] = version.id
+    return version
+
+
+def _save_classifier(
+    session: Session,
+    bundle: ModelBundle,
+    fit: ClassifierFit,
+    logs: Sequence[LogInfo],
+    used: Sequence[Segment],
+    segments: Sequence[tuple[int, int, int, int]],
+    stage2: dict,
+    recipe: dict,
+) -> ModelVersion:
+    """Save a fitted stage 2 with its predictor as a new, active classifier version.
+
+    Args:
+        stage2: The bundle's stage-2 fields beside the models (classes, features, front end).
+        recipe: The version's config: how it was trained; the labels it saw are added.
+    """
+    labelled = sum(s[2] - s[1] for s in segments)
+    total = sum(x.n_samples for x in logs)
+    metrics = {**fit.metrics, "labelled_fraction": labelled / total, "labelled_seconds": labelled / logs[0].rate_hz}
+    full = replace(
+        bundle,
+        classifiers=fit.models,
+        metrics=metrics,
+        info={**bundle.info, "predictor_version": recipe["predictor"], "history": fit.history},
+        **stage2,
+    )
+    seen = {"ids": [s.id for s in used], "as_of": max((s.updated_at for s in used), default="")}
+    return _save_version(session, "classifier", full, {**recipe, "labels": seen})
 
 
 def _new_labels(used: Sequence[Segment], seen: dict | None) -> list[int] | None:

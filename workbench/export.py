@@ -44,17 +44,35 @@ def prediction_frame(log: str, probs: np.ndarray, classes: Sequence[str], rate_h
     return frame
 
 
+def _architecture(bundle: ModelBundle) -> str:
+    """What the bundle's models are, in a sentence or two."""
+    stage1 = (
+        f"A predictor (stage 1, an LSTM of {bundle.predictor.config.hidden} units) trained without labels on all "
+        "logs, then frozen"
+    )
+    c, members = bundle.classifiers[0].config, len(bundle.classifiers)
+    if bundle.spectral is not None:
+        f = bundle.spectral
+        return (
+            f"Default family. {stage1}; it draws the surprise highlights. The classifier (stage 2) is a linear "
+            f"softmax on the mean and spread of the last {f.window} short-time frames ({f.frame} samples every "
+            f"{f.hop}): log power spectra of {len(f.fast)} fast channels and the level and range of "
+            f"{len(f.slow)} slow ones, {c.n_features} inputs. Fitted on the labelled segments and, by "
+            f"self-training, on unlabelled stretches whose frames agree; an ensemble of {members} fold models."
+        )
+    return (
+        f"Paper family: two stacked LSTMs. {stage1}; a classifier (stage 2, {c.hidden} units, dropout "
+        f"{c.dropout:.0%}) on `{bundle.feature_mode}` features of stage 1, as an ensemble of {members} fold models."
+    )
+
+
 def model_card(bundle: ModelBundle, *, version: int, session: str) -> str:
     """A Markdown description of a bundle: what it is, what it was trained on, how well it does."""
     m = bundle.metrics
     lines = [
         f"# Terrain classifier v{version}",
         "",
-        f"From session `{session}`. Two stacked LSTMs: a predictor (stage 1, {bundle.predictor.config.hidden} units) "
-        f"trained without labels on all logs, then frozen; a classifier (stage 2, "
-        f"{bundle.classifiers[0].config.hidden} units, dropout {bundle.classifiers[0].config.dropout:.0%}) on "
-        f"`{bundle.feature_mode}` features of stage 1, as an ensemble of {len(bundle.classifiers)} fold models. "
-        f"{parameter_count(bundle):,} parameters.",
+        f"From session `{session}`. {_architecture(bundle)} {parameter_count(bundle):,} parameters.",
         "",
         "## Inputs",
         "",
@@ -202,12 +220,15 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
             names.append(name)
             arrays.append(item)
     if arrays:
+        from .front_end import in_memory_features
         from .scores import score_logs
 
         outs = run_predictor(bundle.predictor, bundle.normalizer, arrays)
-        scored = score_logs(
-            bundle.classifiers, [o.lazy(bundle.feature_mode) for o in outs], [o.surprise() for o in outs]
-        )
+        if bundle.spectral is not None:
+            features = in_memory_features(arrays, bundle, bundle.spectral)
+        else:
+            features = [o.lazy(bundle.feature_mode) for o in outs]
+        scored = score_logs(bundle.classifiers, features, [o.surprise() for o in outs])
         frames = [
             prediction_frame(name, s.probs, bundle.classes, bundle.rate_hz)
             for name, s in zip(names, scored, strict=True)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from training import TrainConfig
+from training import TrainConfig, WindowFitConfig
 
 
 @dataclass(frozen=True)
@@ -25,6 +25,7 @@ class RetrainSettings:
             new labels and replayed old ones pulled the warm models off what they knew (QCAT-scale bench: 75.9 % on
             unlabelled trials at 0.005, 81.2 % at 0.001).
         refine: After the quick fine-tune, train stage 2 from scratch in the background and replace it.
+        window: The default family's stage 2 (a Retrain fits it from scratch: seconds, so there is no quick phase).
     """
 
     hidden: int = 200
@@ -33,6 +34,7 @@ class RetrainSettings:
     warm_epochs: int | None = 2
     warm_lr_scale: float = 0.2
     refine: bool = True
+    window: WindowFitConfig = field(default_factory=WindowFitConfig)
 
 
 RETRAIN = RetrainSettings()

@@ -14,16 +14,18 @@ import numpy as np
 
 import labeling
 from sessions import LogInfo, ModelVersion, Session, WorkbenchError
-from training import Classifier, LazyFeatures, ModelBundle, ensemble_pass, load_bundle
+from training import Classifier, LazyFeatures, ModelBundle, SpectralSteps, WindowClassifier, ensemble_pass, load_bundle
 
-from .cycle import active_bundle, model_logs, stage1_outputs
+from .cycle import active_bundle, model_logs
+from .front_end import spectral_features
+from .stage_inputs import stage1_outputs
 
 EMBEDDING_MODE = "hidden+surprise"  # the suggestions' embeddings: what the label-efficiency simulation used
 
 
 def score_logs(
-    classifiers: Sequence[Classifier],
-    features: Sequence[np.ndarray | LazyFeatures],
+    classifiers: Sequence[Classifier | WindowClassifier],
+    features: Sequence[np.ndarray | LazyFeatures | SpectralSteps],
     surprise: Sequence[np.ndarray],
     *,
     batch: int = 64,
@@ -36,7 +38,8 @@ def score_logs(
 
     Args:
         classifiers: The ``M`` ensemble members; none (an empty sequence) before a classifier exists.
-        features: Per log, ``(T, F)`` stage-2 inputs (a ``LazyFeatures`` computes only the chunk asked for).
+        features: Per log, ``(T, F)`` stage-2 inputs (a ``LazyFeatures`` or ``SpectralSteps`` computes only the
+            chunk asked for).
         surprise: Per log, ``(T,)`` stage-1 error (``Stage1Outputs.surprise``).
         batch: Logs per LSTM call.
         device: Torch device.
@@ -96,7 +99,10 @@ def _score_session_logs(
     outs = stage1_outputs(session, predictor, bundle, logs)  # memory-mapped
     if classifier is None:
         return logs, outs, score_logs((), (), [outs[x.id].surprise() for x in logs])
-    features = [outs[x.id].lazy(classifier.feature_mode) for x in logs]
+    if classifier.spectral is not None:  # the default family: the front end's summaries, cached per log
+        features = spectral_features(session, predictor.id, bundle, logs, classifier.spectral)
+    else:
+        features = [outs[x.id].lazy(classifier.feature_mode) for x in logs]
     return logs, outs, score_logs(classifier.classifiers, features, [outs[x.id].surprise() for x in logs])
 
 

@@ -13,7 +13,7 @@ import torch
 
 from sessions import LabelError, Session, WorkbenchError
 from training import TrainConfig, load_bundle
-from workbench import cycle
+from workbench import cycle, stage_inputs
 from workbench.cli import main
 from workbench.demo import seed_labels
 from workbench.scores import score_session
@@ -28,14 +28,17 @@ def demo_logs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     return generate_demo_logs(tmp_path_factory.mktemp("logs"), n_logs=2, minutes=1.0, seed=5)
 
 
-def build_trained(path: Path, logs: list[Path], *, classifier: bool = True) -> Session:
-    """A session at ``path`` with ``logs``, 15 % seed labels and tiny trained models (the classifier optional)."""
+def build_trained(path: Path, logs: list[Path], *, classifier: bool = True, model: str = "paper") -> Session:
+    """A session at ``path`` with ``logs``, 15 % seed labels and tiny trained models (the classifier optional).
+
+    The paper family by default: these tests are about its LSTM's warm starts, pieces and refits; retrains follow
+    the active classifier's family. ``tests/workbench/test_default_family.py`` covers the default family."""
     s = Session.create(path)
     s.ingest(logs)
     seed_labels(s, 0.15, seed=1)
     cycle.train_predictor(s, config=TINY, hidden=8)
     if classifier:
-        cycle.train_classifier(s, config=TINY, hidden=8)
+        cycle.train_classifier(s, model=model, config=TINY, hidden=8)
     return s
 
 
@@ -62,8 +65,8 @@ def test_versions_are_registered_active_and_loadable(trained: Session) -> None:
 
 def test_a_retrain_reuses_cached_stage1_and_warm_starts(trained: Session, monkeypatch) -> None:
     calls = []
-    real = cycle.predictor_pass
-    monkeypatch.setattr(cycle, "predictor_pass", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = stage_inputs.predictor_pass
+    monkeypatch.setattr(stage_inputs, "predictor_pass", lambda *a, **k: calls.append(1) or real(*a, **k))
     v2 = cycle.train_classifier(trained, config=TINY, hidden=8)
     assert calls == []  # stage 1 was not run again: its outputs came from the cache
     assert v2.config["warm_start"] is True
@@ -89,7 +92,7 @@ def test_scores_have_the_documented_shapes(trained: Session) -> None:
     # the per-channel error stays in the stage-1 cache; the scores carry its mean over channels
     c_version, bundle = cycle.active_bundle(trained)
     p_version = next(v for v in trained.model_versions("predictor") if v.id == c_version.config["predictor"])
-    error = cycle.stage1_outputs(trained, p_version, bundle, [log])[log.id].error[:]
+    error = stage_inputs.stage1_outputs(trained, p_version, bundle, [log])[log.id].error[:]
     assert error.shape == (log.n_samples, 22) and sc.surprise.shape == (log.n_samples,)
     np.testing.assert_allclose(sc.surprise, np.square(error).mean(axis=1), rtol=1e-5)
     assert sc.probs.shape == (log.n_samples, 6)
@@ -246,7 +249,7 @@ def test_a_retrain_pairs_unlabelled_neighbours_within_the_logs_change_points(tra
     assert seen["pairs"], "the demo logs hold neighbour pairs"
     for a, b in seen["pairs"]:
         log = logs[a.seq]
-        cps = cycle.log_change_points(trained.array(log.id), None, rate_hz=log.rate_hz)
+        cps = stage_inputs.log_change_points(trained.array(log.id), None, rate_hz=log.rate_hz)
         assert a.length == b.length == TINY.context + TINY.label_piece and b.start - a.start == TINY.label_piece
         assert b.stop <= log.n_samples and not ((a.stop - 1 < cps) & (cps <= b.stop - 1)).any()
     cycle.train_classifier(trained, config=TINY, hidden=8)

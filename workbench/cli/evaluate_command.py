@@ -18,7 +18,9 @@ def evaluate(
     dataset: Pos[Literal["borealtc", "qcat", "demo", "session"]],
     folder: Pos[Path],
     labelled: float = 0.1,
-    variant: Literal["both", "shared", "strict"] = "both",
+    model: Literal["default", "paper", "both"] = "default",
+    split: Literal["partitions", "runs", "both"] = "both",
+    variant: Literal["both", "shared", "strict"] = "shared",
     hidden: int = 200,
     seed: int = 0,
     stage1_epochs: int = 40,
@@ -50,8 +52,11 @@ def evaluate(
             scored against reference labels (--reference FILE, kept apart from the labels).
         folder: The dataset folder (e.g. ../shared/data/borealtc, a QCAT folder, demo logs), or the session.
         labelled: Fraction labelled: of the training partitions (borealtc), of the training logs' time (demo).
-        variant: "shared": stage 1 trains once on all partitions' signals (no labels); "strict": stage 1 never sees
-            the test partitions; "both".
+        model: The model family ("default": spectral window classifier with self-training; "paper": the paper's
+            two LSTMs); borealtc also takes both.
+        split: borealtc: the authors' partition folds, folds holding out whole runs, or both.
+        variant: borealtc, paper family: "shared": stage 1 trains once on all partitions' signals (no labels);
+            "strict": stage 1 never sees the test partitions; "both".
         hidden: LSTM width of both stages.
         seed: Seed of folds, labelled subset and training.
         stage1_epochs: Most epochs of stage 1 (early stopping on validation loss).
@@ -63,8 +68,9 @@ def evaluate(
         seeds: Seeds per strategy (BorealTC: seed s uses outer fold s + 1).
         rounds: Rounds of labelling, each followed by a retrain.
         batch: Suggestions labelled per round.
-        feature_mode: With --simulate: what stage 1 hands stage 2.
-        warm_start: With --simulate: each round fine-tunes the previous round's models instead of training afresh.
+        feature_mode: With --simulate, paper family: what stage 1 hands stage 2.
+        warm_start: With --simulate, paper family: each round fine-tunes the previous round's models instead of
+            training afresh.
         segment_s: With --simulate: length of one suggestion in seconds (default: the UI's 1 s on demo logs, a whole
             5 s partition on borealtc, which then labels 5 / segment_s equal pieces of a partition).
         members: With --simulate: stage-2 ensemble members per retrain (the UI's Retrain trains 5).
@@ -93,6 +99,7 @@ def evaluate(
                 rounds=rounds,
                 batch=batch,
                 out=out,
+                model=model,
                 feature_mode=feature_mode,
                 warm_start=warm_start,
                 segment_s=segment_s,
@@ -105,7 +112,9 @@ def evaluate(
     if dataset == "borealtc":
         report = ev.evaluate_borealtc(
             folder,
+            model=model,
             labelled=labelled,
+            split=split,
             variant=variant,
             hidden=hidden,
             seed=seed,

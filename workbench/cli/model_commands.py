@@ -50,6 +50,7 @@ def check_device(device: str) -> None:
 def train(
     session: Pos[Path],
     stage: Literal["predictor", "classifier", "all"] = "all",
+    model: Literal["default", "paper"] | None = None,
     device: Literal["cpu", "cuda"] = "cpu",
     max_epochs: int = 300,
     patience: int = 20,
@@ -68,10 +69,13 @@ def train(
     Args:
         session: The session folder (on storage every process can read, for several machines).
         stage: Which stage; "all" trains stage 1, then stage 2 if there are labels of two terrains or more.
+        model: Stage 2's family: "default" (a linear classifier on short-time spectra of the signals, fitted in
+            seconds, with self-training on the unlabelled logs) or "paper" (the paper's LSTM on stage-1 features;
+            the options below are its settings). Unset: the active classifier's family, "default" for the first.
         device: Where to train.
         max_epochs: Upper bound on epochs (early stopping on validation loss usually ends sooner).
         patience: Epochs without improvement before stopping.
-        feature_mode: What stage 1 hands stage 2.
+        feature_mode: Paper family: what stage 1 hands stage 2.
         hidden: LSTM width of each stage (the paper: 200).
         batch_size: Sequences per optimiser step, all processes together (the paper: 512).
         bf16: On CUDA, run the LSTMs under bfloat16 autocast.
@@ -107,7 +111,7 @@ def train(
             if stage in ("predictor", "all"):
                 _train_predictor(s, config, hidden)
             if stage in ("classifier", "all"):
-                _train_classifier(s, config, hidden, feature_mode, stage)
+                _train_classifier(s, config, hidden, feature_mode, stage, model)
     finally:
         distributed.leave()
 
@@ -130,7 +134,9 @@ def _train_predictor(s: Session, config: TrainConfig, hidden: int) -> None:
     )
 
 
-def _train_classifier(s: Session, config: TrainConfig, hidden: int, feature_mode: FeatureMode, stage: str) -> None:
+def _train_classifier(
+    s: Session, config: TrainConfig, hidden: int, feature_mode: FeatureMode, stage: str, model: str | None
+) -> None:
     from .. import cycle
 
     terrains = {seg.terrain for seg in s.segments()}
@@ -139,13 +145,16 @@ def _train_classifier(s: Session, config: TrainConfig, hidden: int, feature_mode
         return
     bar = _Bar("classifier")
     try:
-        v = cycle.train_classifier(s, config=config, feature_mode=feature_mode, hidden=hidden, progress=bar)
+        v = cycle.train_classifier(
+            s, model=model, config=config, feature_mode=feature_mode, hidden=hidden, progress=bar
+        )
     finally:
         bar.close()
     m = v.metrics
     print(
-        f"classifier v{v.id}: out-of-fold accuracy (same logs) {m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} "
-        f"on {m['n_segments']} segments ({m['labelled_seconds']:.0f} s labelled)"
+        f"classifier v{v.id} ({v.config.get('model', 'paper')} family): out-of-fold accuracy (same logs) "
+        f"{m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} on {m['n_segments']} segments "
+        f"({m['labelled_seconds']:.0f} s labelled)"
     )
 
 

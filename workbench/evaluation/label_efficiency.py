@@ -18,21 +18,27 @@ import labeling
 from training import (
     FeatureMode,
     Piece,
+    SpectralConfig,
+    SpectralSteps,
     TrainConfig,
     classification_metrics,
     fit_classifier,
     fit_predictor,
+    log_summaries,
     partitions,
     run_classifiers,
     run_predictor,
+    window_summaries,
     windows,
 )
 
-from ..cycle import consistency_pairs
+from ..front_end import STRETCH_S
 from ..retrain import RETRAIN
 from ..scores import score_logs
+from ..stage_inputs import consistency_pairs
 from ..suggestions import SUGGESTION_S, suggestion_lengths
 from .curves_plot import plot_curves
+from .window_learner import WindowLearner
 
 
 @dataclass(frozen=True)
@@ -40,6 +46,7 @@ class SimSettings:
     """Sizes of the simulation (small models: every round retrains)."""
 
     strategies: tuple[str, ...] = ("random", "combined")
+    model: str = "default"  # stage 2's family: "default" (window classifier, RETRAIN.window) or "paper" (LSTM)
     seeds: int = 3
     rounds: int = 8
     batch: int = 4
@@ -50,7 +57,7 @@ class SimSettings:
     # training seeds, against 75.8, 73.4 and 73.8 % with these: the curves measured the training's luck.
     stage2_epochs: int = RETRAIN.classifier.max_epochs
     stage2_patience: int = RETRAIN.classifier.patience
-    folds: int = 3  # ensemble members (disagreement needs more than one)
+    folds: int = 3  # paper family: ensemble members (disagreement needs more than one); the default's are RETRAIN's
     consistency: float = TrainConfig.consistency  # weight of stage 2's term on unlabelled neighbours (0: labels only)
     feature_mode: FeatureMode = "hidden+surprise"  # what stage 1 hands stage 2 (and the suggestions' embeddings)
     warm_start: bool = False  # start each round from the previous round's models instead of from scratch
@@ -164,6 +171,32 @@ def report(curves, *, total: int, rate_hz: float, title: str, out: Path | None) 
     return "\n".join(lines)
 
 
+def _default_learner(logs, pool, test, truth, errors, cps, classes, normalizer, rate_hz, seed) -> WindowLearner:
+    """The default family's learner on demo-style logs: summaries of whole logs, as a session caches them."""
+    front = SpectralConfig.for_log(np.concatenate(list(logs[:5])), rate_hz)
+    spectra = {
+        i: SpectralSteps(log_summaries(logs[i], front, transform=normalizer), len(logs[i]), front)
+        for i in [*pool, *test]
+    }
+
+    def test_predict(models):
+        probs = run_classifiers(models, [spectra[i] for i in test], batch=256)
+        y_true = np.concatenate([truth[i] for i in test])
+        y_pred = np.concatenate([p.mean(0).argmax(-1) for p in probs])
+        known = y_true >= 0
+        return y_true[known], y_pred[known]
+
+    return WindowLearner(
+        [spectra[i] for i in pool],
+        [errors[i] for i in pool],
+        classes,
+        replace(RETRAIN.window, seed=seed),
+        change_points=cps,
+        longest=int(STRETCH_S * rate_hz),
+        test_predict=test_predict,
+    )
+
+
 def simulate_logs(
     logs: Sequence[np.ndarray],
     truth: Sequence[np.ndarray],
@@ -178,7 +211,8 @@ def simulate_logs(
     UI's (half to all of ``segment_s``)."""
     cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, device=settings.device)
     pfit = fit_predictor(list(logs), config=cfg1, hidden=settings.hidden)
-    log(f"stage 1 on {len(logs)} logs (no labels): {len(pfit.history)} epochs; stage 2 on {settings.feature_mode}")
+    stage2 = "the default family" if settings.model == "default" else f"{settings.feature_mode} features"
+    log(f"stage 1 on {len(logs)} logs (no labels): {len(pfit.history)} epochs; stage 2 on {stage2}")
     outs = run_predictor(pfit.model, pfit.normalizer, list(logs), device=settings.device)
     feats = [o.features(settings.feature_mode) for o in outs]
     errors = [np.square(o.error).mean(1) for o in outs]
@@ -204,13 +238,15 @@ def simulate_logs(
         return y_true[known], y_pred[known]
 
     pool_feats = [feats[i] for i in pool]
-    # neighbours as the UI's Retrain pairs them (workbench.cycle.consistency_pairs)
+    # neighbours as the UI's Retrain pairs them (workbench.stage_inputs.consistency_pairs)
     pairs = []
     if settings.consistency > 0:
         pairs = consistency_pairs([len(f) for f in pool_feats], cps, cfg2)
         log(f"consistency {settings.consistency:g}: {len(pairs)} pairs of unlabelled neighbouring windows in the pool")
 
-    def learner(seed: int) -> FeatureLearner:
+    def learner(seed: int) -> FeatureLearner | WindowLearner:
+        if settings.model == "default":
+            return _default_learner(logs, pool, test, truth, errors, cps, classes, pfit.normalizer, rate_hz, seed)
         return FeatureLearner(
             pool_feats,
             [errors[i] for i in pool],
@@ -269,10 +305,8 @@ def simulate_partitions(
     parts, y, run_of = partitions(runs, labels, size)
     cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, piece=size, device=settings.device)
     pfit = fit_predictor(parts, config=cfg1, hidden=settings.hidden)
-    log(
-        f"stage 1 on all {len(parts)} partitions (no labels): {len(pfit.history)} epochs; "
-        f"stage 2 on {settings.feature_mode}"
-    )
+    stage2 = "the default family" if settings.model == "default" else f"{settings.feature_mode} features"
+    log(f"stage 1 on all {len(parts)} partitions (no labels): {len(pfit.history)} epochs; stage 2 on {stage2}")
     cuts = labeling.spans(size, np.zeros(0, np.int64), max_len=-(-size // pieces))
     units = [(i, a, b) for i in range(len(parts)) for a, b in cuts]  # the pool's "logs": pieces of partitions
     outs = run_predictor(
@@ -333,7 +367,43 @@ def simulate_partitions(
             neighbour_cache[fold] = [o.features(settings.feature_mode) for o in outs_w], pairs
         return neighbour_cache[fold]
 
-    def learner(seed: int) -> FeatureLearner:
+    spectral_cache: dict = {}
+
+    def default_learner(seed: int) -> WindowLearner:
+        # the default family: each pool piece's summaries as the session computes them; test windows on their own
+        fold = seed % len(folds)
+        if "front" not in spectral_cache:
+            front = SpectralConfig.for_log(np.concatenate(parts[:50]), rate_hz)
+            spectral_cache["front"] = front
+            spectral_cache["units"] = [
+                SpectralSteps(log_summaries(parts[i][a:b], front, transform=pfit.normalizer), b - a, front)
+                for i, a, b in units
+            ]
+        front = spectral_cache["front"]
+        if fold not in spectral_cache:
+            test_parts = [parts[i] for i in folds[fold][1]]
+            spectral_cache[fold] = window_summaries(test_parts, win, round(0.5 * rate_hz), front, pfit.normalizer)
+        x_test, owner = spectral_cache[fold]
+        y_test = y[folds[fold][1]][owner]
+
+        def test_predict(models):
+            probs = run_classifiers(models, [x_test])[0].mean(0)  # windows as steps: the model is per step
+            return y_test, probs.argmax(-1)
+
+        pool = in_fold[fold]
+        return WindowLearner(
+            [spectral_cache["units"][u] for u in pool],
+            [errors[u] for u in pool],
+            classes,
+            replace(RETRAIN.window, seed=seed),
+            change_points=None,
+            longest=size,
+            test_predict=test_predict,
+        )
+
+    def learner(seed: int) -> FeatureLearner | WindowLearner:
+        if settings.model == "default":
+            return default_learner(seed)
         pool = in_fold[seed % len(folds)]
         test_feats, y_test = test_windows(seed % len(folds))
 

@@ -18,11 +18,13 @@ import numpy as np
 from sklearn.model_selection import KFold
 
 from sessions import Session, WorkbenchError
-from training import TrainConfig, classification_metrics, fit_classifier
+from training import TrainConfig, classification_metrics, fit_classifier, fit_window_classifier
 
-from ..cycle import active_predictor, model_logs, stage1_outputs, stage2_features
+from ..cycle import PAPER_FEATURES, active_predictor, classifier_family, model_logs
+from ..front_end import choose_front_end, spectral_features, unlabelled_stretches
 from ..retrain import RETRAIN
 from ..scores import score_logs
+from ..stage_inputs import signal_change_points, stage1_outputs, stage2_features
 
 
 def evaluate_session(
@@ -61,15 +63,20 @@ def evaluate_session(
         )
     active = session.active_model("classifier")
     recipe = active.config if active is not None else {}
+    family = classifier_family(session)
     hidden = int(recipe.get("hidden", RETRAIN.hidden))
-    feature_mode = recipe.get("feature_mode", "hidden+surprise")
+    feature_mode = recipe.get("feature_mode", PAPER_FEATURES)
     config = replace(config or RETRAIN.classifier, seed=seed)
-    features = stage2_features(session, p_version, bundle, logs, feature_mode)
+    window = replace(RETRAIN.window, seed=seed)
+    front = choose_front_end(session, logs) if family == "default" else None
+    if front is not None:
+        features = spectral_features(session, p_version.id, bundle, logs, front)
+    else:
+        features = stage2_features(session, p_version, bundle, logs, feature_mode)
     outs = stage1_outputs(session, p_version, bundle, logs)
     index = {x.id: i for i, x in enumerate(logs)}
-    segments = [
-        (index[s.log_id], s.start, s.stop, classes.index(s.terrain)) for s in session.segments() if s.log_id in index
-    ]
+    labels = [s for s in session.segments() if s.log_id in index]
+    segments = [(index[s.log_id], s.start, s.stop, classes.index(s.terrain)) for s in labels]
     k = min(folds, len(judged))
     y_true, y_pred, rows = [], [], []
     for fold, (_, held) in enumerate(KFold(k, shuffle=True, random_state=seed).split(judged), start=1):
@@ -80,7 +87,18 @@ def evaluate_session(
                 f"| {fold} | {_names(logs, held_logs)} | – | labels of fewer than 2 terrains outside the fold |"
             )
             continue
-        fit = fit_classifier(features, train, classes, config=config, hidden=hidden)
+        if front is not None:
+            # self-training reads the training logs' unlabelled stretches only: a held-out log stays unseen
+            kept = [x for i, x in enumerate(logs) if i not in held_logs]
+            stretches = [
+                (index[kept[j].id], a, b)
+                for j, a, b in unlabelled_stretches(
+                    kept, labels, lambda x: signal_change_points(session, x), shortest=front.span
+                )
+            ]
+            fit = fit_window_classifier(features, train, classes, config=window, stretches=stretches)
+        else:
+            fit = fit_classifier(features, train, classes, config=config, hidden=hidden)
         order = sorted(held_logs)
         scored = score_logs(fit.models, [features[i] for i in order], [outs[logs[i].id].surprise() for i in order])
         fold_true, fold_pred = [], []
@@ -102,7 +120,7 @@ def evaluate_session(
     lines = [
         f"# Session {session.path.name}: leave-logs-out against reference labels",
         "",
-        f"Recipe: the active predictor v{p_version.id}; stage 2 hidden {hidden}, features `{feature_mode}`, retrained "
+        f"Recipe: the active predictor v{p_version.id}; {_recipe(family, hidden, feature_mode)}, retrained "
         f"per fold on the other logs' labels. {len(judged)} logs with reference, {k} folds, "
         f"{m['n'] / rate:.0f} s of reference time scored.",
         "",
@@ -123,6 +141,12 @@ def evaluate_session(
         *(f"| {c} | " + " | ".join(str(v) for v in row) + " |" for c, row in zip(classes, m["confusion"], strict=True)),
     ]
     return "\n".join(lines) + "\n"
+
+
+def _recipe(family: str, hidden: int, feature_mode: str) -> str:
+    if family == "default":
+        return "stage 2 of the default family (window classifier on spectral summaries, self-training)"
+    return f"stage 2 of the paper family (LSTM of {hidden} units on `{feature_mode}` features)"
 
 
 def _names(logs, held: set[int]) -> str:

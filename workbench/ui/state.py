@@ -15,8 +15,8 @@ import numpy as np
 import labeling
 from sessions import LogInfo, Segment, Session, Terrain, WorkbenchError
 
-from ..cycle import log_change_points
 from ..scores import SessionScores, compute_scores
+from ..stage_inputs import log_change_points
 from ..suggestions import suggest_for_session
 from ..user_errors import USER_ERRORS, one_line
 

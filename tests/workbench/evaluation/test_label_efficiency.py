@@ -7,16 +7,26 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from labeling import CurvePoint
 from workbench.evaluation.label_efficiency import SimSettings, report, simulate_logs, simulate_partitions
 
 TINY = SimSettings(
-    strategies=("random", "combined"), seeds=1, rounds=2, batch=2, hidden=8, stage1_epochs=1, stage2_epochs=2, folds=2
+    strategies=("random", "combined"),
+    model="paper",
+    seeds=1,
+    rounds=2,
+    batch=2,
+    hidden=8,
+    stage1_epochs=1,
+    stage2_epochs=2,
+    folds=2,
 )
 
 
-def test_simulate_logs_reports_both_strategies(tmp_path: Path) -> None:
+@pytest.mark.parametrize("model", ["default", "paper"])
+def test_simulate_logs_reports_both_strategies(tmp_path: Path, model: str) -> None:
     rng = np.random.default_rng(0)
     logs, truth = [], []
     for _ in range(3):
@@ -24,8 +34,11 @@ def test_simulate_logs_reports_both_strategies(tmp_path: Path) -> None:
         logs.append((rng.normal(size=(300, 2)) * (1 + y[:, None])).astype(np.float32))
         truth.append(y)
     lines: list[str] = []
-    text = simulate_logs(logs, truth, ["a", "b", "c"], rate_hz=20.0, settings=TINY, out=tmp_path, log=lines.append)
-    assert "| round | random: labelled s (%)" in text and "`combined` reaches random's final accuracy" in text
+    settings = replace(TINY, model=model)
+    text = simulate_logs(logs, truth, ["a", "b", "c"], rate_hz=20.0, settings=settings, out=tmp_path, log=lines.append)
+    assert ("stage 2 on the default family" in lines[0]) == (model == "default")
+    assert "| round | random: labelled s (%)" in text
+    assert re.search(r"`combined` (reaches|does not reach) random's final accuracy", text)
     assert sum("round 2" in s for s in lines) == 2  # both strategies ran both rounds
     assert any("held out: 1 logs, 0.2 min, 3 terrain patches" in s for s in lines), lines[:2]
     assert TINY.consistency == 0 and not any("pairs of unlabelled" in s for s in lines)  # labels only by default
@@ -40,10 +53,12 @@ def _runs() -> list[np.ndarray]:
     return [(rng.normal(size=(400, 2)) * (0.5 + r % 2)).astype(np.float32) for r in range(6)]
 
 
-def test_simulate_partitions_labels_whole_partitions(tmp_path: Path) -> None:
+@pytest.mark.parametrize("model", ["default", "paper"])
+def test_simulate_partitions_labels_whole_partitions(tmp_path: Path, model: str) -> None:
     lines: list[str] = []
+    settings = replace(TINY, model=model)
     text = simulate_partitions(
-        _runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=TINY, out=tmp_path, log=lines.append
+        _runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=settings, out=tmp_path, log=lines.append
     )
     assert "BorealTC" in text
     # two partitions of 5 s (100 samples at 20 Hz) per round

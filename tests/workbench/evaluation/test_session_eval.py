@@ -15,14 +15,15 @@ from workbench.cli import main
 from workbench.demo import generate_demo_logs, seed_labels
 
 
-@pytest.fixture
-def three_logs(tmp_path: Path) -> Path:
+@pytest.fixture(params=["default", "paper"])
+def three_logs(tmp_path: Path, request) -> Path:
+    """Three demo logs, 30 % labelled, both stages trained; the evaluation retrains the active family per fold."""
     logs = generate_demo_logs(tmp_path / "logs", n_logs=3, minutes=1.0, seed=7)
     s = Session.create(tmp_path / "s")
     s.ingest(logs)
     seed_labels(s, 0.3, seed=2)
     cycle.train_predictor(s, config=TINY, hidden=8)
-    cycle.train_classifier(s, config=TINY, hidden=8)
+    cycle.train_classifier(s, model=request.param, config=TINY, hidden=8)
     s.close()
     return tmp_path / "s"
 
@@ -47,6 +48,9 @@ def test_reference_from_a_file_scores_held_out_logs(three_logs: Path, tmp_path: 
     out = capsys.readouterr().out
     assert code == 0, out
     assert f"reference: {len(rows)} row(s)" in out and "3 logs with reference, 3 folds" in out
+    with Session.open(three_logs) as s:
+        family = s.active_model("classifier").config["model"]
+    assert f"stage 2 of the {family} family" in out
     accuracy = float(re.search(r"\*\*Accuracy ([0-9.]+) %", out).group(1))
     assert 0.0 <= accuracy <= 100.0
     rows_after = out.split("Confusion")[1].splitlines()[4:]  # after the heading, a blank line, header and rule

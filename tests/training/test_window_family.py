@@ -1,0 +1,142 @@
+"""The default family end to end on arrays: front end, window classifier fit, bundle, streaming and ONNX agree."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from training import (
+    BundleError,
+    ModelBundle,
+    Normalizer,
+    Predictor,
+    PredictorConfig,
+    SpectralConfig,
+    SpectralSteps,
+    StreamingClassifier,
+    WindowFitConfig,
+    check_onnx,
+    export_onnx,
+    fit_window_classifier,
+    frame_features,
+    load_bundle,
+    log_frames,
+    log_summaries,
+    per_step,
+    run_classifiers,
+    save_bundle,
+    summary_windows,
+)
+
+RATE = 100.0
+
+
+def _walk(n: int, terrain: int, rng: np.random.Generator) -> np.ndarray:
+    """A fast channel vibrating at a terrain's frequency, a noise channel, and a slow channel held at ~7 Hz."""
+    t = np.arange(n) / RATE
+    freq = (8.0, 22.0, 37.0)[terrain]
+    fast = np.sin(2 * np.pi * freq * t + rng.uniform(0, 6)) + 0.5 * rng.normal(size=n)
+    held = np.repeat(rng.normal(size=n // 15 + 1) + terrain * 0.3, 15)[:n]
+    return np.column_stack([fast, rng.normal(size=n), held]).astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def logs() -> tuple[list[np.ndarray], list[int]]:
+    rng = np.random.default_rng(0)
+    terrains = [0, 1, 2] * 3
+    return [_walk(2400, k, rng) for k in terrains], terrains
+
+
+def _features(arrays, normalizer, config):
+    return [SpectralSteps(log_summaries(a, config, transform=normalizer), len(a), config) for a in arrays]
+
+
+@pytest.fixture(scope="module")
+def fitted(logs):
+    arrays, terrains = logs
+    normalizer = Normalizer.fit(arrays)
+    config = SpectralConfig.for_log(arrays[0], RATE)
+    feats = _features(arrays, normalizer, config)
+    segments = [(i, 300, 900, k) for i, k in enumerate(terrains)]  # a quarter of each log labelled
+    stretches = [(i, 1000, 1500) for i in range(len(arrays))] + [(i, 1500, 2000) for i in range(len(arrays))]
+    fit = fit_window_classifier(
+        feats, segments, ("a", "b", "c"), config=WindowFitConfig(k_folds=3), stretches=stretches
+    )
+    bundle = ModelBundle(
+        Predictor(PredictorConfig(3, 8)),
+        normalizer,
+        ("fast", "noise", "held"),
+        RATE,
+        classifiers=fit.models,
+        classes=("a", "b", "c"),
+        feature_mode="spectral",
+        metrics=fit.metrics,
+        spectral=config,
+    )
+    return bundle, feats, fit
+
+
+def test_front_end_reads_a_log_in_chunks_and_expands_to_steps_on_demand(logs) -> None:
+    x = logs[0][0]
+    config = SpectralConfig.for_log(x, RATE)
+    assert config.fast == (0, 1) and config.slow == (2,)  # the held channel is found slow
+    np.testing.assert_array_equal(log_frames(x, config, chunk_frames=7), frame_features(x, config))
+    summaries = summary_windows(frame_features(x, config), frames_per_window=config.window)
+    steps = SpectralSteps(summaries, len(x), config)
+    whole, known = per_step(summaries, len(x), config)
+    np.testing.assert_array_equal(steps[0 : len(x)], whole)
+    np.testing.assert_array_equal(steps[123:777], whole[123:777])
+    assert not known[: config.frame - 1].any() and (steps[0:10] == 0).all()
+    rows = steps.frame_rows(100, 300)
+    assert (rows >= 100).all() and (rows < 300).all() and ((rows - (config.frame - 1)) % config.hop == 0).all()
+
+
+def test_the_ensemble_learns_terrains_it_was_not_shown_on_other_stretches(fitted, logs) -> None:
+    bundle, feats, fit = fitted
+    terrains = logs[1]
+    assert len(fit.models) == 3 and fit.metrics["out_of_fold"]
+    assert fit.metrics["accuracy"] > 0.9, fit.metrics
+    assert fit.metrics["pseudo_stretches"] > 0  # agreeing stretches were taken
+    probs = run_classifiers(bundle.classifiers, feats)
+    for p, k in zip(probs, terrains, strict=True):
+        unseen = p.mean(0)[1600:2400]  # never labelled, never a self-training stretch
+        assert (unseen.argmax(1) == k).mean() > 0.9
+
+
+def test_a_class_missing_from_a_fold_never_wins_and_two_classes_work(logs) -> None:
+    arrays, terrains = logs
+    normalizer = Normalizer.fit(arrays)
+    config = SpectralConfig.for_log(arrays[0], RATE)
+    feats = _features(arrays, normalizer, config)
+    two = [(i, 300, 900, k) for i, k in enumerate(terrains) if k < 2]  # terrain "c" never labelled
+    fit = fit_window_classifier(feats, two, ("a", "b", "c"), config=WindowFitConfig(k_folds=2, self_training=False))
+    probs = run_classifiers(fit.models, feats)
+    assert all((p.mean(0).argmax(1) != 2).all() for p in probs)
+    assert fit.metrics["accuracy"] > 0.9
+
+
+def test_bundle_stream_and_onnx_give_the_offline_numbers(fitted, logs, tmp_path) -> None:
+    bundle, feats, _ = fitted
+    save_bundle(bundle, tmp_path / "b")
+    loaded = load_bundle(tmp_path / "b")
+    assert loaded.family == "default" and loaded.spectral == bundle.spectral
+    x = logs[0][0]
+    offline = run_classifiers(loaded.classifiers, feats[:1])[0].mean(0)  # (T, K)
+    streamed = StreamingClassifier(loaded).run(x)
+    np.testing.assert_allclose(streamed, offline, atol=1e-5)
+    several = StreamingClassifier(loaded, streams=2)
+    both = np.stack([several.step(np.stack([x[t], logs[0][1][t]])) for t in range(300)])  # (T, 2, K)
+    np.testing.assert_allclose(both[:, 0], offline[:300], atol=1e-5)
+    assert check_onnx(export_onnx(loaded, tmp_path / "m.onnx"), loaded, x[:250]) < 1e-4
+
+
+def test_a_bundle_whose_front_end_was_changed_is_refused(fitted, tmp_path) -> None:
+    bundle, _, _ = fitted
+    save_bundle(bundle, tmp_path / "b")
+    config = json.loads((tmp_path / "b" / "model.json").read_text())
+    config["spectral"]["fast"] = [0, 1, 9]  # a channel the bundle does not have
+    (tmp_path / "b" / "model.json").write_text(json.dumps(config))
+    with pytest.raises(BundleError, match="spectral front end"):
+        load_bundle(tmp_path / "b")

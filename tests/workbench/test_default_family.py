@@ -1,0 +1,90 @@
+"""The default family in a session: trained, scored, streamed, exported and classified with the same numbers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sessions import Session
+from training import StreamingClassifier, load_bundle
+from workbench import cycle
+from workbench.demo import seed_labels
+from workbench.export import classify_files, export_all
+from workbench.front_end import unlabelled_stretches
+from workbench.scores import score_session
+from workbench.stage_inputs import signal_change_points
+
+from .test_cycle import TINY
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory: pytest.TempPathFactory) -> Session:
+    from workbench.demo import generate_demo_logs
+
+    root = tmp_path_factory.mktemp("default")
+    logs = generate_demo_logs(root / "logs", n_logs=2, minutes=1.0, seed=5)
+    s = Session.create(root / "s")
+    s.ingest(logs)
+    seed_labels(s, 0.15, seed=1)
+    cycle.train_predictor(s, config=TINY, hidden=8)
+    cycle.train_classifier(s)  # no family named: the default
+    yield s
+    s.close()
+
+
+def test_the_first_classifier_is_the_default_family_and_retrains_keep_the_family(session: Session) -> None:
+    (c,) = session.model_versions("classifier")
+    assert c.config["model"] == "default" and c.config["self_training_stretches"] > 0
+    bundle = load_bundle(session.path / c.path)
+    assert bundle.family == "default" and bundle.spectral is not None and len(bundle.classifiers) == 5
+    assert bundle.classifiers[0].config.n_features == bundle.spectral.summary_width
+    assert {"accuracy", "macro_f1", "confusion", "c", "pseudo_stretches"} <= set(c.metrics)
+    paper = cycle.train_classifier(session, model="paper", config=TINY, hidden=8)
+    assert paper.config["model"] == "paper" and load_bundle(session.path / paper.path).family == "paper"
+    again = cycle.train_classifier(session, config=TINY, hidden=8)  # a Retrain follows the active family
+    assert again.config["model"] == "paper"
+    back = cycle.train_classifier(session, model="default")
+    assert back.config["model"] == "default" and session.active_model("classifier").id == back.id
+
+
+def test_scores_stream_and_classify_agree_on_every_step(session: Session, tmp_path: Path) -> None:
+    if session.active_model("classifier").config["model"] != "default":
+        cycle.train_classifier(session, model="default")
+    log = session.logs()[0]
+    scored = score_session(session, [log.id])[log.id]
+    assert scored.probs.shape == (log.n_samples, len(session.terrains()))
+    np.testing.assert_allclose(scored.probs.sum(1), 1.0, atol=1e-5)
+    _, bundle = cycle.active_bundle(session)
+    streamed = StreamingClassifier(bundle).run(np.asarray(session.array(log.id)))
+    np.testing.assert_allclose(streamed, scored.probs, atol=1e-5)  # causal, per sample: the offline numbers
+    out = tmp_path / "export"
+    written = dict((p.name, what) for p, what in export_all(session, out))
+    assert "checked with onnxruntime" in written["classifier_stream.onnx"]
+    assert "Default family" in (out / "bundle" / "MODEL_CARD.md").read_text()
+    code, lines = classify_files(out / "bundle", [Path(log.source_path)], tmp_path / "p.csv", _options())
+    assert code == 0, lines
+    pred = pd.read_csv(tmp_path / "p.csv")
+    assert len(pred) == log.n_samples
+    np.testing.assert_allclose(pred[[f"p_{t.name}" for t in session.terrains()]].to_numpy(), scored.probs, atol=1e-4)
+
+
+def _options():
+    from sessions import IngestOptions
+
+    return IngestOptions()
+
+
+def test_self_training_stretches_hold_no_label_and_no_change_point(session: Session) -> None:
+    logs = session.logs()
+    segments = session.segments()
+    cps = {x.id: signal_change_points(session, x) for x in logs}
+    stretches = unlabelled_stretches(logs, segments, lambda x: cps[x.id], shortest=160)
+    assert stretches
+    for i, a, b in stretches:
+        log = logs[i]
+        assert 160 <= b - a <= 5 * log.rate_hz
+        assert not any(s.log_id == log.id and s.start < b and a < s.stop for s in segments)
+        assert not ((cps[log.id] > a) & (cps[log.id] < b)).any()

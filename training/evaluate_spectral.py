@@ -1,0 +1,103 @@
+"""The BorealTC protocols for the default family: the authors' partition folds, and folds holding out whole runs.
+
+As :func:`~training.evaluate_windows.borealtc_protocol` does for the paper family: 5 s partitions, 5 stratified
+folds, a labelled share of each fold's training partitions, test windows of 1.7 s every 0.1 s classified on their
+own. The default family's unsupervised part (the input normalisation and the front end's channel split) is fitted on
+the training partitions of each fold only, and self-training reads the fold's unlabelled training partitions: the
+test partitions are seen once, when they are scored.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from .data import Normalizer
+from .evaluate_windows import FoldResult, Split, WindowProtocol, labelled_subset, outer_folds, partitions
+from .fit_window import WindowFitConfig, fit_window_classifier
+from .metrics import classification_metrics
+from .spectral import SpectralConfig, SpectralSteps, frame_features, log_summaries, summary_windows
+
+
+def window_summaries(
+    parts: Sequence[np.ndarray], window: int, stride: int, config: SpectralConfig, normalizer: Normalizer
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every ``window``-sample window at ``stride`` of each partition, summarised on its own as the classifier sees
+    its last step: ``(N, 2F)`` and the partition of each."""
+    out, owner = [], []
+    for i, p in enumerate(parts):
+        z = normalizer(p)
+        for start in range(0, len(p) - window + 1, stride):
+            frames = frame_features(z[start : start + window], config)  # (frames, F)
+            out.append(summary_windows(frames, frames_per_window=config.window)[-1])
+            owner.append(i)
+    return np.asarray(out, np.float32), np.asarray(owner)
+
+
+def borealtc_window_protocol(
+    runs: Sequence[np.ndarray],
+    labels: Sequence[int],
+    classes: Sequence[str],
+    *,
+    rate_hz: float,
+    labelled: float = 0.1,
+    split: Split = "partitions",
+    protocol: WindowProtocol | None = None,
+    fit: WindowFitConfig | None = None,
+    seed: int = 0,
+    log: Callable[[str], None] = print,
+) -> list[FoldResult]:
+    """Run the protocol for the default family; one result per outer fold.
+
+    Args:
+        runs: One ``(T, C)`` array per run, raw units.
+        labels: The terrain (class index) of each run.
+        classes: Class names.
+        rate_hz: Sample rate of the runs.
+        labelled: Fraction of the training partitions whose labels stage 2 sees (stratified by terrain).
+        split: ``"partitions"`` (the authors' folds) or ``"runs"`` (whole runs held out).
+        protocol: Partition and window sizes, and the number of folds.
+        fit: The window classifier's fit settings (self-training on by default).
+        seed: Seed of the folds, the labelled subset and the fit.
+        log: Where progress lines go.
+    """
+    protocol = protocol or WindowProtocol()
+    size, win, stride = (round(s * rate_hz) for s in (protocol.partition_s, protocol.window_s, protocol.stride_s))
+    parts, y, run_of = partitions(runs, labels, size)
+    fit = replace(fit or WindowFitConfig(), seed=seed)
+    results = []
+    for fold, (train_idx, test_idx) in enumerate(
+        outer_folds(y, run_of, split=split, folds=protocol.folds, seed=seed), start=1
+    ):
+        t0 = time.monotonic()
+        train = [parts[i] for i in train_idx]
+        normalizer = Normalizer.fit(train)
+        config = SpectralConfig.for_log(np.concatenate(train[:50]), rate_hz)
+        features = [SpectralSteps(log_summaries(p, config, transform=normalizer), len(p), config) for p in train]
+        chosen = set(labelled_subset(train_idx, y, labelled, seed=seed + fold).tolist())
+        first = config.span - 1  # the first step whose summary spans a full window
+        segments = [(j, first, size, int(y[i])) for j, i in enumerate(train_idx) if i in chosen]
+        stretches = [(j, first, size) for j, i in enumerate(train_idx) if i not in chosen]
+        cfit = fit_window_classifier(features, segments, classes, config=fit, stretches=stretches)
+        x, owner = window_summaries([parts[i] for i in test_idx], win, stride, config, normalizer)
+        probs = np.mean([m(_tensor(x))[0][0].softmax(-1).detach().numpy() for m in cfit.models], axis=0)  # (N, K)
+        y_true = y[test_idx][owner]
+        m = classification_metrics(y_true, probs.argmax(1), classes)
+        m["pseudo_stretches"] = cfit.metrics["pseudo_stretches"]
+        m["c"] = cfit.metrics["c"]
+        results.append(FoldResult(fold, m["accuracy"], m["macro_f1"], len(x), len(chosen), time.monotonic() - t0, m))
+        log(
+            f"fold {fold} ({split}): accuracy {m['accuracy']:.2%}, macro-F1 {m['macro_f1']:.3f} on {len(x)} windows "
+            f"({len(chosen)} labelled partitions, {m['pseudo_stretches']:.0f} pseudo-labelled, C {m['c']:g}, "
+            f"{time.monotonic() - t0:.0f} s)"
+        )
+    return results
+
+
+def _tensor(x: np.ndarray):
+    import torch
+
+    return torch.from_numpy(x)[None]  # (1, N, 2F): the windows as steps of one sequence (the model is per step)

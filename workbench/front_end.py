@@ -1,0 +1,97 @@
+"""The default family's inputs in a session: the spectral front end's window summaries of every log, computed once
+per predictor version and front end and cached in the session folder, and the unlabelled stretches self-training
+reads.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import uuid
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+import labeling
+from sessions import LogInfo, Segment, Session
+from training import ModelBundle, SpectralConfig, SpectralSteps, log_summaries
+
+SAMPLE_S = 600.0  # seconds of each of the first logs read to tell fast channels from slow ones
+STRETCH_S = 5.0  # longest unlabelled stretch self-training judges as one (BorealTC's partition, where it was measured)
+
+
+def choose_front_end(session: Session, logs: Sequence[LogInfo]) -> SpectralConfig:
+    """The front end of a session's logs: sizes from their rate, fast and slow channels from a sample of them."""
+    rate = logs[0].rate_hz
+    take = int(SAMPLE_S * rate)
+    sample = np.concatenate([np.asarray(session.rows(x.id)[:take], np.float32) for x in logs[:5]])
+    return SpectralConfig.for_log(sample, rate)
+
+
+def _digest(config: SpectralConfig) -> str:
+    return hashlib.sha256(json.dumps(config.to_dict(), sort_keys=True).encode()).hexdigest()[:10]
+
+
+def spectral_features(
+    session: Session, predictor_version: int, bundle: ModelBundle, logs: Sequence[LogInfo], config: SpectralConfig
+) -> list[SpectralSteps]:
+    """Per log, its per-step window summaries (``(T, 2F)`` rows computed from 5 Hz summaries on demand).
+
+    The summaries are written once per predictor version (its input normalisation) and front end, as ``.npy`` files
+    memory-mapped on read: a 10-hour log at 100 Hz holds 180,000 rows, never its 3.6 million steps.
+    """
+    cache = session.cache_dir(f"spectral-v{predictor_version:04d}-{_digest(config)}")
+    out = []
+    for x in logs:
+        path = cache / f"{x.id:06d}.npy"
+        if not path.exists():
+            summaries = log_summaries(session.rows(x.id), config, transform=bundle.normalizer)
+            tmp = cache / f".{x.id:06d}.{uuid.uuid4().hex[:8]}.npy"  # another process may fill the same cache
+            np.save(tmp, summaries)
+            os.replace(tmp, path)
+        out.append(SpectralSteps(np.load(path, mmap_mode="r"), x.n_samples, config))
+    return out
+
+
+def in_memory_features(
+    arrays: Sequence[np.ndarray], bundle: ModelBundle, config: SpectralConfig
+) -> list[SpectralSteps]:
+    """Per-step window summaries of raw ``(T, C)`` arrays outside a session (``classify``, evaluations)."""
+    return [SpectralSteps(log_summaries(a, config, transform=bundle.normalizer), len(a), config) for a in arrays]
+
+
+def free_stretches(
+    length: int, change_points: np.ndarray, labelled: Sequence[tuple[int, int]], *, longest: int, shortest: int
+) -> list[tuple[int, int]]:
+    """Spans ``(start, stop)`` of one log with no label and no change point, at most ``longest`` samples (longer
+    stretches cut into equal pieces), none shorter than ``shortest``."""
+    edges = np.concatenate([np.asarray(change_points, np.int64), np.asarray(labelled, np.int64).reshape(-1)])
+    return [
+        (a, b)
+        for a, b in labeling.spans(length, edges, max_len=longest, min_len=shortest)
+        if not any(s < b and a < e for s, e in labelled)
+    ]
+
+
+def unlabelled_stretches(
+    logs: Sequence[LogInfo],
+    segments: Sequence[Segment],
+    change_points: Callable[[LogInfo], np.ndarray],
+    *,
+    shortest: int,
+) -> list[tuple[int, int, int]]:
+    """Spans ``(log index, start, stop)`` of a session's logs with no label and no change point, cut to at most
+    ``STRETCH_S`` (see :func:`free_stretches`).
+
+    Self-training lends a stretch the terrain its frames agree on; a change point may be a change of terrain, and a
+    labelled step is already known, so neither is inside one. Spans shorter than ``shortest`` (one summary window)
+    are left out: no frame of theirs summarises them alone.
+    """
+    out = []
+    for i, log in enumerate(logs):
+        labelled = [(s.start, s.stop) for s in segments if s.log_id == log.id]
+        longest = max(shortest, int(STRETCH_S * log.rate_hz))
+        spans = free_stretches(log.n_samples, change_points(log), labelled, longest=longest, shortest=shortest)
+        out += [(i, a, b) for a, b in spans]
+    return out

@@ -1,0 +1,157 @@
+"""What stage 2 reads in a session, derived from the logs and kept: stage-1 outputs cached per predictor version,
+stage-2 features held in memory between retrains, and each log's change points (where a terrain may change).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import uuid
+from collections.abc import Sequence
+
+import numpy as np
+
+import labeling
+from sessions import FileRows, LogInfo, ModelVersion, NpyWriter, Session
+from training import (
+    FeatureMode,
+    LazyFeatures,
+    ModelBundle,
+    Piece,
+    Stage1Outputs,
+    TrainConfig,
+    neighbour_pairs,
+    predictor_pass,
+)
+
+PREDICTOR_BATCH = 64  # logs per stage-1 call when filling the cache
+
+
+def stage1_outputs(
+    session: Session, version: ModelVersion, bundle: ModelBundle, logs: Sequence[LogInfo]
+) -> dict[int, Stage1Outputs]:
+    """Stage-1 outputs of ``logs``, computed once per predictor version and cached in the session folder.
+
+    Stage 1 is frozen, so every stage-2 retrain reuses these instead of running it again. The outputs are written
+    chunk by chunk to files and handed back as rows read on demand (``FileRows``), so a 10-hour log never sits in
+    memory.
+    """
+    cache = session.cache_dir(f"stage1-v{version.id:04d}")
+    missing = [x for x in logs if not (cache / f"{x.id:06d}.error.npy").exists()]
+    if missing:
+        h, c = bundle.predictor.config.hidden, bundle.predictor.config.n_channels
+        tag = uuid.uuid4().hex[:8]  # another process may fill the same cache: each writes its own files
+
+        def part(log: LogInfo, name: str, width: int, dtype: type) -> NpyWriter:
+            return NpyWriter(cache / f".{log.id:06d}.{name}.{tag}.npy", (log.n_samples, width), dtype)
+
+        # rows go to disk as they are computed and are read a chunk at a time: a long log never sits in memory;
+        # a group of logs at a time, each log's files open only while its group runs
+        missing.sort(key=lambda x: -x.n_samples)
+        for g0 in range(0, len(missing), PREDICTOR_BATCH):
+            group = missing[g0 : g0 + PREDICTOR_BATCH]
+            sinks: list[Stage1Outputs] = []
+            try:
+                # hidden states lie in (-1, 1): float16 keeps them to 5e-4 at half the disk
+                for x in group:
+                    sinks.append(
+                        Stage1Outputs(
+                            part(x, "hidden", h, np.float16),
+                            part(x, "error", c, np.float32),
+                            part(x, "estimate", c, np.float32),
+                        )
+                    )
+                predictor_pass(
+                    bundle.predictor,
+                    bundle.normalizer,
+                    [session.rows(x.id) for x in group],
+                    sinks,
+                    batch=PREDICTOR_BATCH,
+                )
+                for log, sink in zip(group, sinks, strict=True):
+                    for name in ("hidden", "estimate", "error"):  # error last: its file marks the entry complete
+                        writer = getattr(sink, name)
+                        writer.close(sync=False)  # a cache: recomputed if lost, as np.save never synced it either
+                        os.replace(writer.path, cache / f"{log.id:06d}.{name}.npy")
+            finally:
+                for sink in sinks:
+                    for writer in (sink.hidden, sink.error, sink.estimate):
+                        writer.abort()  # a no-op for the files already in place
+    result = {}
+    for x in logs:
+        base = cache / f"{x.id:06d}"
+        result[x.id] = Stage1Outputs(
+            FileRows.open_npy(f"{base}.hidden.npy"),
+            FileRows.open_npy(f"{base}.error.npy"),
+            FileRows.open_npy(f"{base}.estimate.npy"),
+        )
+    return result
+
+
+FEATURE_CACHE_BYTES = 2 << 30  # stage-2 inputs kept in memory between retrains when they fit (QCAT scale: 1 GB)
+# The UI's threads (a Retrain's job, the scoring worker, viser's callbacks) share these caches: one lock guards both.
+_cache_lock = threading.Lock()
+_features: dict[tuple, list[np.ndarray]] = {}
+
+
+def stage2_features(
+    session: Session, version: ModelVersion, bundle: ModelBundle, logs: Sequence[LogInfo], mode: FeatureMode
+) -> list[np.ndarray] | list[LazyFeatures]:
+    """Stage 2's ``(T, F)`` inputs of ``logs``, kept in memory for the next retrain when they fit the budget.
+
+    A Retrain in the UI reads the same frozen features every time; loading thousands of cached files and building
+    the inputs took 7 s of a 40 s retrain at QCAT scale. One entry is kept (the latest session, predictor, logs).
+    Features past the budget stay on disk: lazy features computed from the memory-mapped cache, batch by batch.
+    """
+    key = (str(session.path), version.id, mode, tuple(x.id for x in logs))
+    with _cache_lock:
+        hit = _features.get(key)
+    if hit is not None:
+        return hit
+    outs = stage1_outputs(session, version, bundle, logs)
+    lazy = [outs[x.id].lazy(mode) for x in logs]
+    if sum(f.shape[0] * f.shape[1] * 4 for f in lazy) > FEATURE_CACHE_BYTES:
+        return lazy  # too big to hold: each batch computes its rows from the memory-mapped cache
+    features = [outs[x.id].features(mode) for x in logs]
+    for f in features:
+        f.setflags(write=False)  # shared between retrains: nobody may change them
+    with _cache_lock:
+        _features.clear()
+        _features[key] = features
+    return features
+
+
+def log_change_points(samples: np.ndarray, surprise: np.ndarray | None, *, rate_hz: float) -> np.ndarray:
+    """Change points (sample indices) of one log over its z-scored channels and, when known, its surprise."""
+    x = np.asarray(samples, np.float32)
+    z = (x - x.mean(axis=0)) / (x.std(axis=0) + 1e-6)  # (T, C)
+    if surprise is not None:
+        z = np.column_stack([z, surprise])
+    return labeling.change_points(z, block=max(1, round(0.25 * rate_hz)))
+
+
+def consistency_pairs(
+    lengths: Sequence[int], change_points: Sequence[np.ndarray], config: TrainConfig
+) -> list[tuple[Piece, Piece]]:
+    """Stage 2's unlabelled neighbour pairs over logs of ``lengths`` samples: windows as long as a training piece
+    (context and labelled stretch), one labelled stretch apart, no change point between their last steps; a pair
+    starts every quarter stretch."""
+    window = config.context + config.label_piece
+    return neighbour_pairs(
+        lengths, window=window, gap=config.label_piece, stride=max(1, config.label_piece // 4), boundaries=change_points
+    )
+
+
+_CHANGE_POINTS: dict[tuple[str, int, int], np.ndarray] = {}  # (session, log, samples): a log's signals never change
+
+
+def signal_change_points(session: Session, log: LogInfo) -> np.ndarray:
+    """Change points of a log's signals, computed once per process (a log's samples never change)."""
+    key = (str(session.path), log.id, log.n_samples)
+    with _cache_lock:
+        hit = _CHANGE_POINTS.get(key)
+    if hit is None:  # computed outside the lock: seconds on a long log; two threads at once compute the same
+        hit = log_change_points(session.array(log.id), None, rate_hz=log.rate_hz)
+        with _cache_lock:
+            _CHANGE_POINTS[key] = hit
+    return hit
