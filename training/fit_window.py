@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.linear_model import LogisticRegression
-from sklearn.model_selection import GroupKFold
+from sklearn.model_selection import GroupKFold, StratifiedGroupKFold
 
 from .fit_classifier import ClassifierFit, Segment, fold_indices
 from .metrics import classification_metrics
@@ -136,6 +136,26 @@ def _pseudo_labels(
     return xs, ys
 
 
+def _log_folds(segments: Sequence[Segment], k: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Folds over segments that hold out whole logs (at most ``k``), terrains spread over them as evenly as whole
+    logs allow; none when fewer than two logs are labelled or a fold's training part would hold one terrain only."""
+    logs = np.asarray([s[0] for s in segments])
+    n_logs = len(np.unique(logs))
+    if n_logs < 2:
+        return []
+    labels = np.asarray([s[3] for s in segments])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # "least populated class has only N members"
+        try:
+            splitter = StratifiedGroupKFold(min(k, n_logs), shuffle=True, random_state=0)
+            folds = list(splitter.split(logs, labels, groups=logs))
+        except ValueError:  # every terrain has fewer segments than folds: whole logs, unstratified
+            folds = list(GroupKFold(min(k, n_logs)).split(logs, groups=logs))
+    if any(len({segments[i][3] for i in tr}) < 2 for tr, _ in folds):
+        return []
+    return folds
+
+
 def fit_window_classifier(
     features: Sequence[SpectralSteps],
     segments: Sequence[Segment],
@@ -160,7 +180,9 @@ def fit_window_classifier(
     Returns:
         The ensemble and out-of-fold metrics over every labelled step, each predicted by the fold model that did
         not train on it. ``metrics["c"]`` is the chosen regularisation, ``metrics["pseudo_stretches"]`` the mean
-        number of stretches a fold took as pseudo-labels.
+        number of stretches a fold took as pseudo-labels. ``metrics["held_out_logs"]`` (when two or more logs are
+        labelled) is the honest figure: each labelled step predicted by a model fitted without any label or
+        stretch of its log, from folds over logs (extra fits, not ensemble members).
     """
     if not segments:
         raise ValueError("no labelled segments to train the classifier on")
@@ -180,41 +202,74 @@ def fit_window_classifier(
     x_all, y_all = np.concatenate(seg_rows), np.concatenate(seg_y)
     groups = np.concatenate([np.full(len(r), j) for j, r in enumerate(seg_rows)])
     c = _choose_c(x_all, y_all, groups, k, config)
+
+    def fit_on(train_idx: np.ndarray, skip_logs: set[int]) -> tuple[np.ndarray, np.ndarray, int]:
+        """A fold's linear model on its segments, refitted with the stretches of logs outside ``skip_logs``."""
+        x = np.concatenate([seg_rows[i] for i in train_idx])
+        y = np.concatenate([seg_y[i] for i in train_idx])
+        w, b = _fit_linear(x, y, c, k, config)
+        rows = [r for r, s in zip(stretch_rows, stretches, strict=False) if s[0] not in skip_logs]
+        px, py = _pseudo_labels(w, b, rows, config.agree) if use_stretches else ([], [])
+        if px:
+            w, b = _fit_linear(np.concatenate([x, *px]), np.concatenate([y, *py]), c, k, config)
+        return w, b, len(px)
+
+    def predict(val_idx: np.ndarray, w: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Truth and prediction at every step of the segments ``val_idx``, as the passes score them."""
+        true, pred = [], []
+        for i in val_idx:
+            seq, a, stop, label = segments[i]
+            true.append(np.full(stop - a, label))
+            pred.append((standard(features[seq][a:stop]) @ w.T + b).argmax(1))
+        return np.concatenate(true), np.concatenate(pred)
+
     folds = fold_indices([s[3] for s in segments], config.k_folds, config.seed)
+    by_log = _log_folds(segments, config.k_folds)
     models, histories, oof_true, oof_pred, pseudo = [], [], [], [], []
     for f_i, (train_idx, val_idx) in enumerate(folds, start=1):
         if cancel():
             raise Cancelled("classifier training cancelled")
-        x = np.concatenate([seg_rows[i] for i in train_idx])
-        y = np.concatenate([seg_y[i] for i in train_idx])
-        w, b = _fit_linear(x, y, c, k, config)
-        taken = 0
-        if use_stretches:
-            px, py = _pseudo_labels(w, b, stretch_rows, config.agree)
-            taken = len(px)
-            if px:
-                w, b = _fit_linear(np.concatenate([x, *px]), np.concatenate([y, *py]), c, k, config)
+        w, b, taken = fit_on(train_idx, set())
         pseudo.append(taken)
         model = WindowClassifier(WindowClassifierConfig(features[0].shape[1], k))
         model.set_standardisation(mean, std)
         model.set_linear(w, b)
         models.append(model.eval())
-        val_true, val_pred = [], []
-        for i in val_idx:
-            seq, a, stop, label = segments[i]
-            logits = standard(features[seq][a:stop]) @ w.T + b  # every step, as the passes score it
-            val_true.append(np.full(stop - a, label))
-            val_pred.append(logits.argmax(1))
-        oof_true += val_true
-        oof_pred += val_pred
-        hits = np.concatenate(val_true) == np.concatenate(val_pred)
-        histories.append([{"epoch": 1, "c": c, "pseudo_stretches": taken, "val_accuracy": float(hits.mean())}])
+        true, pred = predict(val_idx, w, b)
+        oof_true.append(true)
+        oof_pred.append(pred)
+        histories.append(
+            [{"epoch": 1, "c": c, "pseudo_stretches": taken, "val_accuracy": float((true == pred).mean())}]
+        )
         if progress:
-            progress(Progress("classifier", f_i, len(folds), 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
+            done = len(folds) + len(by_log)
+            progress(Progress("classifier", f_i, done, 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
     metrics = classification_metrics(np.concatenate(oof_true), np.concatenate(oof_pred), classes)
     metrics["out_of_fold"] = len(folds) > 1
     metrics["n_segments"] = len(segments)
     metrics["labelled_samples"] = int(sum(s[2] - s[1] for s in segments))
     metrics["c"] = c
     metrics["pseudo_stretches"] = float(np.mean(pseudo))
+    if by_log:
+        held_true, held_pred = [], []
+        for f_i, (train_idx, val_idx) in enumerate(by_log, start=len(folds) + 1):
+            if cancel():
+                raise Cancelled("classifier training cancelled")
+            held = {segments[i][0] for i in val_idx}
+            w, b, _ = fit_on(train_idx, held)  # a held-out log lends no stretch either: it stays unseen
+            true, pred = predict(val_idx, w, b)
+            held_true.append(true)
+            held_pred.append(pred)
+            if progress:
+                total = len(folds) + len(by_log)
+                progress(Progress("classifier", f_i, total, 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
+        m = classification_metrics(np.concatenate(held_true), np.concatenate(held_pred), classes)
+        metrics["held_out_logs"] = {
+            "accuracy": m["accuracy"],
+            "macro_f1": m["macro_f1"],
+            "per_class_recall": m["per_class_recall"],
+            "folds": len(by_log),
+            "logs": len({s[0] for s in segments}),
+            "n": m["n"],
+        }
     return ClassifierFit(models, metrics, histories, [v.tolist() for _, v in folds])  # type: ignore[arg-type]

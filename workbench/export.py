@@ -66,6 +66,41 @@ def _architecture(bundle: ModelBundle) -> str:
     )
 
 
+def _held_out_section(m: dict) -> list[str]:
+    """The honest figure, when the fit measured it: accuracy on logs whose labels and signals trained nothing."""
+    held = m.get("held_out_logs")
+    if not held:
+        return []
+    return [
+        "## Held-out logs",
+        "",
+        f"Each labelled step predicted by a model fitted without any label or signal of its log ({held['folds']} "
+        f"folds over the {held['logs']} labelled logs). Expect this on logs the model never saw.",
+        "",
+        f"- accuracy: {held['accuracy']:.1%}",
+        f"- macro-F1: {held['macro_f1']:.3f}",
+        "",
+        "| terrain | recall |",
+        "| --- | --- |",
+        *[f"| {c} | {r:.1%} |" for c, r in held.get("per_class_recall", {}).items()],
+        "",
+    ]
+
+
+def _onnx_usage(bundle: ModelBundle) -> str:
+    if bundle.family == "default":
+        return (
+            "`classifier_stream.onnx` is the same step: inputs `x (B, C)`, `ring (B, L, C)`, `count (B, 1)`, "
+            "`frames (B, W, F)`, `n_frames (B, 1)` (all zeros at a stream's start); outputs `probs (B, K)` and the "
+            "new `ring, count, frames, n_frames`, fed back at the next sample."
+        )
+    return (
+        "`classifier_stream.onnx` is the same step: inputs `x (B, C)`, `h1, c1 (B, H1)`, `h2, c2 (M, B, H2)`, "
+        "`prev (B, C)`, `started (B, 1)` (zeros at a stream's start, then ones); outputs `probs (B, K)` and the new "
+        "states."
+    )
+
+
 def model_card(bundle: ModelBundle, *, version: int, session: str) -> str:
     """A Markdown description of a bundle: what it is, what it was trained on, how well it does."""
     m = bundle.metrics
@@ -86,6 +121,7 @@ def model_card(bundle: ModelBundle, *, version: int, session: str) -> str:
         f"- stage 2: {m.get('n_segments', '?')} labelled segments, {m.get('labelled_seconds', 0):.0f} s "
         f"({m.get('labelled_fraction', 0):.1%} of the time)",
         "",
+        *_held_out_section(m),
         "## Out-of-fold metrics (same logs)",
         "",
         "Each labelled step predicted, in a pass over its whole log, by the fold model that did not train on it. The "
@@ -118,9 +154,7 @@ def model_card(bundle: ModelBundle, *, version: int, session: str) -> str:
         "probs = clf.step(sample)   # one raw sample (channels above) -> probabilities of " + ", ".join(bundle.classes),
         "```",
         "",
-        "`classifier_stream.onnx` is the same step: inputs `x (B, C)`, `h1, c1 (B, H1)`, `h2, c2 (M, B, H2)`, "
-        "`prev (B, C)`, `started (B, 1)` (zeros at a stream's start, then ones); outputs `probs (B, K)` and the new "
-        "states.",
+        _onnx_usage(bundle),
     ]
     return "\n".join(lines) + "\n"
 

@@ -99,6 +99,8 @@ def test_the_ensemble_learns_terrains_it_was_not_shown_on_other_stretches(fitted
     assert len(fit.models) == 3 and fit.metrics["out_of_fold"]
     assert fit.metrics["accuracy"] > 0.9, fit.metrics
     assert fit.metrics["pseudo_stretches"] > 0  # agreeing stretches were taken
+    held = fit.metrics["held_out_logs"]  # folds over logs: 3 folds of 3 logs each held out
+    assert held["logs"] == 9 and held["folds"] == 3 and held["n"] == 9 * 600 and held["accuracy"] > 0.9
     probs = run_classifiers(bundle.classifiers, feats)
     for p, k in zip(probs, terrains, strict=True):
         unseen = p.mean(0)[1600:2400]  # never labelled, never a self-training stretch
@@ -114,6 +116,10 @@ def test_a_class_missing_from_a_fold_never_wins_and_two_classes_work(logs) -> No
     fit = fit_window_classifier(feats, two, ("a", "b", "c"), config=WindowFitConfig(k_folds=2, self_training=False))
     probs = run_classifiers(fit.models, feats)
     assert all((p.mean(0).argmax(1) != 2).all() for p in probs)
+    single = fit_window_classifier(feats[:1], [(0, 300, 900, 0), (0, 1200, 1800, 1)], ("a", "b", "c"))
+    assert "held_out_logs" not in single.metrics  # one labelled log: nothing to hold out
+    pair = fit_window_classifier(feats[:2], [(0, 300, 900, 0), (1, 300, 900, 1)], ("a", "b", "c"))
+    assert "held_out_logs" not in pair.metrics  # one terrain per log: a fold over logs would train on one
     assert fit.metrics["accuracy"] > 0.9
 
 

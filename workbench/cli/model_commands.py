@@ -151,6 +151,12 @@ def _train_classifier(
     finally:
         bar.close()
     m = v.metrics
+    held = m.get("held_out_logs")
+    if held:
+        print(
+            f"classifier: accuracy on held-out logs {held['accuracy']:.1%}, macro-F1 {held['macro_f1']:.3f} "
+            f"({held['folds']} folds over {held['logs']} labelled logs)"
+        )
     print(
         f"classifier v{v.id} ({v.config.get('model', 'paper')} family): out-of-fold accuracy (same logs) "
         f"{m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} on {m['n_segments']} segments "

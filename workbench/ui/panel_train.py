@@ -117,8 +117,11 @@ class TrainPanel:
         for v in reversed(versions):
             m = v.metrics
             if v.stage == "classifier":
+                held = m.get("held_out_logs")
                 what = (
-                    f"acc {100 * m.get('accuracy', float('nan')):.1f} % (same logs), "
+                    f"{v.config.get('model', 'paper')}: "
+                    + (f"acc {100 * held['accuracy']:.1f} % on held-out logs, " if held else "")
+                    + f"acc {100 * m.get('accuracy', float('nan')):.1f} % (same logs), "
                     f"F1 {m.get('macro_f1', float('nan')):.2f}, "
                     f"{m.get('labelled_seconds', 0):.0f} s labelled"
                     + (", quick fine-tune" if v.config.get("new_labels") is not None else "")
