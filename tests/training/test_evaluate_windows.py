@@ -124,3 +124,35 @@ def test_held_out_logs_protocol_reports_each_mode() -> None:
         log=lambda _: None,
     )
     assert set(res) == {"hidden", "error"} and all(len(v) == 2 for v in res.values())
+
+
+def test_runs_split_never_puts_a_run_on_both_sides() -> None:
+    from training import outer_folds
+
+    runs, labels = noisy_runs(10, 500)
+    _, y, run_of = partitions(runs, labels, 100)
+    for train, test in outer_folds(y, run_of, split="runs", folds=5, seed=0):
+        assert not set(run_of[train]) & set(run_of[test])
+    leaky = outer_folds(y, run_of, split="partitions", folds=5, seed=0)
+    assert any(set(run_of[train]) & set(run_of[test]) for train, test in leaky)  # the authors' folds do share runs
+
+
+def test_the_default_family_protocol_learns_easy_terrains_on_unseen_runs() -> None:
+    from training import WindowFitConfig, borealtc_window_protocol
+
+    runs, labels = noisy_runs(10, 1500)
+    proto = WindowProtocol(partition_s=5.0, window_s=1.7, stride_s=0.5, folds=2)
+    lines: list[str] = []
+    res = borealtc_window_protocol(
+        runs,
+        labels,
+        ["calm", "rough"],
+        rate_hz=100.0,
+        labelled=0.3,
+        split="runs",
+        protocol=proto,
+        fit=WindowFitConfig(k_folds=2),
+        log=lines.append,
+    )
+    assert len(res) == 2 and all("(runs)" in line and "pseudo-labelled" in line for line in lines)
+    assert all(r.windows > 0 for r in res) and np.mean([r.accuracy for r in res]) > 0.9

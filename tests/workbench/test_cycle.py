@@ -176,7 +176,11 @@ def test_cli_train_export_classify_labels(tmp_path: Path, demo_logs: list[Path],
     with Session.open(s) as session:
         seed_labels(session, 0.1, seed=2)
     assert main(["train", str(s), "--stage", "classifier", "--hidden", "8", "--max-epochs", "1"]) == 0
-    assert "out-of-fold accuracy" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "(default family): out-of-fold accuracy (same logs)" in out
+    paper = ["train", str(s), "--stage", "classifier", "--model", "paper", "--hidden", "8", "--max-epochs", "1"]
+    assert main(paper) == 0
+    assert "(paper family)" in capsys.readouterr().out
     assert main(["export", str(s), "--out", str(tmp_path / "x")]) == 0
     assert main(["classify", str(tmp_path / "x" / "bundle"), str(demo_logs[0]), "--out", str(tmp_path / "p.csv")]) == 0
     pred = pd.read_csv(tmp_path / "p.csv")
