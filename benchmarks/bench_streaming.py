@@ -185,8 +185,7 @@ def default_family_rows(paper: ModelBundle, rng: np.random.Generator, steps: int
                 Row(
                     "default family: streaming latency per sample, 1 stream, 5 members (median / p99 / mean)",
                     f"{fmt_s(med)} / {fmt_s(np.percentile(t_new, 99))} / {fmt_s(np.mean(t_new))}",
-                    f"paper family, fused: {fmt_s(ref)} / {fmt_s(np.percentile(t_ref, 99))} / "
-                    f"{fmt_s(np.mean(t_ref))}",
+                    f"paper family, fused: {fmt_s(ref)} / {fmt_s(np.percentile(t_ref, 99))} / {fmt_s(np.mean(t_ref))}",
                     f"{ref / med:.1f}× faster",
                     "≤ 50 µs median",
                     bool(med <= 50e-6),

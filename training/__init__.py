@@ -11,7 +11,16 @@ from .config import FEATURE_MODES, ClassifierConfig, ElasticNet, FeatureMode, Pr
 from .data import Normalizer, Piece, cut_pieces, neighbour_pairs, stage1_batch
 from .evaluate_sequences import held_out_logs_protocol, qcat_protocol
 from .evaluate_spectral import borealtc_window_protocol, window_summaries
-from .evaluate_windows import FoldResult, Split, WindowProtocol, borealtc_protocol, outer_folds, partitions, windows
+from .evaluate_windows import (
+    FoldResult,
+    Split,
+    WindowProtocol,
+    borealtc_protocol,
+    labelled_subset,
+    outer_folds,
+    partitions,
+    windows,
+)
 from .fit_classifier import ClassifierFit, fit_classifier
 from .fit_predictor import PredictorFit, fit_predictor, split_pieces
 from .fit_window import Stretch, WindowFitConfig, fit_window_classifier
@@ -95,6 +104,7 @@ __all__ = [
     "frame_ends",
     "frame_features",
     "held_out_logs_protocol",
+    "labelled_subset",
     "load_bundle",
     "load_checkpoint",
     "log_frames",

@@ -2,7 +2,16 @@
 report and plot."""
 
 from .label_efficiency import SimSettings, report, simulate_logs, simulate_partitions
-from .protocols import BOREALTC_PUBLISHED, evaluate_borealtc, evaluate_demo, evaluate_qcat, load_runs, simulate
+from .protocols import (
+    BOREALTC_PUBLISHED,
+    evaluate_borealtc,
+    evaluate_demo,
+    evaluate_qcat,
+    load_recordings,
+    load_runs,
+    simulate,
+    truth_arrays,
+)
 from .session_eval import evaluate_session
 
 __all__ = [
@@ -12,9 +21,11 @@ __all__ = [
     "evaluate_demo",
     "evaluate_qcat",
     "evaluate_session",
+    "load_recordings",
     "load_runs",
     "report",
     "simulate",
     "simulate_logs",
     "simulate_partitions",
+    "truth_arrays",
 ]

@@ -4,6 +4,7 @@ every label so far, with self-training on the pool's unlabelled stretches, as th
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -56,7 +57,8 @@ class WindowLearner:
             return labeling.Round([labeling.LogScores(e) for e in self.pool_error], float("nan"))
         segments = [(int(log), int(a), int(b), int(c)) for log, a, b, c in labels]
         stretches = self._stretches(labels) if self.fit.self_training else []
-        fit = fit_window_classifier(self.pool, segments, self.classes, config=self.fit, stretches=stretches)
+        settings = replace(self.fit, held_out=False)  # the simulation measures held-out logs itself
+        fit = fit_window_classifier(self.pool, segments, self.classes, config=settings, stretches=stretches)
         scores = score_logs(fit.models, self.pool, self.pool_error, batch=256)
         y_true, y_pred = self.test_predict(fit.models)
         m = classification_metrics(y_true, y_pred, self.classes)
