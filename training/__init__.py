@@ -34,7 +34,7 @@ from .inference import (
     run_predictor,
 )
 from .losses import classifier_loss, elastic_net, predictor_loss
-from .metrics import classification_metrics
+from .metrics import classification_metrics, expected_calibration_error
 from .models import Classifier, Predictor
 from .onnx_export import check_onnx, export_onnx, run_onnx
 from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
@@ -97,6 +97,7 @@ __all__ = [
     "distributed",
     "elastic_net",
     "ensemble_pass",
+    "expected_calibration_error",
     "export_onnx",
     "fit_classifier",
     "fit_predictor",

@@ -18,7 +18,7 @@ import numpy as np
 from .data import Normalizer
 from .evaluate_windows import FoldResult, Split, WindowProtocol, labelled_subset, outer_folds, partitions
 from .fit_window import WindowFitConfig, fit_window_classifier
-from .metrics import classification_metrics
+from .metrics import classification_metrics, expected_calibration_error
 from .spectral import SpectralConfig, SpectralSteps, frame_features, log_summaries, summary_windows
 
 
@@ -86,12 +86,14 @@ def borealtc_window_protocol(
         probs = np.mean([m(_tensor(x))[0][0].softmax(-1).detach().numpy() for m in cfit.models], axis=0)  # (N, K)
         y_true = y[test_idx][owner]
         m = classification_metrics(y_true, probs.argmax(1), classes)
+        m["calibration_error"] = expected_calibration_error(probs, y_true)
         m["pseudo_stretches"] = cfit.metrics["pseudo_stretches"]
         m["c"] = cfit.metrics["c"]
         results.append(FoldResult(fold, m["accuracy"], m["macro_f1"], len(x), len(chosen), time.monotonic() - t0, m))
         log(
             f"fold {fold} ({split}): accuracy {m['accuracy']:.2%}, macro-F1 {m['macro_f1']:.3f} on {len(x)} windows "
             f"({len(chosen)} labelled partitions, {m['pseudo_stretches']:.0f} pseudo-labelled, C {m['c']:g}, "
+            f"calibration error {m['calibration_error']:.3f}, "
             f"{time.monotonic() - t0:.0f} s)"
         )
     return results

@@ -27,3 +27,17 @@ def classification_metrics(y_true: np.ndarray, y_pred: np.ndarray, classes: Sequ
         "classes": list(classes),
         "n": len(y_true),
     }
+
+
+def expected_calibration_error(probs: np.ndarray, y_true: np.ndarray, *, bins: int = 15) -> float:
+    """How far confidence is from accuracy: the mean over equal-width confidence bins of ``|accuracy − confidence|``,
+    weighted by the bin's share of samples (Guo et al., 2017). ``probs (N, K)``, ``y_true (N,)``; 0 is calibrated."""
+    confidence = probs.max(axis=1)
+    hit = probs.argmax(axis=1) == y_true
+    which = np.minimum((confidence * bins).astype(int), bins - 1)
+    total = 0.0
+    for b in range(bins):
+        members = which == b
+        if members.any():
+            total += members.mean() * abs(hit[members].mean() - confidence[members].mean())
+    return float(total)

@@ -146,3 +146,16 @@ def test_a_bundle_whose_front_end_was_changed_is_refused(fitted, tmp_path) -> No
     (tmp_path / "b" / "model.json").write_text(json.dumps(config))
     with pytest.raises(BundleError, match="spectral front end"):
         load_bundle(tmp_path / "b")
+
+
+def test_calibration_error_is_zero_when_confidence_matches_accuracy() -> None:
+    from training import expected_calibration_error
+
+    rng = np.random.default_rng(0)
+    y = rng.integers(0, 2, 10_000)
+    right = rng.random(10_000) < 0.8  # 80 % right at 80 % confidence: calibrated
+    guess = np.where(right, y, 1 - y)
+    probs = np.where(guess[:, None] == np.arange(2), 0.8, 0.2)
+    assert expected_calibration_error(probs, y) < 0.02
+    sure = np.where(guess[:, None] == np.arange(2), 0.99, 0.01)  # the same guesses, claimed at 99 %
+    assert abs(expected_calibration_error(sure, y) - 0.19) < 0.02
