@@ -67,7 +67,7 @@ def borealtc_window_protocol(
     protocol = protocol or WindowProtocol()
     size, win, stride = (round(s * rate_hz) for s in (protocol.partition_s, protocol.window_s, protocol.stride_s))
     parts, y, run_of = partitions(runs, labels, size)
-    fit = replace(fit or WindowFitConfig(), seed=seed)
+    fit = replace(fit or WindowFitConfig(), seed=seed, held_out=False)  # the protocol holds out its own test fold
     results = []
     for fold, (train_idx, test_idx) in enumerate(
         outer_folds(y, run_of, split=split, folds=protocol.folds, seed=seed), start=1
