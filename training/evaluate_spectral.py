@@ -18,6 +18,7 @@ import numpy as np
 from .data import Normalizer
 from .evaluate_windows import FoldResult, Split, WindowProtocol, labelled_subset, outer_folds, partitions
 from .fit_window import WindowFitConfig, fit_window_classifier
+from .inference import run_classifiers
 from .metrics import classification_metrics, expected_calibration_error
 from .spectral import SpectralConfig, SpectralSteps, frame_features, log_summaries, summary_windows
 
@@ -83,7 +84,7 @@ def borealtc_window_protocol(
         stretches = [(j, first, size) for j, i in enumerate(train_idx) if i not in chosen]
         cfit = fit_window_classifier(features, segments, classes, config=fit, stretches=stretches)
         x, owner = window_summaries([parts[i] for i in test_idx], win, stride, config, normalizer)
-        probs = np.mean([m(_tensor(x))[0][0].softmax(-1).detach().numpy() for m in cfit.models], axis=0)  # (N, K)
+        probs = run_classifiers(cfit.models, [x])[0].mean(0)  # (N, K): the windows as steps, the model is per step
         y_true = y[test_idx][owner]
         m = classification_metrics(y_true, probs.argmax(1), classes)
         m["calibration_error"] = expected_calibration_error(probs, y_true)
@@ -97,9 +98,3 @@ def borealtc_window_protocol(
             f"{time.monotonic() - t0:.0f} s)"
         )
     return results
-
-
-def _tensor(x: np.ndarray):
-    import torch
-
-    return torch.from_numpy(x)[None]  # (1, N, 2F): the windows as steps of one sequence (the model is per step)

@@ -73,9 +73,17 @@ def _rows(features: SpectralSteps, start: int, stop: int) -> np.ndarray:
 
 
 def _moments(features: Sequence[SpectralSteps]) -> tuple[np.ndarray, np.ndarray]:
-    """Per-input mean and spread over every frame of every log (each frame stands for ``hop`` steps alike)."""
-    rows = np.concatenate([np.asarray(f.summaries, np.float64) for f in features if len(f.summaries)])
-    return rows.mean(0).astype(np.float32), rows.std(0).astype(np.float32)
+    """Per-input mean and spread over every frame of every log (each frame stands for ``hop`` steps alike), summed
+    a log at a time: a fleet's summaries never sit in memory together."""
+    n, total, total_sq = 0, 0.0, 0.0
+    for f in features:
+        rows = np.asarray(f.summaries, np.float64)  # (N, 2F) of one log
+        n += len(rows)
+        total = total + rows.sum(0)
+        total_sq = total_sq + np.square(rows).sum(0)
+    mean = total / max(n, 1)
+    std = np.sqrt(np.maximum(total_sq / max(n, 1) - np.square(mean), 0.0))
+    return np.asarray(mean, np.float32), np.asarray(std, np.float32)
 
 
 def _learner(c: float, config: WindowFitConfig) -> LogisticRegression:

@@ -163,6 +163,7 @@ class SpectralStream:
         self.count = np.zeros(streams, np.int64)  # samples seen per stream
         self.last = np.zeros((streams, config.width), np.float32)  # (B, F)
         self.known = np.zeros(streams, bool)
+        self.completed = np.zeros(streams, bool)  # which streams completed a frame at the last step
 
     def reset(self, stream: int | None = None) -> None:
         """Forget one stream (or all): its next sample starts a log."""
@@ -179,6 +180,7 @@ class SpectralStream:
         self.ring[np.arange(len(x)), pos] = x
         self.count += 1
         done = (self.count >= cfg.frame) & ((self.count - cfg.frame) % cfg.hop == 0)
+        self.completed = done
         for b in np.flatnonzero(done):
             start = self.count[b] % cfg.frame  # the ring's oldest sample
             frame = np.roll(self.ring[b], -start, axis=0)  # (L, C) oldest first

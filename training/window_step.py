@@ -57,12 +57,10 @@ class WindowStep:
     def __call__(self, x: np.ndarray) -> np.ndarray:
         feats, _ = self.front.step((x - self.mean) * self.inv_std)  # (B, F) last complete frame
         cfg = self.config
-        done = (self.front.count >= cfg.frame) & ((self.front.count - cfg.frame) % cfg.hop == 0)  # (B,)
-        for b in np.flatnonzero(done):
+        for b in np.flatnonzero(self.front.completed):
             self.frames[b, self.n_frames[b] % cfg.window] = feats[b]
             self.n_frames[b] += 1
-            n = min(int(self.n_frames[b]), cfg.window)
-            held = self.frames[b, :n] if self.n_frames[b] <= cfg.window else self.frames[b]
+            held = self.frames[b, : min(int(self.n_frames[b]), cfg.window)]  # (n, F) the frames in the window
             summary = np.concatenate([held.mean(0), held.std(0)]).astype(np.float32)[None]  # (1, 2F)
             self.probs[b] = self._probs(summary)[0]
         return self.probs

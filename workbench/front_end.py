@@ -88,9 +88,12 @@ def unlabelled_stretches(
     labelled step is already known, so neither is inside one. Spans shorter than ``shortest`` (one summary window)
     are left out: no frame of theirs summarises them alone.
     """
+    by_log: dict[int, list[tuple[int, int]]] = {}
+    for s in segments:
+        by_log.setdefault(s.log_id, []).append((s.start, s.stop))
     out = []
     for i, log in enumerate(logs):
-        labelled = [(s.start, s.stop) for s in segments if s.log_id == log.id]
+        labelled = by_log.get(log.id, [])
         longest = max(shortest, int(STRETCH_S * log.rate_hz))
         spans = free_stretches(log.n_samples, change_points(log), labelled, longest=longest, shortest=shortest)
         out += [(i, a, b) for a, b in spans]

@@ -171,13 +171,14 @@ def report(curves, *, total: int, rate_hz: float, title: str, out: Path | None) 
     return "\n".join(lines)
 
 
-def _default_learner(logs, pool, test, truth, errors, cps, classes, normalizer, rate_hz, seed) -> WindowLearner:
-    """The default family's learner on demo-style logs: summaries of whole logs, as a session caches them."""
+def _log_spectra(logs, normalizer, rate_hz) -> list[SpectralSteps]:
+    """Every log's per-step spectral summaries, as a session caches them (computed once per simulation)."""
     front = SpectralConfig.for_log(np.concatenate(list(logs[:5])), rate_hz)
-    spectra = {
-        i: SpectralSteps(log_summaries(logs[i], front, transform=normalizer), len(logs[i]), front)
-        for i in [*pool, *test]
-    }
+    return [SpectralSteps(log_summaries(x, front, transform=normalizer), len(x), front) for x in logs]
+
+
+def _default_learner(spectra, pool, test, truth, errors, cps, classes, rate_hz, seed) -> WindowLearner:
+    """The default family's learner on demo-style logs."""
 
     def test_predict(models):
         probs = run_classifiers(models, [spectra[i] for i in test], batch=256)
@@ -244,9 +245,11 @@ def simulate_logs(
         pairs = consistency_pairs([len(f) for f in pool_feats], cps, cfg2)
         log(f"consistency {settings.consistency:g}: {len(pairs)} pairs of unlabelled neighbouring windows in the pool")
 
+    spectra = _log_spectra(logs, pfit.normalizer, rate_hz) if settings.model == "default" else []
+
     def learner(seed: int) -> FeatureLearner | WindowLearner:
         if settings.model == "default":
-            return _default_learner(logs, pool, test, truth, errors, cps, classes, pfit.normalizer, rate_hz, seed)
+            return _default_learner(spectra, pool, test, truth, errors, cps, classes, rate_hz, seed)
         return FeatureLearner(
             pool_feats,
             [errors[i] for i in pool],
