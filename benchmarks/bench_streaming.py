@@ -28,7 +28,7 @@ from training import (
     StreamingClassifier,
     WindowClassifier,
     WindowClassifierConfig,
-    log_summaries,
+    log_frames,
     run_classifiers,
     run_predictor,
 )
@@ -154,17 +154,20 @@ def default_bundle(paper: ModelBundle, seed: int = 0) -> ModelBundle:
     """The default family at the same 22 channels (10 fast at 100 Hz, 12 held: demo-like), 5 members, 6 terrains."""
     torch.manual_seed(seed)
     front = SpectralConfig(frame=40, hop=20, fast=tuple(range(10)), slow=tuple(range(10, C)))
-    members = [WindowClassifier(WindowClassifierConfig(front.summary_width, K)).eval() for _ in range(MEMBERS)]
+    members = [
+        WindowClassifier(WindowClassifierConfig(front.step_width, K, window=front.window)).eval()
+        for _ in range(MEMBERS)
+    ]
     return replace(paper, classifiers=members, feature_mode="spectral", spectral=front)
 
 
 def default_family_rows(paper: ModelBundle, rng: np.random.Generator, steps: int) -> list[Row]:
-    """The default family's step (front end every sample, summary and products when a frame completes), against the
+    """The default family's step (front end every sample, the window network when a frame completes), against the
     paper family's fused step at the same channels, measured in the same run."""
     bundle = default_bundle(paper)
     log = rng.normal(size=(max(steps, 1000), C)).astype(np.float32)
     offline = run_classifiers(
-        bundle.classifiers, [SpectralSteps(log_summaries(log, bundle.spectral), len(log), bundle.spectral)]
+        bundle.classifiers, [SpectralSteps(log_frames(log, bundle.spectral), len(log), bundle.spectral)]
     )[0].mean(0)
     streamed = StreamingClassifier(bundle).run(log)
     check = (

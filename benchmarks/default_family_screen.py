@@ -29,17 +29,32 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from training import (
     Normalizer,
     SpectralConfig,
+    frame_features,
     labelled_subset,
     log_summaries,
     outer_folds,
     partitions,
-    window_summaries,
+    summary_windows,
 )
 from workbench.evaluation import load_runs
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "borealtc"
 C_GRID = (0.01, 0.1, 1.0, 10.0)
 AGREE = 0.9
+
+
+def window_summaries(parts, window: int, stride: int, config: SpectralConfig, normalizer: Normalizer):
+    """Every ``window``-sample window at ``stride`` of each partition, summarised on its own (mean and spread of its
+    frames): ``(N, 2F)`` and the partition of each."""
+    out, owner = [], []
+    for i, p in enumerate(parts):
+        z = normalizer(p)
+        for start in range(0, len(p) - window + 1, stride):
+            out.append(
+                summary_windows(frame_features(z[start : start + window], config), frames_per_window=config.window)[-1]
+            )
+            owner.append(i)
+    return np.asarray(out, np.float32), np.asarray(owner)
 
 
 def _lr(x: np.ndarray, y: np.ndarray, c: float) -> LogisticRegression:

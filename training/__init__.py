@@ -10,7 +10,7 @@ from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint
 from .config import FEATURE_MODES, ClassifierConfig, ElasticNet, FeatureMode, PredictorConfig, TrainConfig, to_dict
 from .data import Normalizer, Piece, cut_pieces, neighbour_pairs, stage1_batch
 from .evaluate_sequences import held_out_logs_protocol, qcat_protocol
-from .evaluate_spectral import borealtc_window_protocol, window_summaries
+from .evaluate_spectral import borealtc_window_protocol, window_inputs
 from .evaluate_windows import (
     FoldResult,
     Split,
@@ -48,6 +48,7 @@ from .spectral import (
     log_summaries,
     per_step,
     split_channels,
+    stacked_frames,
     summary_windows,
 )
 from .stream import StreamingClassifier
@@ -127,9 +128,10 @@ __all__ = [
     "save_checkpoint",
     "split_channels",
     "split_pieces",
+    "stacked_frames",
     "stage1_batch",
     "summary_windows",
     "to_dict",
-    "window_summaries",
+    "window_inputs",
     "windows",
 ]

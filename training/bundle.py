@@ -18,7 +18,7 @@ from .data import Normalizer
 from .models import Classifier, Predictor
 from .spectral import SpectralConfig
 from .training_errors import BundleError
-from .window_classifier import WINDOW_KIND, WindowClassifier, WindowClassifierConfig
+from .window_classifier import OLD_WINDOW_KINDS, WINDOW_KIND, WindowClassifier, WindowClassifierConfig
 
 BUNDLE_SCHEMA = 1
 CONFIG_FILE = "model.json"
@@ -128,6 +128,11 @@ def load_bundle(directory: str | Path) -> ModelBundle:
         raise BundleError(f"{directory}: not a model bundle ({exc})") from None
     if int(cfg.get("schema", 0)) > BUNDLE_SCHEMA:
         raise BundleError(f"{directory}: bundle schema {cfg['schema']} is newer than this workbench ({BUNDLE_SCHEMA})")
+    if (cfg.get("classifier") or {}).get("kind") in OLD_WINDOW_KINDS:
+        raise BundleError(
+            f"{directory}: a default-family classifier from an older workbench (a linear model on window summaries); "
+            "train it again (workbench train SESSION): labels are kept"
+        )
     try:
         _check_shapes(directory, cfg)  # before any module is built: model.json's sizes allocate memory
         spectral = _spectral(directory, cfg)
@@ -171,7 +176,7 @@ def _spectral(directory: Path, cfg: dict) -> SpectralConfig | None:
         0 < spectral.hop <= spectral.frame <= 1 << 16
         and 0 < spectral.window <= 1 << 12
         and all(0 <= c < n for c in (*spectral.fast, *spectral.slow))
-        and (not cfg.get("classifier") or cfg["classifier"]["n_features"] == spectral.summary_width)
+        and (not cfg.get("classifier") or cfg["classifier"]["n_features"] == spectral.step_width)
     )
     if not sane:
         raise BundleError(f"{directory}: model.json's spectral front end does not fit its channels and classifier")

@@ -20,20 +20,20 @@ from .evaluate_windows import FoldResult, Split, WindowProtocol, labelled_subset
 from .fit_window import WindowFitConfig, fit_window_classifier
 from .inference import run_classifiers
 from .metrics import classification_metrics, expected_calibration_error
-from .spectral import SpectralConfig, SpectralSteps, frame_features, log_summaries, summary_windows
+from .spectral import SpectralConfig, SpectralSteps, frame_features, log_frames, stacked_frames
 
 
-def window_summaries(
+def window_inputs(
     parts: Sequence[np.ndarray], window: int, stride: int, config: SpectralConfig, normalizer: Normalizer
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Every ``window``-sample window at ``stride`` of each partition, summarised on its own as the classifier sees
-    its last step: ``(N, 2F)`` and the partition of each."""
+    """Every ``window``-sample window at ``stride`` of each partition, framed on its own as the classifier sees its
+    last step: ``(N, W·F)`` stacked frames and the partition of each."""
     out, owner = [], []
     for i, p in enumerate(parts):
         z = normalizer(p)
         for start in range(0, len(p) - window + 1, stride):
             frames = frame_features(z[start : start + window], config)  # (frames, F)
-            out.append(summary_windows(frames, frames_per_window=config.window)[-1])
+            out.append(stacked_frames(frames, np.asarray([len(frames) - 1]), config.window)[0])
             owner.append(i)
     return np.asarray(out, np.float32), np.asarray(owner)
 
@@ -77,23 +77,22 @@ def borealtc_window_protocol(
         train = [parts[i] for i in train_idx]
         normalizer = Normalizer.fit(train)
         config = SpectralConfig.for_log(np.concatenate(train[:50]), rate_hz)
-        features = [SpectralSteps(log_summaries(p, config, transform=normalizer), len(p), config) for p in train]
+        features = [SpectralSteps(log_frames(p, config, transform=normalizer), len(p), config) for p in train]
         chosen = set(labelled_subset(train_idx, y, labelled, seed=seed + fold).tolist())
-        first = config.span - 1  # the first step whose summary spans a full window
+        first = config.span - 1  # the first step whose window holds full frames only
         segments = [(j, first, size, int(y[i])) for j, i in enumerate(train_idx) if i in chosen]
         stretches = [(j, first, size) for j, i in enumerate(train_idx) if i not in chosen]
         cfit = fit_window_classifier(features, segments, classes, config=fit, stretches=stretches)
-        x, owner = window_summaries([parts[i] for i in test_idx], win, stride, config, normalizer)
+        x, owner = window_inputs([parts[i] for i in test_idx], win, stride, config, normalizer)
         probs = run_classifiers(cfit.models, [x])[0].mean(0)  # (N, K): the windows as steps, the model is per step
         y_true = y[test_idx][owner]
         m = classification_metrics(y_true, probs.argmax(1), classes)
         m["calibration_error"] = expected_calibration_error(probs, y_true)
         m["pseudo_stretches"] = cfit.metrics["pseudo_stretches"]
-        m["c"] = cfit.metrics["c"]
         results.append(FoldResult(fold, m["accuracy"], m["macro_f1"], len(x), len(chosen), time.monotonic() - t0, m))
         log(
             f"fold {fold} ({split}): accuracy {m['accuracy']:.2%}, macro-F1 {m['macro_f1']:.3f} on {len(x)} windows "
-            f"({len(chosen)} labelled partitions, {m['pseudo_stretches']:.0f} pseudo-labelled, C {m['c']:g}, "
+            f"({len(chosen)} labelled partitions, {m['pseudo_stretches']:.0f} pseudo-labelled, "
             f"calibration error {m['calibration_error']:.3f}, "
             f"{time.monotonic() - t0:.0f} s)"
         )

@@ -1,14 +1,16 @@
 """Stage 2 of the default family: the window classifier from labelled segments and, by self-training, from
 unlabelled stretches too; a k-fold ensemble with out-of-fold metrics, as the paper family's stage 2.
 
-Each fold is a multinomial logistic regression (scikit-learn's, L2 or elastic-net penalty) on the frame rows of its
-segments: a step's input changes only when a frame completes, so one row per frame is the whole training set, with
-no repeats. The regularisation is chosen once per fit by inner folds grouped by segment over the labelled rows.
+Each fold is a small network (:class:`~training.window_classifier.WindowClassifier`) trained with AdamW on the frame
+rows of its segments: a step's input changes only when a frame completes, so one row per frame is the whole training
+set, with no repeats. Weight decay, dropout and input noise regularise it; the settings were chosen on BorealTC's
+inner folds (``benchmarks/default_family_cnn.py``), never on its test folds.
 
-Self-training, a fixed rule measured on BorealTC (``benchmarks/spectral_baseline.py``; +3 to +4 points at 10 % of
-labels): each fold model labels every unlabelled stretch (a span with no change point and no label); a stretch whose
-frames agree on one terrain (``agree`` of them) lends it to all of its frames, and the fold is fitted again on its
-labels and these pseudo-labels. Its out-of-fold figures stay honest: stretches never hold a labelled step.
+Self-training, a fixed rule measured on BorealTC (+3 to +4 points at 10 % of labels for the linear model, +2 to +4
+for the network): each fold model labels every unlabelled stretch (a span with no change point and no label); a
+stretch whose frames agree on one terrain (``agree`` of them) lends it to all of its frames, and the fold is trained
+again on its labels and these pseudo-labels. Its out-of-fold figures stay honest: stretches never hold a labelled
+step.
 """
 
 from __future__ import annotations
@@ -19,9 +21,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.linear_model import LogisticRegression
+import torch
 from sklearn.model_selection import GroupKFold, StratifiedGroupKFold
+from torch.nn import functional as F
 
 from .fit_classifier import ClassifierFit, Segment, fold_indices
 from .metrics import classification_metrics
@@ -30,6 +32,7 @@ from .spectral import SpectralSteps
 from .window_classifier import WindowClassifier, WindowClassifierConfig
 
 PSEUDO_STRIDE = 3  # rows of a stretch self-training reads: every third frame
+PREDICT_CHUNK = 4096  # steps per call when scoring segments: bounds the stacked frames in memory
 Stretch = tuple[int, int, int]  # (log index, start, stop): unlabelled, no change point inside
 
 
@@ -39,24 +42,31 @@ class WindowFitConfig:
 
     Attributes:
         k_folds: Folds over segments; the fold models form the ensemble.
-        c_grid: Inverse regularisation strengths the inner folds choose from.
-        inner_folds: Inner folds (grouped by segment) that choose ``C``.
-        l1_ratio: 0 is the L2 penalty (L-BFGS); above 0 the elastic net ``l1_ratio·|w| + (1 − l1_ratio)·w²`` of the
-            paper's losses (SAGA, slower).
+        hidden: Channels of the network's convolutions.
+        epochs: Passes over the labelled rows.
+        refit_epochs: Passes over labelled and pseudo-labelled rows when self-training refits.
+        max_steps: Most optimiser steps of one fit, whatever the data's size (bounds a Retrain on a big session).
+        batch: Rows per optimiser step.
+        lr: AdamW learning rate.
+        weight_decay: AdamW's decoupled L2 penalty.
+        noise: Standard deviation of Gaussian noise on the standardised frames while training.
         self_training: Refit each fold with pseudo-labelled stretches.
         agree: Share of a stretch's frames that must agree before it is pseudo-labelled.
-        max_iter: Solver iterations.
         held_out: Also measure accuracy on held-out logs (folds over logs: as many fits again).
-        seed: Seed of the folds and solvers.
+        seed: Seed of the folds, initial weights and batches.
     """
 
     k_folds: int = 5
-    c_grid: tuple[float, ...] = (0.01, 0.1, 1.0, 10.0)
-    inner_folds: int = 3
-    l1_ratio: float = 0.0
+    hidden: int = 64
+    epochs: int = 60
+    refit_epochs: int = 30
+    max_steps: int = 2000
+    batch: int = 128
+    lr: float = 3e-3
+    weight_decay: float = 1e-2
+    noise: float = 0.05
     self_training: bool = True
     agree: float = 0.9
-    max_iter: int = 1000
     held_out: bool = True
     seed: int = 0
 
@@ -73,11 +83,11 @@ def _rows(features: SpectralSteps, start: int, stop: int) -> np.ndarray:
 
 
 def _moments(features: Sequence[SpectralSteps]) -> tuple[np.ndarray, np.ndarray]:
-    """Per-input mean and spread over every frame of every log (each frame stands for ``hop`` steps alike), summed
-    a log at a time: a fleet's summaries never sit in memory together."""
+    """Per-feature mean and spread of a frame over every frame of every log, summed a log at a time: a fleet's
+    frames never sit in memory together."""
     n, total, total_sq = 0, 0.0, 0.0
     for f in features:
-        rows = np.asarray(f.summaries, np.float64)  # (N, 2F) of one log
+        rows = np.asarray(f.frames, np.float64)  # (N, F) of one log
         n += len(rows)
         total = total + rows.sum(0)
         total_sq = total_sq + np.square(rows).sum(0)
@@ -86,62 +96,57 @@ def _moments(features: Sequence[SpectralSteps]) -> tuple[np.ndarray, np.ndarray]
     return np.asarray(mean, np.float32), np.asarray(std, np.float32)
 
 
-def _learner(c: float, config: WindowFitConfig) -> LogisticRegression:
-    if config.l1_ratio > 0:
-        return LogisticRegression(
-            C=c, penalty="elasticnet", l1_ratio=config.l1_ratio, solver="saga", max_iter=config.max_iter, tol=1e-3
-        )
-    return LogisticRegression(C=c, max_iter=config.max_iter)
+def _train(
+    model: WindowClassifier,
+    x: np.ndarray,
+    y: np.ndarray,
+    epochs: int,
+    config: WindowFitConfig,
+    seed: int,
+    cancel: CancelFn,
+) -> WindowClassifier:
+    """``epochs`` passes of AdamW over rows ``x (N, W·F)`` with classes ``y (N,)`` (at most ``config.max_steps``)."""
+    gen = torch.Generator().manual_seed(seed)
+    xt, yt = torch.from_numpy(np.ascontiguousarray(x, np.float32)), torch.from_numpy(np.asarray(y, np.int64))
+    opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    per_epoch = -(-len(xt) // config.batch)
+    epochs = max(1, min(epochs, config.max_steps // max(per_epoch, 1)))
+    model.train()
+    for _ in range(epochs):
+        if cancel():
+            raise Cancelled("classifier training cancelled")
+        for idx in torch.randperm(len(xt), generator=gen).split(config.batch):
+            xb = xt[idx]
+            noise = torch.randn(xb.shape, generator=gen) * config.noise
+            xb = xb + noise / model.in_scale.repeat(model.config.window)  # the noise is in standardised units
+            loss = F.cross_entropy(model.logits(xb), yt[idx])
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+        if not torch.isfinite(loss):
+            raise ValueError("the window classifier's training diverged (a non-finite loss)")
+    return model.eval()
 
 
-def _fit_linear(
-    x: np.ndarray, y: np.ndarray, c: float, n_classes: int, config: WindowFitConfig
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(K, F)`` weights and ``(K,)`` bias over all ``n_classes``; a class absent from ``y`` never wins."""
-    present = np.unique(y)
-    w = np.zeros((n_classes, x.shape[1]), np.float32)
-    b = np.full(n_classes, -30.0, np.float32)
-    if len(present) == 1:
-        b[present[0]] = 30.0
-        return w, b
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        model = _learner(c, config).fit(x, y)
-    if len(model.classes_) == 2:  # scikit-learn keeps one row for two classes: the second's logit over the first's
-        w[model.classes_[0]], b[model.classes_[0]] = 0.0, 0.0
-        w[model.classes_[1]], b[model.classes_[1]] = model.coef_[0], model.intercept_[0]
-    else:
-        w[model.classes_] = model.coef_
-        b[model.classes_] = model.intercept_
-    return w, b
-
-
-def _choose_c(x: np.ndarray, y: np.ndarray, groups: np.ndarray, n_classes: int, config: WindowFitConfig) -> float:
-    """The ``C`` of ``config.c_grid`` with the best accuracy over inner folds grouped by segment."""
-    n_inner = min(config.inner_folds, len(np.unique(groups)))
-    if n_inner < 2 or len(config.c_grid) == 1:
-        return config.c_grid[len(config.c_grid) // 2]
-    best, choice = -1.0, config.c_grid[0]
-    for c in config.c_grid:
-        hits = 0
-        for tr, va in GroupKFold(n_inner).split(x, y, groups):
-            w, b = _fit_linear(x[tr], y[tr], c, n_classes, config)
-            hits += int(((x[va] @ w.T + b).argmax(1) == y[va]).sum())
-        if hits > best:
-            best, choice = hits, c
-    return choice
+@torch.inference_mode()
+def _predict_rows(model: WindowClassifier, x: np.ndarray) -> np.ndarray:
+    """Classes of rows ``(N, W·F)``."""
+    if len(x) == 0:
+        return np.zeros(0, np.int64)
+    chunks = np.array_split(x, -(-len(x) // PREDICT_CHUNK))
+    return torch.cat([model.logits(torch.from_numpy(c)).argmax(1) for c in chunks]).numpy()
 
 
 def _pseudo_labels(
-    w: np.ndarray, b: np.ndarray, stretch_rows: Sequence[np.ndarray], agree: float
+    model: WindowClassifier, stretch_rows: Sequence[np.ndarray], agree: float
 ) -> tuple[list[np.ndarray], list[np.ndarray]]:
     xs, ys = [], []
+    k = model.config.n_classes
     for rows in stretch_rows:
         if len(rows) == 0:
             continue
-        guess = (rows @ w.T + b).argmax(1)
-        counts = np.bincount(guess, minlength=len(b))
-        if counts.max() >= agree * len(guess):
+        counts = np.bincount(_predict_rows(model, rows), minlength=k)
+        if counts.max() >= agree * len(rows):
             xs.append(rows)
             ys.append(np.full(len(rows), counts.argmax()))
     return xs, ys
@@ -180,7 +185,7 @@ def fit_window_classifier(
     """Fit the k fold models on labelled segments (and unlabelled stretches, with self-training).
 
     Args:
-        features: Per log, its per-step spectral summaries.
+        features: Per log, its per-step spectral frames.
         segments: Labelled stretches ``(log index, start, stop, class index)``.
         classes: The ``K`` class names.
         config: Fit settings.
@@ -190,10 +195,10 @@ def fit_window_classifier(
 
     Returns:
         The ensemble and out-of-fold metrics over every labelled step, each predicted by the fold model that did
-        not train on it. ``metrics["c"]`` is the chosen regularisation, ``metrics["pseudo_stretches"]`` the mean
-        number of stretches a fold took as pseudo-labels. ``metrics["held_out_logs"]`` (when two or more logs are
-        labelled) is the honest figure: each labelled step predicted by a model fitted without any label or
-        stretch of its log, from folds over logs (extra fits, not ensemble members).
+        not train on it. ``metrics["pseudo_stretches"]`` is the mean number of stretches a fold took as
+        pseudo-labels. ``metrics["held_out_logs"]`` (when two or more logs are labelled) is the honest figure: each
+        labelled step predicted by a model fitted without any label or stretch of its log, from folds over logs
+        (extra fits, not ensemble members).
     """
     if not segments:
         raise ValueError("no labelled segments to train the classifier on")
@@ -201,41 +206,44 @@ def fit_window_classifier(
     k = len(classes)
     t0 = time.monotonic()
     mean, std = _moments(features)
-    std = np.where(std > 1e-8, std, 1.0).astype(np.float32)
-
-    def standard(a: np.ndarray) -> np.ndarray:
-        return (a - mean) / std
-
-    seg_rows = [standard(_rows(features[i], a, b)) for i, a, b, _ in segments]
+    window = features[0].config.window
+    model_config = WindowClassifierConfig(features[0].shape[1], k, window=window, hidden=config.hidden)
+    seg_rows = [_rows(features[i], a, b) for i, a, b, _ in segments]
     seg_y = [np.full(len(r), s[3]) for r, s in zip(seg_rows, segments, strict=True)]
     use_stretches = config.self_training and len(stretches) > 0
-    # consecutive frames' summaries share all but one frame: every PSEUDO_STRIDE-th row of a stretch carries nearly
+    # consecutive frames' windows share all but one frame: every PSEUDO_STRIDE-th row of a stretch carries nearly
     # all it holds, and the refits (most of a fit's time) read a third of the rows
-    stretch_rows = (
-        [standard(_rows(features[i], a, b))[::PSEUDO_STRIDE] for i, a, b in stretches] if use_stretches else []
-    )
-    x_all, y_all = np.concatenate(seg_rows), np.concatenate(seg_y)
-    groups = np.concatenate([np.full(len(r), j) for j, r in enumerate(seg_rows)])
-    c = _choose_c(x_all, y_all, groups, k, config)
+    stretch_rows = [_rows(features[i], a, b)[::PSEUDO_STRIDE] for i, a, b in stretches] if use_stretches else []
 
-    def fit_on(train_idx: np.ndarray, skip_logs: set[int]) -> tuple[np.ndarray, np.ndarray, int]:
-        """A fold's linear model on its segments, refitted with the stretches of logs outside ``skip_logs``."""
+    def fit_on(train_idx: np.ndarray, skip_logs: set[int], seed: int) -> tuple[WindowClassifier, int]:
+        """A fold's network on its segments, trained again with the stretches of logs outside ``skip_logs``."""
+
+        def fresh() -> WindowClassifier:
+            torch.manual_seed(seed)
+            model = WindowClassifier(model_config)
+            model.set_standardisation(mean, std)
+            return model
+
         x = np.concatenate([seg_rows[i] for i in train_idx])
         y = np.concatenate([seg_y[i] for i in train_idx])
-        w, b = _fit_linear(x, y, c, k, config)
+        model = _train(fresh(), x, y, config.epochs, config, seed, cancel)
         rows = [r for r, s in zip(stretch_rows, stretches, strict=False) if s[0] not in skip_logs]
-        px, py = _pseudo_labels(w, b, rows, config.agree) if use_stretches else ([], [])
+        px, py = _pseudo_labels(model, rows, config.agree) if use_stretches else ([], [])
         if px:
-            w, b = _fit_linear(np.concatenate([x, *px]), np.concatenate([y, *py]), c, k, config)
-        return w, b, len(px)
+            x, y = np.concatenate([x, *px]), np.concatenate([y, *py])
+            model = _train(fresh(), x, y, config.refit_epochs, config, seed, cancel)
+        return model, len(px)
 
-    def predict(val_idx: np.ndarray, w: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    @torch.inference_mode()
+    def predict(val_idx: np.ndarray, model: WindowClassifier) -> tuple[np.ndarray, np.ndarray]:
         """Truth and prediction at every step of the segments ``val_idx``, as the passes score them."""
         true, pred = [], []
         for i in val_idx:
             seq, a, stop, label = segments[i]
             true.append(np.full(stop - a, label))
-            pred.append((standard(features[seq][a:stop]) @ w.T + b).argmax(1))
+            for c in range(a, stop, PREDICT_CHUNK):
+                chunk = torch.from_numpy(features[seq][c : min(c + PREDICT_CHUNK, stop)])[None]  # (1, L, D)
+                pred.append(model(chunk)[0][0].argmax(1).numpy())
         return np.concatenate(true), np.concatenate(pred)
 
     folds = fold_indices([s[3] for s in segments], config.k_folds, config.seed)
@@ -244,17 +252,14 @@ def fit_window_classifier(
     for f_i, (train_idx, val_idx) in enumerate(folds, start=1):
         if cancel():
             raise Cancelled("classifier training cancelled")
-        w, b, taken = fit_on(train_idx, set())
+        model, taken = fit_on(train_idx, set(), config.seed + f_i)
         pseudo.append(taken)
-        model = WindowClassifier(WindowClassifierConfig(features[0].shape[1], k))
-        model.set_standardisation(mean, std)
-        model.set_linear(w, b)
-        models.append(model.eval())
-        true, pred = predict(val_idx, w, b)
+        models.append(model)
+        true, pred = predict(val_idx, model)
         oof_true.append(true)
         oof_pred.append(pred)
         histories.append(
-            [{"epoch": 1, "c": c, "pseudo_stretches": taken, "val_accuracy": float((true == pred).mean())}]
+            [{"epoch": config.epochs, "pseudo_stretches": taken, "val_accuracy": float((true == pred).mean())}]
         )
         if progress:
             done = len(folds) + len(by_log)
@@ -263,7 +268,6 @@ def fit_window_classifier(
     metrics["out_of_fold"] = len(folds) > 1
     metrics["n_segments"] = len(segments)
     metrics["labelled_samples"] = int(sum(s[2] - s[1] for s in segments))
-    metrics["c"] = c
     metrics["pseudo_stretches"] = float(np.mean(pseudo))
     if by_log:
         held_true, held_pred = [], []
@@ -271,8 +275,8 @@ def fit_window_classifier(
             if cancel():
                 raise Cancelled("classifier training cancelled")
             held = {segments[i][0] for i in val_idx}
-            w, b, _ = fit_on(train_idx, held)  # a held-out log lends no stretch either: it stays unseen
-            true, pred = predict(val_idx, w, b)
+            model, _ = fit_on(train_idx, held, config.seed + f_i)  # a held-out log lends no stretch: unseen
+            true, pred = predict(val_idx, model)
             held_true.append(true)
             held_pred.append(pred)
             if progress:

@@ -19,6 +19,7 @@ from .data import Normalizer
 from .models import Classifier, Predictor, feature_width, stage1_features
 
 STEPS_PER_CALL = 1 << 17  # batch × chunk of one LSTM call: bounds its activations whatever the batch
+FEATURE_FLOATS_PER_CALL = 1 << 25  # batch × chunk × width of one call's features: 128 MB
 
 
 class Rows(Protocol):
@@ -92,8 +93,13 @@ def padded_groups(lengths: Sequence[int], batch: int) -> list[list[int]]:
     return [order[i : i + batch].tolist() for i in range(0, len(order), batch)]
 
 
-def _chunk_for(batch: int, chunk: int) -> int:
-    return min(chunk, max(256, STEPS_PER_CALL // max(batch, 1)))
+def _chunk_for(batch: int, chunk: int, width: int = 0) -> int:
+    """Steps per call for ``batch`` logs: bounds the LSTM's activations, and the features' block when a step's
+    input is wide (the default family's stacked frames are thousands of floats per step)."""
+    steps = min(chunk, max(256, STEPS_PER_CALL // max(batch, 1)))
+    if width:
+        steps = min(steps, max(16, FEATURE_FLOATS_PER_CALL // (max(batch, 1) * width)))
+    return steps
 
 
 @torch.inference_mode()
@@ -194,7 +200,7 @@ def ensemble_pass(
     for group in padded_groups([len(f) for f in features], batch):
         lengths = [len(features[i]) for i in group]
         n, width = max(lengths), features[group[0]].shape[1]
-        step = _chunk_for(len(group), chunk)
+        step = _chunk_for(len(group), chunk, width)
         states: list = [None] * len(models)
         for c0 in range(0, n, step):
             size = min(step, n - c0)

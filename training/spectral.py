@@ -60,6 +60,11 @@ class SpectralConfig:
         return 2 * self.width
 
     @property
+    def step_width(self) -> int:
+        """Inputs per step of the default classifier: the last ``window`` frames, oldest first."""
+        return self.window * self.width
+
+    @property
     def span(self) -> int:
         """Samples one summary covers."""
         return self.frame + (self.window - 1) * self.hop
@@ -219,17 +224,27 @@ def log_summaries(rows, config: SpectralConfig, *, transform=None) -> np.ndarray
     return summary_windows(log_frames(rows, config, transform=transform), frames_per_window=config.window)
 
 
+def stacked_frames(frames: np.ndarray, which: np.ndarray, window: int) -> np.ndarray:
+    """The ``window`` frames ending at each frame of ``which``, oldest first, flattened: ``(len(which), window·F)``.
+
+    A window short of frames at a log's start repeats its first frame: the streaming step fills its ring with the
+    first frame it sees, so both compute the same input.
+    """
+    idx = np.maximum(np.asarray(which, np.int64)[:, None] - window + 1 + np.arange(window)[None, :], 0)  # (n, W)
+    return np.asarray(frames[idx.reshape(-1)], np.float32).reshape(len(idx), -1)
+
+
 class SpectralSteps:
-    """A log's per-step stage-2 inputs from its frame summaries: each step holds the summary of the last frame
-    complete at or before it (zeros before the first), computed for the rows sliced only.
+    """A log's per-step stage-2 inputs from its frames: each step holds the last ``config.window`` frames complete at
+    or before it (zeros before the first), computed for the rows sliced only.
 
     Supports ``len``, ``shape`` and ``[start:stop]`` along the first axis, as the passes read features. A 10-hour
-    log's summaries are 5 Hz rows; expanded to 100 Hz steps they would be twenty times the memory.
+    log's frames are 5 Hz rows; stacked and expanded to 100 Hz steps they would be 140 times the memory.
     """
 
-    def __init__(self, summaries: np.ndarray, n_samples: int, config: SpectralConfig) -> None:
-        self.summaries, self.config = summaries, config
-        self.shape = (n_samples, config.summary_width)
+    def __init__(self, frames: np.ndarray, n_samples: int, config: SpectralConfig) -> None:
+        self.frames, self.config = frames, config
+        self.shape = (n_samples, config.step_width)
 
     def __len__(self) -> int:
         return self.shape[0]
@@ -245,9 +260,10 @@ class SpectralSteps:
         out = np.zeros((stop - start, self.shape[1]), np.float32)
         known = which >= 0
         if known.any():
-            first = int(which[known][0])
-            block = np.asarray(self.summaries[first : int(which[-1]) + 1], np.float32)  # read only what is used
-            out[known] = block[which[known] - first]
+            lo = max(int(which[known][0]) - cfg.window + 1, 0)
+            block = np.asarray(self.frames[lo : int(which[-1]) + 1], np.float32)  # read only what is used
+            distinct, inverse = np.unique(which[known] - lo, return_inverse=True)
+            out[known] = stacked_frames(block, distinct, cfg.window)[inverse]  # each frame's window stacked once
         return out
 
     def frame_rows(self, start: int, stop: int) -> np.ndarray:

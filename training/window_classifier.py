@@ -1,9 +1,15 @@
-"""The default family's stage 2: a linear softmax on a step's spectral window summary (config dataclass + module).
+"""The default family's stage 2: a small convolutional network over a step's last few spectral frames (config
+dataclass + module).
 
-Each step's input is the mean and spread of the last few short-time spectra (``spectral.SpectralSteps``), so the
-model needs no state: a step's probabilities depend on its input alone, and the passes, the streaming runtime and
-the ONNX model all compute ``softmax(W · standardise(f) + b)``. It has the paper classifier's call signature
-(features and a state in, logits and a state out; the state is always ``None``), so the offline passes run both.
+Each step's input is the last ``window`` short-time frames (``spectral.SpectralSteps``), oldest first. Each frame is
+standardised and mixed by a 1x1 convolution (which bins of which channels matter), a 3-frame convolution follows,
+and the mean and spread of its outputs over the window feed a linear head: BorealTC's CNN reads spectrograms the
+same way. On BorealTC's inner folds it beat a linear model (and a one-layer MLP) on the frames' mean and spread by
+4 to 6 points at 10 % of labels (``benchmarks/default_family_cnn.py``).
+
+The model keeps no state: a step's probabilities depend on its input alone. It has the paper classifier's call
+signature (features and a state in, logits and a state out; the state is always ``None``), so the offline passes run
+both families. GELU is the tanh form so the NumPy streaming step computes the same numbers without ``erf``.
 """
 
 from __future__ import annotations
@@ -13,8 +19,11 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from torch import nn
+from torch.nn import functional as F
 
-WINDOW_KIND = "window"  # the ``kind`` in a bundle's classifier config that names this module
+WINDOW_KIND = "frames"  # the ``kind`` in a bundle's classifier config that names this module
+SPREAD_EPS = 1e-6  # added to the pooled variance: a window of identical frames (a log's start) has none
+OLD_WINDOW_KINDS = ("window",)  # the linear model on summaries that preceded it: refused with a hint to retrain
 
 
 @dataclass(frozen=True)
@@ -22,44 +31,102 @@ class WindowClassifierConfig:
     """Sizes of the window classifier.
 
     Attributes:
-        n_features: Inputs per step (``SpectralConfig.summary_width``).
+        n_features: Inputs per step (``SpectralConfig.step_width``: ``window`` frames of ``n_features // window``).
         n_classes: Terrains.
-        kind: Always ``"window"``: tells a bundle's config which module to rebuild.
+        window: Frames per step.
+        hidden: Channels of both convolutions.
+        dropout: Dropout on the standardised frames while training.
+        kind: Always ``"frames"``: tells a bundle's config which module to rebuild.
     """
 
     n_features: int
     n_classes: int
+    window: int = 7
+    hidden: int = 64
+    dropout: float = 0.2
     kind: str = WINDOW_KIND
+
+    @property
+    def frame_width(self) -> int:
+        """Features per frame."""
+        return self.n_features // self.window
 
 
 class WindowClassifier(nn.Module):
-    """Standardise, linear, softmax (applied by the caller), on each step on its own."""
+    """Standardise each frame, 1x1 conv, GELU, 3-frame conv, GELU, mean and spread over the window, linear."""
 
     def __init__(self, config: WindowClassifierConfig) -> None:
         super().__init__()
+        if config.n_features % config.window:
+            raise ValueError(f"n_features {config.n_features} is not a whole number of {config.window} frames")
         self.config = config
-        self.register_buffer("in_mean", torch.zeros(config.n_features))
-        self.register_buffer("in_scale", torch.ones(config.n_features))
-        self.head = nn.Linear(config.n_features, config.n_classes)
+        f, h = config.frame_width, config.hidden
+        self.register_buffer("in_mean", torch.zeros(f))
+        self.register_buffer("in_scale", torch.ones(f))
+        self.drop = nn.Dropout(config.dropout)
+        self.mix = nn.Conv1d(f, h, 1)
+        self.conv = nn.Conv1d(h, h, 3, padding=1)
+        self.head = nn.Linear(2 * h, config.n_classes)
+
+    def logits(self, windows: torch.Tensor) -> torch.Tensor:
+        """``windows (N, W·F)`` -> ``logits (N, K)``."""
+        cfg = self.config
+        x = windows.unflatten(1, (cfg.window, cfg.frame_width))  # (N, W, F)
+        x = self.drop((x - self.in_mean) * self.in_scale).transpose(1, 2)  # (N, F, W)
+        h = F.gelu(self.mix(x), approximate="tanh")  # (N, H, W)
+        h = F.gelu(self.conv(h), approximate="tanh")  # (N, H, W)
+        mean = h.mean(dim=2)  # (N, H)
+        std = ((h - mean[:, :, None]).pow(2).mean(dim=2) + SPREAD_EPS).sqrt()  # finite gradient at no spread
+        return self.head(torch.cat([mean, std], dim=1))  # (N, K)
 
     def forward(self, features: torch.Tensor, state: None = None) -> tuple[torch.Tensor, None]:
-        """``features (B, T, F)`` -> ``logits (B, T, K)``; no state is carried."""
-        return self.head((features - self.in_mean) * self.in_scale), None
+        """``features (B, T, W·F)`` -> ``logits (B, T, K)``; no state is carried.
+
+        A step's input changes only when a frame completes (every ``hop`` steps), so the network runs once per
+        distinct consecutive row and the result is repeated: twenty times less work at 100 Hz.
+        """
+        b, t, d = features.shape
+        flat = features.reshape(b * t, d)  # (B·T, D)
+        new = torch.ones(b * t, dtype=torch.bool, device=flat.device)
+        new[1:] = (flat[1:] != flat[:-1]).any(dim=1)
+        which = torch.cumsum(new.long(), 0) - 1  # (B·T,) index of each row's distinct run
+        return self.logits(flat[new])[which].reshape(b, t, -1), None
 
     def set_standardisation(self, mean: np.ndarray, std: np.ndarray) -> None:
-        """Standardise inputs with per-feature ``mean`` and ``std`` ``(F,)`` (features with no spread are centred)."""
+        """Standardise each frame's features with ``mean`` and ``std`` ``(F,)`` (features with no spread centred)."""
         std = np.where(std > 1e-8, std, 1.0)
         self.in_mean.copy_(torch.as_tensor(mean, dtype=torch.float32))
         self.in_scale.copy_(torch.as_tensor(1.0 / std, dtype=torch.float32))
 
-    def set_linear(self, weight: np.ndarray, bias: np.ndarray) -> None:
-        """The head's ``(K, F)`` weights and ``(K,)`` bias, on standardised inputs."""
-        with torch.no_grad():
-            self.head.weight.copy_(torch.as_tensor(weight, dtype=torch.float32))
-            self.head.bias.copy_(torch.as_tensor(bias, dtype=torch.float32))
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The weights as float32 arrays for the NumPy streaming step: the standardisation folded into ``mix``.
 
-    def folded(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(F, K)`` weights and ``(K,)`` bias on raw inputs, the standardisation folded in (the runtime's)."""
-        w = (self.head.weight.detach() * self.in_scale).numpy()  # (K, F)
-        b = (self.head.bias.detach() - torch.as_tensor(w) @ self.in_mean).numpy()  # (K,)
-        return np.ascontiguousarray(w.T, np.float32), b.astype(np.float32)
+        ``mix (F, H)``, ``mix_b (H,)``, ``conv (3, H, H)`` (tap, in, out), ``conv_b (H,)``, ``head (2H, K)``,
+        ``head_b (K,)``.
+        """
+        mix = self.mix.weight.detach()[:, :, 0] * self.in_scale  # (H, F)
+        mix_b = self.mix.bias.detach() - mix @ self.in_mean
+        return {
+            "mix": mix.T.contiguous().numpy(),
+            "mix_b": mix_b.numpy(),
+            "conv": self.conv.weight.detach().permute(2, 1, 0).contiguous().numpy(),
+            "conv_b": self.conv.bias.detach().numpy(),
+            "head": self.head.weight.detach().T.contiguous().numpy(),
+            "head_b": self.head.bias.detach().numpy(),
+        }
+
+
+def gelu_tanh(x: np.ndarray) -> np.ndarray:
+    """PyTorch's ``gelu(x, approximate="tanh")`` in NumPy."""
+    return 0.5 * x * (1.0 + np.tanh(np.float32(0.7978845608028654) * (x + np.float32(0.044715) * x * x * x)))
+
+
+def window_logits(w: dict[str, np.ndarray], frames: np.ndarray) -> np.ndarray:
+    """The network of :meth:`WindowClassifier.arrays` on ``frames (B, W, F)`` raw (unstandardised) -> ``(B, K)``."""
+    h = gelu_tanh(frames @ w["mix"] + w["mix_b"])  # (B, W, H)
+    pad = np.pad(h, ((0, 0), (1, 1), (0, 0)))  # (B, W + 2, H): the convolution's zero padding
+    n = h.shape[1]
+    c = pad[:, 0:n] @ w["conv"][0] + pad[:, 1 : n + 1] @ w["conv"][1] + pad[:, 2 : n + 2] @ w["conv"][2]
+    h = gelu_tanh(c + w["conv_b"])  # (B, W, H)
+    pooled = np.concatenate([h.mean(axis=1), np.sqrt(h.var(axis=1) + SPREAD_EPS)], axis=1)  # (B, 2H)
+    return pooled @ w["head"] + w["head_b"]  # (B, K)

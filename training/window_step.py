@@ -1,14 +1,18 @@
-"""The default family one sample at a time: the same numbers as the offline pass (front end, window summary,
-linear softmax), for the robot.
+"""The default family one sample at a time: the same numbers as the offline pass (front end, the last frames, the
+window network), for the robot.
 
 :class:`WindowStep` is the NumPy runtime :class:`~training.stream.StreamingClassifier` runs: a frame completes every
-``hop`` samples and only then do the spectra, the summary and the ensemble's products run; between frames a step
-returns the last probabilities. :class:`WindowStepModel` is the same step in PyTorch for the ONNX export, with its
+``hop`` samples and only then do the spectra and the ensemble's networks run; between frames a step returns the last
+probabilities. A stream's first frame fills its whole window, as ``spectral.stacked_frames`` pads a log's start.
+
+:class:`WindowStepModel` is the same step in PyTorch for the ONNX export, with its
 state explicit (the last ``frame`` samples and the last ``window`` frames of each stream) and the spectra as products
 with fixed cosine and sine tables, so the ONNX graph needs no FFT operator.
 """
 
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 import torch
@@ -17,6 +21,7 @@ from torch import nn
 from .bundle import ModelBundle
 from .spectral import SpectralConfig, SpectralStream
 from .training_errors import BundleError
+from .window_classifier import window_logits
 
 
 def _front_end(bundle: ModelBundle) -> SpectralConfig:
@@ -31,12 +36,10 @@ class WindowStep:
     def __init__(self, bundle: ModelBundle, *, streams: int = 1) -> None:
         self.config = cfg = _front_end(bundle)
         self.mean, self.inv_std = bundle.normalizer.mean, 1.0 / bundle.normalizer.std
-        folded = [m.folded() for m in bundle.classifiers]
-        self.w = np.concatenate([w for w, _ in folded], axis=1)  # (F, M·K): every member in one product
-        self.b = np.concatenate([b for _, b in folded])  # (M·K,)
-        self.m, self.k = len(folded), len(bundle.classes)
+        self.members = [m.arrays() for m in bundle.classifiers]
+        self.k = len(bundle.classes)
         self.front = SpectralStream(cfg, len(bundle.channels), streams=streams)
-        self.frames = np.zeros((streams, cfg.window, cfg.width), np.float64)  # (B, W, F) ring of the last frames
+        self.frames = np.zeros((streams, cfg.window, cfg.width), np.float32)  # (B, W, F) the last frames, oldest first
         self.n_frames = np.zeros(streams, np.int64)
         self.probs = np.empty((streams, self.k), np.float32)
         self.reset()
@@ -46,23 +49,26 @@ class WindowStep:
         self.front.reset()
         self.frames[:] = 0.0
         self.n_frames[:] = 0
-        self.probs[:] = self._probs(np.zeros((len(self.probs), self.config.summary_width), np.float32))
+        self.probs[:] = self._probs(self.frames)
 
-    def _probs(self, summary: np.ndarray) -> np.ndarray:
-        logits = (summary @ self.w + self.b).reshape(len(summary), self.m, self.k)  # (B, M, K)
-        logits -= logits.max(axis=2, keepdims=True)
-        e = np.exp(logits)
-        return (e / e.sum(axis=2, keepdims=True)).mean(axis=1).astype(np.float32)  # (B, K)
+    def _probs(self, frames: np.ndarray) -> np.ndarray:
+        """``(B, W, F)`` -> ``(B, K)``: the members' softmax, averaged."""
+        out = np.zeros((len(frames), self.k), np.float32)
+        for w in self.members:
+            logits = window_logits(w, frames)  # (B, K)
+            e = np.exp(logits - logits.max(axis=1, keepdims=True))
+            out += e / e.sum(axis=1, keepdims=True)
+        return out / len(self.members)
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         feats, _ = self.front.step((x - self.mean) * self.inv_std)  # (B, F) last complete frame
-        cfg = self.config
-        for b in np.flatnonzero(self.front.completed):
-            self.frames[b, self.n_frames[b] % cfg.window] = feats[b]
-            self.n_frames[b] += 1
-            held = self.frames[b, : min(int(self.n_frames[b]), cfg.window)]  # (n, F) the frames in the window
-            summary = np.concatenate([held.mean(0), held.std(0)]).astype(np.float32)[None]  # (1, 2F)
-            self.probs[b] = self._probs(summary)[0]
+        done = np.flatnonzero(self.front.completed)
+        if len(done):
+            first = done[self.n_frames[done] == 0]
+            self.frames[first] = feats[first, None, :]  # a stream's first frame fills its window
+            self.frames[done] = np.concatenate([self.frames[done, 1:], feats[done, None, :]], axis=1)
+            self.n_frames[done] += 1
+            self.probs[done] = self._probs(self.frames[done])
         return self.probs
 
 
@@ -70,8 +76,8 @@ class WindowStepModel(nn.Module):
     """One step of the default family for ``B`` streams, for the ONNX export; states are explicit.
 
     Inputs: ``x (B, C)`` raw sample; ``ring (B, L, C)`` the last ``frame`` normalised samples, oldest first;
-    ``count (B, 1)`` samples seen; ``frames (B, W, F)`` the last ``window`` frames' features, oldest first;
-    ``n_frames (B, 1)`` frames seen. All zeros at a stream's start.
+    ``count (B, 1)`` samples seen; ``frames (B, W, F)`` the last ``window`` frames' features, oldest first (a
+    stream's first frame fills all of them); ``n_frames (B, 1)`` frames seen. All zeros at a stream's start.
     Outputs: ``probs (B, K)`` ensemble mean, then the new ``ring, count, frames, n_frames``.
     """
 
@@ -88,9 +94,7 @@ class WindowStepModel(nn.Module):
         self.register_buffer("sin", (window * torch.sin(angle)).float())
         self.register_buffer("fast", torch.as_tensor(cfg.fast, dtype=torch.long))
         self.register_buffer("slow", torch.as_tensor(cfg.slow, dtype=torch.long))
-        folded = [m.folded() for m in bundle.classifiers]
-        self.register_buffer("w", torch.from_numpy(np.stack([w for w, _ in folded])))  # (M, F2, K)
-        self.register_buffer("b", torch.from_numpy(np.stack([b for _, b in folded])))  # (M, K)
+        self.members = nn.ModuleList(copy.deepcopy(m).eval() for m in bundle.classifiers)
 
     def _frame(self, ring: torch.Tensor) -> torch.Tensor:
         """``(B, L, C)`` -> ``(B, F)``, as ``spectral.frame_features``."""
@@ -116,18 +120,13 @@ class WindowStepModel(nn.Module):
         ring = torch.cat([ring[:, 1:], z[:, None]], dim=1)  # (B, L, C)
         count = count + 1.0
         done = (count >= cfg.frame) & (torch.remainder(count - cfg.frame, cfg.hop) == 0)  # (B, 1)
-        shifted = torch.cat([frames[:, 1:], self._frame(ring)[:, None]], dim=1)  # (B, W, F)
+        new = self._frame(ring)[:, None]  # (B, 1, F)
+        shifted = torch.cat([frames[:, 1:], new], dim=1)  # (B, W, F)
+        shifted = torch.where(n_frames[:, :, None] == 0, new.expand_as(frames), shifted)  # the first fills all
         frames = torch.where(done[:, :, None], shifted, frames)
         n_frames = n_frames + done.float()
-        n = n_frames.clamp(max=cfg.window)  # (B, 1) frames in the window
-        slots = torch.arange(cfg.window, dtype=x.dtype, device=x.device)[None, :]  # (1, W)
-        held = (slots >= cfg.window - n).float()[:, :, None]  # (B, W, 1): the newest n frames
-        denom = n.clamp(min=1.0)[:, :, None]
-        mean = (frames * held).sum(dim=1, keepdim=True) / denom  # (B, 1, F)
-        var = ((frames - mean).pow(2) * held).sum(dim=1) / denom[:, 0]  # (B, F)
-        summary = torch.cat([mean[:, 0], var.sqrt()], dim=1)  # (B, 2F)
-        logits = torch.einsum("bf,mfk->mbk", summary, self.w) + self.b[:, None, :]  # (M, B, K)
-        probs = torch.softmax(logits, dim=-1).mean(dim=0)  # (B, K)
+        flat = frames.flatten(1)  # (B, W·F)
+        probs = torch.stack([torch.softmax(m.logits(flat), dim=-1) for m in self.members]).mean(dim=0)  # (B, K)
         return probs, ring, count, frames, n_frames
 
 

@@ -292,7 +292,7 @@ def train_classifier(
 def _train_window(
     session: Session, settings: WindowFitConfig, *, progress: ProgressFn | None, cancel: CancelFn
 ) -> ModelVersion:
-    """The default family's stage 2: the window classifier on the front end's summaries, with self-training over
+    """The default family's stage 2: the window network on the front end's frames, with self-training over
     the unlabelled stretches of every log; a new, active version (the predictor's bundle with it)."""
     p_version, bundle = active_predictor(session)
     logs = model_logs(session, bundle.channels)

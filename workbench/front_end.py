@@ -1,4 +1,4 @@
-"""The default family's inputs in a session: the spectral front end's window summaries of every log, computed once
+"""The default family's inputs in a session: the spectral front end's frames of every log, computed once
 per predictor version and front end and cached in the session folder, and the unlabelled stretches self-training
 reads.
 """
@@ -15,7 +15,7 @@ import numpy as np
 
 import labeling
 from sessions import LogInfo, Segment, Session
-from training import ModelBundle, SpectralConfig, SpectralSteps, log_summaries
+from training import ModelBundle, SpectralConfig, SpectralSteps, log_frames
 
 SAMPLE_S = 600.0  # seconds of each of the first logs read to tell fast channels from slow ones
 STRETCH_S = 5.0  # longest unlabelled stretch self-training judges as one (BorealTC's partition, where it was measured)
@@ -36,19 +36,19 @@ def _digest(config: SpectralConfig) -> str:
 def spectral_features(
     session: Session, predictor_version: int, bundle: ModelBundle, logs: Sequence[LogInfo], config: SpectralConfig
 ) -> list[SpectralSteps]:
-    """Per log, its per-step window summaries (``(T, 2F)`` rows computed from 5 Hz summaries on demand).
+    """Per log, its per-step inputs (``(T, W·F)`` rows stacked from 5 Hz frames on demand).
 
-    The summaries are written once per predictor version (its input normalisation) and front end, as ``.npy`` files
+    The frames are written once per predictor version (its input normalisation) and front end, as ``.npy`` files
     memory-mapped on read: a 10-hour log at 100 Hz holds 180,000 rows, never its 3.6 million steps.
     """
-    cache = session.cache_dir(f"spectral-v{predictor_version:04d}-{_digest(config)}")
+    cache = session.cache_dir(f"frames-v{predictor_version:04d}-{_digest(config)}")
     out = []
     for x in logs:
         path = cache / f"{x.id:06d}.npy"
         if not path.exists():
-            summaries = log_summaries(session.rows(x.id), config, transform=bundle.normalizer)
+            frames = log_frames(session.rows(x.id), config, transform=bundle.normalizer)
             tmp = cache / f".{x.id:06d}.{uuid.uuid4().hex[:8]}.npy"  # another process may fill the same cache
-            np.save(tmp, summaries)
+            np.save(tmp, frames)
             os.replace(tmp, path)
         out.append(SpectralSteps(np.load(path, mmap_mode="r"), x.n_samples, config))
     return out
@@ -57,8 +57,8 @@ def spectral_features(
 def in_memory_features(
     arrays: Sequence[np.ndarray], bundle: ModelBundle, config: SpectralConfig
 ) -> list[SpectralSteps]:
-    """Per-step window summaries of raw ``(T, C)`` arrays outside a session (``classify``, evaluations)."""
-    return [SpectralSteps(log_summaries(a, config, transform=bundle.normalizer), len(a), config) for a in arrays]
+    """Per-step inputs of raw ``(T, C)`` arrays outside a session (``classify``, evaluations)."""
+    return [SpectralSteps(log_frames(a, config, transform=bundle.normalizer), len(a), config) for a in arrays]
 
 
 def free_stretches(

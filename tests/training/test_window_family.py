@@ -23,11 +23,9 @@ from training import (
     frame_features,
     load_bundle,
     log_frames,
-    log_summaries,
     per_step,
     run_classifiers,
     save_bundle,
-    summary_windows,
 )
 
 RATE = 100.0
@@ -50,7 +48,7 @@ def logs() -> tuple[list[np.ndarray], list[int]]:
 
 
 def _features(arrays, normalizer, config):
-    return [SpectralSteps(log_summaries(a, config, transform=normalizer), len(a), config) for a in arrays]
+    return [SpectralSteps(log_frames(a, config, transform=normalizer), len(a), config) for a in arrays]
 
 
 @pytest.fixture(scope="module")
@@ -83,11 +81,17 @@ def test_front_end_reads_a_log_in_chunks_and_expands_to_steps_on_demand(logs) ->
     config = SpectralConfig.for_log(x, RATE)
     assert config.fast == (0, 1) and config.slow == (2,)  # the held channel is found slow
     np.testing.assert_array_equal(log_frames(x, config, chunk_frames=7), frame_features(x, config))
-    summaries = summary_windows(frame_features(x, config), frames_per_window=config.window)
-    steps = SpectralSteps(summaries, len(x), config)
-    whole, known = per_step(summaries, len(x), config)
-    np.testing.assert_array_equal(steps[0 : len(x)], whole)
-    np.testing.assert_array_equal(steps[123:777], whole[123:777])
+    frames = frame_features(x, config)  # (N, F)
+    steps = SpectralSteps(frames, len(x), config)
+    assert steps.shape == (len(x), config.window * config.width)
+    expected = np.zeros(steps.shape, np.float32)  # each step: its last `window` frames, the first repeated before
+    for t in range(config.frame - 1, len(x)):
+        last = (t - (config.frame - 1)) // config.hop
+        expected[t] = np.concatenate([frames[max(last - config.window + 1 + i, 0)] for i in range(config.window)])
+    np.testing.assert_array_equal(steps[0 : len(x)], expected)
+    np.testing.assert_array_equal(steps[123:777], expected[123:777])
+    np.testing.assert_array_equal(steps[45:46], expected[45:46])  # a window short of frames at the log's start
+    _, known = per_step(frames, len(x), config)
     assert not known[: config.frame - 1].any() and (steps[0:10] == 0).all()
     rows = steps.frame_rows(100, 300)
     assert (rows >= 100).all() and (rows < 300).all() and ((rows - (config.frame - 1)) % config.hop == 0).all()
@@ -145,6 +149,16 @@ def test_a_bundle_whose_front_end_was_changed_is_refused(fitted, tmp_path) -> No
     config["spectral"]["fast"] = [0, 1, 9]  # a channel the bundle does not have
     (tmp_path / "b" / "model.json").write_text(json.dumps(config))
     with pytest.raises(BundleError, match="spectral front end"):
+        load_bundle(tmp_path / "b")
+
+
+def test_a_default_model_from_an_older_workbench_is_refused_with_a_hint(fitted, tmp_path) -> None:
+    bundle, _, _ = fitted
+    save_bundle(bundle, tmp_path / "b")
+    config = json.loads((tmp_path / "b" / "model.json").read_text())
+    config["classifier"]["kind"] = "window"  # the linear model on window summaries this network replaced
+    (tmp_path / "b" / "model.json").write_text(json.dumps(config))
+    with pytest.raises(BundleError, match=r"older workbench.*train it again"):
         load_bundle(tmp_path / "b")
 
 

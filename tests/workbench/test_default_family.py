@@ -40,8 +40,8 @@ def test_the_first_classifier_is_the_default_family_and_retrains_keep_the_family
     assert c.config["model"] == "default" and c.config["self_training_stretches"] > 0
     bundle = load_bundle(session.path / c.path)
     assert bundle.family == "default" and bundle.spectral is not None and len(bundle.classifiers) == 5
-    assert bundle.classifiers[0].config.n_features == bundle.spectral.summary_width
-    assert {"accuracy", "macro_f1", "confusion", "c", "pseudo_stretches"} <= set(c.metrics)
+    assert bundle.classifiers[0].config.n_features == bundle.spectral.step_width
+    assert {"accuracy", "macro_f1", "confusion", "pseudo_stretches"} <= set(c.metrics)
     paper = cycle.train_classifier(session, model="paper", config=TINY, hidden=8)
     assert paper.config["model"] == "paper" and load_bundle(session.path / paper.path).family == "paper"
     again = cycle.train_classifier(session, config=TINY, hidden=8)  # a Retrain follows the active family

@@ -24,11 +24,11 @@ from training import (
     classification_metrics,
     fit_classifier,
     fit_predictor,
-    log_summaries,
+    log_frames,
     partitions,
     run_classifiers,
     run_predictor,
-    window_summaries,
+    window_inputs,
     windows,
 )
 
@@ -172,9 +172,9 @@ def report(curves, *, total: int, rate_hz: float, title: str, out: Path | None) 
 
 
 def _log_spectra(logs, normalizer, rate_hz) -> list[SpectralSteps]:
-    """Every log's per-step spectral summaries, as a session caches them (computed once per simulation)."""
+    """Every log's per-step spectral inputs, as a session caches them (computed once per simulation)."""
     front = SpectralConfig.for_log(np.concatenate(list(logs[:5])), rate_hz)
-    return [SpectralSteps(log_summaries(x, front, transform=normalizer), len(x), front) for x in logs]
+    return [SpectralSteps(log_frames(x, front, transform=normalizer), len(x), front) for x in logs]
 
 
 def _default_learner(spectra, pool, test, truth, errors, cps, classes, rate_hz, seed) -> WindowLearner:
@@ -373,19 +373,19 @@ def simulate_partitions(
     spectral_cache: dict = {}
 
     def default_learner(seed: int) -> WindowLearner:
-        # the default family: each pool piece's summaries as the session computes them; test windows on their own
+        # the default family: each pool piece's frames as the session computes them; test windows on their own
         fold = seed % len(folds)
         if "front" not in spectral_cache:
             front = SpectralConfig.for_log(np.concatenate(parts[:50]), rate_hz)
             spectral_cache["front"] = front
             spectral_cache["units"] = [
-                SpectralSteps(log_summaries(parts[i][a:b], front, transform=pfit.normalizer), b - a, front)
+                SpectralSteps(log_frames(parts[i][a:b], front, transform=pfit.normalizer), b - a, front)
                 for i, a, b in units
             ]
         front = spectral_cache["front"]
         if fold not in spectral_cache:
             test_parts = [parts[i] for i in folds[fold][1]]
-            spectral_cache[fold] = window_summaries(test_parts, win, round(0.5 * rate_hz), front, pfit.normalizer)
+            spectral_cache[fold] = window_inputs(test_parts, win, round(0.5 * rate_hz), front, pfit.normalizer)
         x_test, owner = spectral_cache[fold]
         y_test = y[folds[fold][1]][owner]
 

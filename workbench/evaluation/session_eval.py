@@ -145,7 +145,7 @@ def evaluate_session(
 
 def _recipe(family: str, hidden: int, feature_mode: str) -> str:
     if family == "default":
-        return "stage 2 of the default family (window classifier on spectral summaries, self-training)"
+        return "stage 2 of the default family (a small network on spectral frames, self-training)"
     return f"stage 2 of the paper family (LSTM of {hidden} units on `{feature_mode}` features)"
 
 
