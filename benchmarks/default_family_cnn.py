@@ -8,7 +8,9 @@ time: two windows of one partition are a pair, other partitions in the batch are
 Variants: ``lr`` (the shipped stage 2: logistic regression on window summaries, one round of self-training),
 ``cnn`` (the network on the labelled windows only), ``cnn_st`` (``cnn`` plus one round of self-training over
 partitions whose windows agree at 90 %), ``ssl_ft`` (the contrastive encoder, then the network fine-tuned on the
-labelled windows), ``ssl_lr`` (the frozen contrastive embedding beside the summaries, then ``lr``).
+labelled windows), ``ssl_lr`` (the frozen contrastive embedding beside the summaries, then ``lr``), ``mlp`` and
+``mlp_st`` (one hidden layer on the summaries), ``cnn_st2`` (two rounds of self-training), ``cnn_st_aNN``
+(agreement at NN % instead of 90).
 """
 
 from __future__ import annotations
@@ -116,6 +118,7 @@ def self_train(
     *,
     rounds: int,
     seed: int,
+    agree: float = AGREE,
 ) -> Net:
     """The network on the labelled windows, then ``rounds`` times again with the partitions whose windows agree."""
 
@@ -129,7 +132,7 @@ def self_train(
             (i, votes.argmax())
             for i in unlabelled
             for votes in [np.bincount(predict(net, wins[i]), minlength=classes)]
-            if votes.max() >= AGREE * len(wins[i])
+            if votes.max() >= agree * len(wins[i])
         ]
         xs = np.concatenate([xl, *(wins[i] for i, _ in picked)])
         ys = np.concatenate([yl, *(np.full(len(wins[i]), c) for i, c in picked)])
@@ -244,6 +247,7 @@ def main() -> None:
                     if variant.startswith("ssl") and enc is None:
                         enc = pretrain(frames, pool, config.width, n, epochs=args.ssl_epochs, seed=seed)
                     rounds = 0 if variant == "cnn" else 2 if variant.endswith("st2") else 1
+                    agree = int(variant.split("_a")[1]) / 100 if "_a" in variant else AGREE
                     pred = predict(
                         self_train(
                             enc if variant.startswith("ssl") else None,
@@ -255,6 +259,7 @@ def main() -> None:
                             unlabelled,
                             rounds=rounds,
                             seed=seed,
+                            agree=agree,
                         ),
                         vw,
                     )

@@ -4,7 +4,17 @@ Knows nothing of training, labelling strategies or the UI; ``workbench`` compose
 """
 
 from .errors import IngestError, LabelError, SessionError, WorkbenchError
-from .ingest import AlignedLog, IngestOptions, Mapping, align, load_mapping, plan_sources, read_mcap, read_source
+from .ingest import (
+    AlignedLog,
+    IngestOptions,
+    Mapping,
+    align,
+    load_mapping,
+    plan_sources,
+    read_mcap,
+    read_source,
+    sniff_csv,
+)
 from .label_files import write_frame
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import ModelVersion
@@ -37,5 +47,6 @@ __all__ = [
     "plan_sources",
     "read_mcap",
     "read_source",
+    "sniff_csv",
     "write_frame",
 ]

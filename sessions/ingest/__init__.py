@@ -2,6 +2,7 @@
 
 from .align import AlignedLog, align
 from .base import ChannelSpec, IngestOptions, Mapping, ParsedLog, Stream, load_mapping
+from .csv_reader import sniff_csv
 from .mcap_reader import TopicReport, read_mcap
 from .sources import Source, plan_sources, read_source
 
@@ -19,4 +20,5 @@ __all__ = [
     "plan_sources",
     "read_mcap",
     "read_source",
+    "sniff_csv",
 ]

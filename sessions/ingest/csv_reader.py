@@ -289,11 +289,40 @@ def read_qcat(paths: list[Path], options: IngestOptions) -> list[ParsedLog]:
     ]
 
 
+def sniff_csv(path: Path) -> tuple[bool, int]:
+    """Whether a CSV's first line is a header (any cell not a number), and how many columns it has."""
+    first = next(csv.reader([_first_line(path)]), [])
+    return any(_not_number(c) for c in first if c.strip()), len(first)
+
+
+NO_TIME_HINT = (
+    "name the time column with [csv] time_column = INDEX or NAME, or give [csv] sample_rate_hz = HZ when the rows "
+    "are evenly sampled and hold no time (workbench ingest --dry-run prints a mapping to start from)"
+)
+
+
+def _guessed_time(path: Path, frame: pd.DataFrame, column: str, scale: float) -> np.ndarray:
+    """Seconds from a column taken as time only because it comes first: refused with a hint when it is no time."""
+    try:
+        return _times(path, frame, column, scale)
+    except IngestError as err:
+        if "time goes backwards" not in err.reason:
+            raise
+        raise IngestError(
+            path,
+            f"no time column: the first column {column!r} is no time ({err.reason.split('(')[-1].rstrip(')')} at "
+            f"{err.where}); {NO_TIME_HINT}",
+        ) from None
+
+
 def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
-    """A time column plus numeric channels; names, time column and unit from the mapping where given."""
+    """A time column (or rows at ``sample_rate_hz``) plus numeric channels; names, time column and unit from the
+    mapping where given."""
     mapping = options.mapping
     frame = _read_frame(path, header=mapping.header, names=mapping.columns)
     cols = list(frame.columns)
+    time_col: str | None
+    guessed = False
     if mapping.time_column is not None:
         tc = mapping.time_column
         if isinstance(tc, int):
@@ -305,7 +334,9 @@ def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
         else:
             raise IngestError(path, f"time column {tc!r} not found; columns: {', '.join(map(str, cols))}")
     else:
-        time_col = next((c for c in cols if str(c).lower() in TIME_NAMES), cols[0])
+        time_col = next((c for c in cols if str(c).lower() in TIME_NAMES), None)
+        if time_col is None and mapping.sample_rate_hz is None:
+            time_col, guessed = cols[0], True
     if mapping.channels:
         missing = [s.source for s in mapping.channels if s.source not in cols]
         if missing:
@@ -318,7 +349,12 @@ def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
         names, units = tuple(str(c) for c in chans), ("",) * len(chans)
     if not chans:
         raise IngestError(path, "no channel columns besides the time column")
-    times = _times(path, frame, time_col, TIME_UNITS[mapping.time_unit])
+    if time_col is None:  # rows evenly sampled at the mapping's rate
+        times = np.arange(len(frame), dtype=np.float64) / float(mapping.sample_rate_hz or 1.0)
+    elif guessed:
+        times = _guessed_time(path, frame, time_col, TIME_UNITS[mapping.time_unit])
+    else:
+        times = _times(path, frame, time_col, TIME_UNITS[mapping.time_unit])
     values = _numeric(path, frame, chans, allow_gaps=options.allow_gaps)
     return ParsedLog(
         name=path.stem,

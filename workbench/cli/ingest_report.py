@@ -2,15 +2,46 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 from collections.abc import Sequence
 from pathlib import Path
 
-from sessions import IngestError, IngestOptions, align, plan_sources, read_source
+from sessions import IngestError, IngestOptions, Mapping, align, plan_sources, read_source, sniff_csv
 
 
 def _toml_str(text: str) -> str:
     return json.dumps(text, ensure_ascii=False)  # a JSON string is a valid TOML basic string
+
+
+def _toml_value(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return _toml_str(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return repr(value)
+
+
+def _csv_section(mapping: Mapping, sniffed: tuple[bool, int] | None, no_time: bool) -> list[str]:
+    """The ``[csv]`` table: what the mapping given says, what the first generic CSV looked like, and, when it has
+    no time column, the two ways to say how it is timed (commented out: the user picks one)."""
+    keys: dict[str, object] = {}
+    if sniffed is not None and mapping.header is None and not sniffed[0]:
+        keys["header"] = False  # said outright, so the file reads the same when detection would guess otherwise
+    for key in ("header", "columns", "time_column", "time_unit", "sample_rate_hz"):
+        value = getattr(mapping, key)
+        if value not in (None, (), "s"):
+            keys[key] = list(value) if isinstance(value, tuple) else value
+    lines = [f"{k} = {_toml_value(v)}" for k, v in keys.items()]
+    if no_time:
+        lines += [
+            "# the first column is no time: uncomment one of these two lines",
+            "# time_column = 0          # the column holding time, by 0-based index or by name",
+            "# sample_rate_hz = 100.0   # or: rows evenly sampled at this rate, no time column",
+        ]
+    return ["[csv]", *lines, ""] if lines else []
 
 
 def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool, str]:
@@ -27,6 +58,8 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
     ]
     channel_lines: list[str] = []
     seen: set[tuple[str, str]] = set()
+    sniffed: tuple[bool, int] | None = None  # the first generic CSV's header and width
+    no_time = False
     sources, errors = plan_sources(list(files))
     for err in errors:
         ok = False
@@ -34,11 +67,15 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
     for source in sources:
         lines.append("#")
         lines.append(f"# {', '.join(str(f) for f in source.files)}  [{source.format}]")
+        if source.format == "csv" and sniffed is None:
+            with contextlib.suppress(OSError, UnicodeDecodeError):  # read_source below says what is wrong
+                sniffed = sniff_csv(source.files[0])
         try:
             parsed_logs, reports = read_source(source, options)
             aligned = [align(p, options) for p in parsed_logs]
         except IngestError as err:
             ok = False
+            no_time = no_time or (source.format == "csv" and err.reason.startswith("no time column"))
             lines.append(f"#   REFUSED: {err.reason}" + (f" ({err.where})" if err.where else ""))
             continue
         for report in reports:
@@ -75,4 +112,8 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
     lines.append("")
     if options.target_rate:
         lines.append(f"rate_hz = {options.target_rate}")
+    if options.mapping.ignore:
+        lines.append(f"ignore = {_toml_value(list(options.mapping.ignore))}")
+    lines.append("")
+    lines += _csv_section(options.mapping, sniffed, no_time)
     return ok, "\n".join(lines + channel_lines)
