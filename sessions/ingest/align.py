@@ -1,14 +1,15 @@
 """Put streams of different rates onto one time base.
 
 Every channel is *held* (its latest sample at or before each grid time): causal, so nothing looks ahead, which is
-what a robot running the model online sees. Duplicate timestamps collapse to the last sample. A stream silent for
-longer than ``gap_samples`` of its own periods is in a gap: refused unless ``allow_gaps``, then recorded.
+what a robot running the model online sees. Duplicate timestamps collapse to the last sample; a stream that sends
+each sample twice (about half its samples equal the one before in every channel) has the repeats dropped. A stream
+silent for longer than ``gap_samples`` of its own periods is in a gap: refused unless ``allow_gaps``, then recorded.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -30,6 +31,7 @@ class AlignedLog:
     gaps: tuple[Gap, ...]
     reference: tuple[tuple[int, int, str], ...]  # (start, stop, terrain) in samples
     stream_rates: dict[str, float]
+    repeats: dict[str, int] = field(default_factory=dict)  # per stream, samples dropped as repeats of the last
 
 
 def _dedupe(stream: Stream) -> tuple[np.ndarray, np.ndarray | None]:
@@ -41,6 +43,35 @@ def _dedupe(stream: Stream) -> tuple[np.ndarray, np.ndarray | None]:
     if keep.all():
         return times, None
     return times[keep], np.flatnonzero(keep)
+
+
+REPEAT_SHARE = 0.45  # consecutive samples equal in every channel this often: a sender that repeats each sample
+REPEAT_PROBE = 20_000  # rows looked at to decide
+
+
+def _repeated_rows(values, rows: np.ndarray | None, n: int) -> np.ndarray | None:
+    """Rows (of the de-duplicated stamps) that repeat the previous sample in every channel, when a sender repeats
+    its samples: some drivers publish each sample twice with a new stamp, which doubles the stream's apparent rate
+    and halves the silence that counts as a gap. ``None`` when the stream does not do that."""
+
+    def read(a: int, b: int) -> np.ndarray:  # de-duplicated rows a..b of the values, read in one slice
+        if rows is None:
+            return np.asarray(values[a:b])
+        idx = rows[a:b]
+        lo = int(idx[0])
+        return np.asarray(values[lo : int(idx[-1]) + 1])[idx - lo]
+
+    probe = read(0, min(n, REPEAT_PROBE))
+    if len(probe) < 3 or np.ptp(probe, axis=0).max() == 0:  # a constant stream repeats by nature
+        return None
+    if (probe[1:] == probe[:-1]).all(axis=1).mean() < REPEAT_SHARE:
+        return None
+    repeat = np.zeros(n, dtype=bool)
+    for a in range(1, n, ALIGN_ROWS):
+        b = min(n, a + ALIGN_ROWS)
+        block = read(a - 1, b)  # (b - a + 1, C): each row with the one before it
+        repeat[a:b] = (block[1:] == block[:-1]).all(axis=1)
+    return repeat
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -87,8 +118,14 @@ def align(
     """
     path = parsed.source_path
     streams: list[tuple[Stream, np.ndarray, np.ndarray | None, float]] = []
+    repeats: dict[str, int] = {}
     for stream in parsed.streams:
         times, rows = _dedupe(stream)
+        repeat = _repeated_rows(stream.values, rows, len(times)) if len(times) > 2 else None
+        if repeat is not None and repeat.any():
+            keep = np.flatnonzero(~repeat)
+            times, rows = times[keep], keep if rows is None else rows[keep]
+            repeats[stream.name] = int(repeat.sum())
         if len(times) < 2:
             continue
         streams.append((stream, times, rows, stream_rate(times)))
@@ -174,4 +211,5 @@ def align(
         gaps=tuple(sorted(gaps, key=lambda g: (g.start, g.stream))),
         reference=tuple(reference),
         stream_rates={s.name: r for s, _, _, r in streams},
+        repeats=repeats,
     )

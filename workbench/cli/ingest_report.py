@@ -88,7 +88,10 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
                     f"#   topic {report.topic} ({report.schema}, {report.messages} msgs): {len(report.channels)} fields"
                 )
         for log in aligned:
-            rates = ", ".join(f"{k} {v:.1f} Hz" for k, v in log.stream_rates.items())
+            rates = ", ".join(
+                f"{k} {v:.1f} Hz" + (f" ({log.repeats[k]} repeated samples dropped)" if log.repeats.get(k) else "")
+                for k, v in log.stream_rates.items()
+            )
             lines.append(
                 f"#   -> log {log.parsed.name!r}: {log.data.shape[0]} samples at {log.rate_hz:g} Hz "
                 f"({log.data.shape[0] / log.rate_hz:.1f} s), {len(log.channels)} channels, {len(log.gaps)} gaps; "

@@ -66,3 +66,24 @@ def test_generic_csv_rows_at_the_mapping_rate_without_a_time_column(tmp_path: Pa
     assert run("ingest", tmp_path / "s", f, "--mapping", mapping) == 0
     (log,) = Session.open(tmp_path / "s").logs()
     assert log.rate_hz == 200.0 and log.n_samples == 300 and log.channel_names == ("ax", "ay")
+
+
+def test_a_stream_that_sends_each_sample_twice_is_read_at_its_own_rate(tmp_path: Path, capsys) -> None:
+    """Wall 3: every sample repeated 10 ms later with a new stamp read the stream at twice its rate, and gaps were
+    judged at that rate."""
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=(250, 3))  # 5 s at 50 Hz
+    t = np.arange(250) / 50.0
+    rows = [(tt + d, *v) for tt, v in zip(t, x, strict=True) for d in (0.0, 0.01)]  # each sample again 10 ms later
+    keep = [r for r in rows if not 2.0 <= r[0] < 2.1]  # 0.1 s of silence: five samples of the stream at 50 Hz
+    f = tmp_path / "imu.csv"
+    f.write_text("time,ax,ay,az\n" + "\n".join(",".join(f"{v:.6f}" for v in r) for r in keep) + "\n")
+    assert run("ingest", tmp_path / "s", f, "--dry-run") == 0
+    out = capsys.readouterr().out
+    assert "samples at 50 Hz" in out and "imu 50.0 Hz (" in out and "repeated samples dropped" in out
+    run("new", tmp_path / "s")
+    assert run("ingest", tmp_path / "s", f) == 0  # 0.1 s is five periods at 50 Hz, not ten: no gap
+    (log,) = Session.open(tmp_path / "s").logs()
+    assert log.rate_hz == 50.0 and 240 <= log.n_samples <= 250
+    got = np.asarray(Session.open(tmp_path / "s").rows(log.id)[:100])
+    np.testing.assert_allclose(got, x[:100], atol=1e-5)  # every sample once, on the grid
