@@ -145,7 +145,10 @@ def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *,
         if log is None:
             raise LabelError(f"{path}: row {i}: unknown log {row.log!r}; nothing was imported")
         if str(row.terrain) not in terrains:
-            raise LabelError(f"{path}: row {i}: unknown terrain {row.terrain!r}; nothing was imported")
+            raise LabelError(
+                f"{path}: row {i}: unknown terrain {row.terrain!r}; nothing was imported (add it with `workbench "
+                "terrains SESSION add NAME`, or import with --create-terrains)"
+            )
         if has_samples and (not has_seconds or pd.notna(row.start_sample)):
             start = _whole(row.start_sample, "start_sample", path=path, row=i)
             stop = _whole(row.end_sample, "end_sample", path=path, row=i)

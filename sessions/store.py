@@ -227,22 +227,17 @@ class Session(LogIngest, ModelRegistry):
         """Terrain classes in display order."""
         return [Terrain(*r) for r in self._read("SELECT id, name, color, position FROM terrains ORDER BY position")]
 
-    def add_terrain(self, name: str, *, color: str = "#607d8b") -> Terrain:
-        """Add a terrain class at the end of the list.
+    def add_terrain(self, name: str, *, color: str | None = None) -> Terrain:
+        """Add a terrain class at the end of the list (colour: the next of a palette unlike the defaults').
 
         Raises:
             LabelError: The name is empty or taken, or the colour is not ``#rrggbb``.
         """
         name = name.strip()
-        if not name:
-            raise LabelError("a terrain needs a name")
-        if not TERRAIN_COLOR.fullmatch(color):
+        if color is not None and not TERRAIN_COLOR.fullmatch(color):
             raise LabelError(f"terrain colour {color!r} is not #rrggbb (six hex digits), e.g. #607d8b")
         with self._write() as conn:
-            if conn.execute("SELECT 1 FROM terrains WHERE name = ?", (name,)).fetchone():
-                raise LabelError(f"terrain {name!r} exists already")
-            pos = conn.execute("SELECT COALESCE(MAX(position) + 1, 0) FROM terrains").fetchone()[0]
-            conn.execute("INSERT INTO terrains (name, color, position) VALUES (?, ?, ?)", (name, color, pos))
+            _insert_terrain(conn, name, color)
         return next(t for t in self.terrains() if t.name == name)
 
     def rename_terrain(self, old: str, new: str) -> None:
@@ -254,6 +249,17 @@ class Session(LogIngest, ModelRegistry):
             if conn.execute("UPDATE terrains SET name = ? WHERE name = ?", (new, old)).rowcount == 0:
                 raise LabelError(f"unknown terrain {old!r}")
 
+    def remove_terrains(self, names: Sequence[str]) -> None:
+        """Remove terrain classes no segment uses, in one transaction: all of them or, when any is unknown or used,
+        none.
+
+        Raises:
+            LabelError: Unknown, or still used by segments.
+        """
+        with self._write() as conn:
+            for name in names:
+                _delete_terrain(conn, name)
+
     def remove_terrain(self, name: str) -> None:
         """Remove a terrain class no segment uses.
 
@@ -261,13 +267,7 @@ class Session(LogIngest, ModelRegistry):
             LabelError: Unknown, or still used by segments.
         """
         with self._write() as conn:
-            row = conn.execute("SELECT id FROM terrains WHERE name = ?", (name,)).fetchone()
-            if row is None:
-                raise LabelError(f"unknown terrain {name!r}")
-            used = conn.execute("SELECT COUNT(*) FROM segments WHERE terrain_id = ?", (row[0],)).fetchone()[0]
-            if used:
-                raise LabelError(f"terrain {name!r} labels {used} segment(s); relabel or delete them first")
-            conn.execute("DELETE FROM terrains WHERE id = ?", (row[0],))
+            _delete_terrain(conn, name)
 
     # -------------------------------------------------------------------------------------------------- labels
     def add_segment(
@@ -327,8 +327,14 @@ class Session(LogIngest, ModelRegistry):
         logs = {x.id: x for x in self.logs()}
         return write_frame(segments_frame(self.segments(), logs), Path(path))
 
-    def import_labels(self, path: str | Path, *, author: str) -> list[Segment]:
+    def import_labels(self, path: str | Path, *, author: str, create_terrains: bool = False) -> list[Segment]:
         """Import a label file in one transaction: every row, or none when any row is refused.
+
+        Args:
+            path: A .csv, .parquet or .json label file.
+            author: Author of rows that name none.
+            create_terrains: Add the terrains the file names that the session lacks (in the same transaction:
+                a refused file adds none).
 
         Raises:
             LabelError: Unreadable file, missing columns, unknown logs or terrains, or overlaps.
@@ -337,11 +343,22 @@ class Session(LogIngest, ModelRegistry):
 
         path = Path(path)
         frame = read_frame(path)
-        logs, terrains = self.logs(), [t.name for t in self.terrains()]
+        logs = self.logs()
         with self._write() as conn:
+            terrains = self._terrains_for(conn, frame, create_terrains)
             return import_rows(conn, frame, logs, terrains, path=path, author=author)
 
-    def import_reference(self, path: str | Path) -> int:
+    def _terrains_for(self, conn, frame, create: bool) -> list[str]:
+        """The session's terrain names, with those ``frame`` names added first when ``create``."""
+        names = [r[0] for r in conn.execute("SELECT name FROM terrains ORDER BY position")]
+        if create and "terrain" in frame.columns:
+            for name in dict.fromkeys(str(t).strip() for t in frame["terrain"].dropna()):
+                if name and name not in names:
+                    _insert_terrain(conn, name, None)
+                    names.append(name)
+        return names
+
+    def import_reference(self, path: str | Path, *, create_terrains: bool = False) -> int:
         """Reference truth from a label file, for evaluation only: it replaces the reference of every log the file
         names, in one transaction, and never becomes labels. Returns the rows read.
 
@@ -352,14 +369,44 @@ class Session(LogIngest, ModelRegistry):
 
         path = Path(path)
         frame = read_frame(path)
-        logs, terrains = self.logs(), [t.name for t in self.terrains()]
+        logs = self.logs()
         with self._write() as conn:
+            terrains = self._terrains_for(conn, frame, create_terrains)
             return import_reference_rows(conn, frame, logs, terrains, path=path)
 
     def history(self, *, limit: int | None = None) -> list[HistoryEntry]:
         """Label actions, newest first."""
         with self._lock:
             return _labels.history(self._conn, limit=limit)
+
+
+NEW_TERRAIN_COLORS = ("#1e88e5", "#e53935", "#8e24aa", "#00897b", "#3949ab", "#d81b60", "#00acc1", "#7cb342")
+
+
+def _delete_terrain(conn, name: str) -> None:
+    """Remove a terrain no segment uses, inside the caller's transaction."""
+    row = conn.execute("SELECT id FROM terrains WHERE name = ?", (name,)).fetchone()
+    if row is None:
+        raise LabelError(f"unknown terrain {name!r}")
+    used = conn.execute("SELECT COUNT(*) FROM segments WHERE terrain_id = ?", (row[0],)).fetchone()[0]
+    if used:
+        raise LabelError(f"terrain {name!r} labels {used} segment(s); relabel or delete them first")
+    conn.execute("DELETE FROM terrains WHERE id = ?", (row[0],))
+
+
+def _insert_terrain(conn, name: str, color: str | None) -> None:
+    """Add a terrain at the end of the list inside the caller's transaction (colour: the palette's next)."""
+    if not name:
+        raise LabelError("a terrain needs a name")
+    if conn.execute("SELECT 1 FROM terrains WHERE name = ?", (name,)).fetchone():
+        raise LabelError(f"terrain {name!r} exists already")
+    pos = conn.execute("SELECT COALESCE(MAX(position) + 1, 0) FROM terrains").fetchone()[0]
+    if color is None:
+        taken = {r[0] for r in conn.execute("SELECT color FROM terrains")}
+        color = next(
+            (c for c in NEW_TERRAIN_COLORS if c not in taken), NEW_TERRAIN_COLORS[pos % len(NEW_TERRAIN_COLORS)]
+        )
+    conn.execute("INSERT INTO terrains (name, color, position) VALUES (?, ?, ?)", (name, color, pos))
 
 
 _LOG_COLS = "id, name, source_path, format, file, n_samples, rate_hz, t0, reference_terrain, ingested_at, info"

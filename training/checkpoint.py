@@ -59,11 +59,49 @@ class Checkpoint:
     model: dict[str, torch.Tensor]
     best_model: dict[str, torch.Tensor]
     optimizer: dict = field(repr=False)
+    settings: dict = field(default_factory=dict)  # what ``fingerprint`` digests, to say how another run differs
 
 
 def fingerprint(**what: object) -> str:
     """A short digest of JSON-able settings and data shapes; a checkpoint resumes only a run with the same one."""
     return hashlib.sha256(json.dumps(what, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def keyed_path(base: str | Path, key: str) -> Path:
+    """The checkpoint file of the run ``key`` fingerprints, beside ``base``: runs of other settings never replace
+    each other's checkpoints, so each can still be resumed by running it again."""
+    base = Path(base)
+    return base.with_name(f"{base.stem}-{key}{base.suffix}")
+
+
+def other_checkpoints(base: str | Path, key: str, settings: dict) -> list[str]:
+    """One line per checkpoint beside ``base`` of another run than ``key``: its epoch and how its settings differ."""
+    base = Path(base)
+    out = []
+    for path in sorted(base.parent.glob(f"{base.stem}-*{base.suffix}")):
+        if path == keyed_path(base, key):
+            continue
+        try:
+            with safe_open(str(path), framework="pt") as f:
+                meta = json.loads(f.metadata()["checkpoint"])
+        except (SafetensorError, OSError, KeyError, ValueError):
+            continue
+        theirs = meta.get("settings") or {}
+        diff = [
+            f"{k} {_short(theirs.get(k))} (now {_short(settings.get(k))})"
+            for k in sorted(set(theirs) | set(settings))
+            if theirs.get(k) != settings.get(k)
+        ]
+        out.append(f"{path.name}: epoch {meta.get('epoch')}, " + ("; ".join(diff) or "settings not recorded"))
+    return out
+
+
+def _short(value: object) -> str:
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k}={v}" for k, v in value.items()) + "}" if len(value) <= 4 else "{...}"
+    if isinstance(value, list):
+        return f"[{len(value)} items]"
+    return str(value)
 
 
 def save_checkpoint(ckpt: Checkpoint, path: str | Path) -> None:

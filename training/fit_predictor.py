@@ -20,7 +20,7 @@ import torch
 from torch.nn.parallel import DistributedDataParallel
 
 from . import distributed
-from .checkpoint import Checkpoint, fingerprint, load_checkpoint, save_checkpoint
+from .checkpoint import Checkpoint, fingerprint, keyed_path, load_checkpoint, other_checkpoints, save_checkpoint
 from .config import PredictorConfig, TrainConfig, to_dict
 from .data import Normalizer, Piece, Rows, cut_pieces, stage1_batch
 from .losses import masked_mse, predictor_loss
@@ -38,6 +38,7 @@ class PredictorFit:
     best_epoch: int
     timesteps: int  # training timesteps per epoch
     resumed_from: tuple[int, int] | None = None  # (epoch, batch) of the checkpoint it went on from
+    checkpoint: Path | None = None  # the file this run kept (the caller deletes it once the result is saved)
 
 
 def split_pieces(pieces: list[Piece], val_fraction: float, rng: np.random.Generator) -> tuple[list, list]:
@@ -129,6 +130,7 @@ def fit_predictor(
     checkpoint: str | Path | None = None,
     checkpoint_every: int = 100,
     on_resume: Callable[[int, int], None] | None = None,
+    on_other: Callable[[str], None] | None = None,
 ) -> PredictorFit:
     """Train stage 1 on raw (unnormalised) logs, in this process or in all of a ``torchrun`` group.
 
@@ -140,10 +142,13 @@ def fit_predictor(
         init: A previous fit to continue from (its normaliser is kept).
         progress: Called after every optimiser step (in the main process only).
         cancel: Polled after every step; training stops with :class:`Cancelled` when it returns True.
-        checkpoint: File to resume from and to keep up to date (written by the main process only); a run of other
-            settings or data ignores it and starts afresh.
+        checkpoint: Where checkpoints live: the run keeps ``keyed_path(checkpoint, fingerprint)`` up to date
+            (written by the main process only) and resumes from it; a run of other settings or data has its own
+            file, so neither replaces the other.
         checkpoint_every: Batches between checkpoints (and one at the end of every epoch).
         on_resume: Called with (epoch, batch) when training goes on from the checkpoint.
+        on_other: Called with one line per checkpoint of another run found beside it (its epoch, how it differs),
+            when this run starts afresh: nobody loses a run to a changed flag without being told.
 
     Returns:
         The model at its best validation epoch.
@@ -181,14 +186,21 @@ def fit_predictor(
         return x, y, mask
 
     # settings and data a checkpoint must share to be resumed; not the device or the number of processes
-    key = fingerprint(
-        config={k: v for k, v in to_dict(config).items() if k not in ("device", "bf16")},
-        hidden=hidden,
-        lengths=[len(a) for a in arrays],
-        channels=arrays[0].shape[1],
-        init=None if init is None else init.normalizer.to_dict(),
-    )
-    ckpt = load_checkpoint(checkpoint, key) if checkpoint is not None else None
+    settings = {
+        "config": {k: v for k, v in to_dict(config).items() if k not in ("device", "bf16")},
+        "hidden": hidden,
+        "lengths": [len(a) for a in arrays],
+        "channels": arrays[0].shape[1],
+        "init": None if init is None else init.normalizer.to_dict(),
+    }
+    key = fingerprint(**settings)
+    ckpt = None
+    if checkpoint is not None:
+        base, checkpoint = Path(checkpoint), keyed_path(checkpoint, key)
+        ckpt = load_checkpoint(checkpoint, key)
+        if ckpt is None and on_other is not None and world.main:
+            for line in other_checkpoints(base, key, {**settings["config"], "hidden": hidden}):
+                on_other(line)
     history: list[dict[str, float]] = []
     best, best_state, best_epoch, since = float("inf"), copy.deepcopy(model.state_dict()), 0, 0
     start_epoch, start_batch, done, order = 1, 0, False, None
@@ -249,6 +261,7 @@ def fit_predictor(
                     model.state_dict(),
                     best_state,
                     optimizer.state_dict(),
+                    {**settings["config"], "hidden": hidden},
                 ),
                 checkpoint,
             )
@@ -319,4 +332,4 @@ def fit_predictor(
     model.load_state_dict(best_state)
     model.eval()
     resumed = None if ckpt is None else (ckpt.epoch, ckpt.batch)
-    return PredictorFit(model.cpu(), normalizer, history, best_epoch, sum(p.length for p in train), resumed)
+    return PredictorFit(model.cpu(), normalizer, history, best_epoch, sum(p.length for p in train), resumed, checkpoint)

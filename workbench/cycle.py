@@ -92,6 +92,7 @@ def train_predictor(
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
     on_resume: Callable[[int, int], None] | None = None,
+    on_other: Callable[[str], None] | None = None,
     checkpoint_every: int = 100,
 ) -> ModelVersion:
     """Stage 1 on every log of the session's main channel set; saved as a new, active predictor version.
@@ -119,6 +120,7 @@ def train_predictor(
             checkpoint=checkpoint,
             checkpoint_every=checkpoint_every,
             on_resume=on_resume,
+            on_other=on_other,
         )
         info = {
             "logs": len(logs),
@@ -143,8 +145,8 @@ def train_predictor(
             session, "predictor", bundle, {"train": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs]}
         )
         result["version"] = version.id
-    with contextlib.suppress(OSError):
-        checkpoint.unlink()  # the version holds the result now
+    with contextlib.suppress(OSError, TypeError):
+        fit.checkpoint.unlink()  # the version holds the result now
     distributed.broadcast_json({"version": version.id})
     return version
 
@@ -189,8 +191,11 @@ def classifier_family(session: Session) -> str:
 
 def _labelled(session: Session, logs: Sequence[LogInfo]) -> tuple[tuple[str, ...], list[Segment], list]:
     index = {x.id: i for i, x in enumerate(logs)}
-    classes = tuple(t.name for t in session.terrains())
     used = [s for s in session.segments() if s.log_id in index]
+    # the classes are the terrains labelled: a terrain nobody labelled would be an empty row of the confusion matrix
+    # and a column of zeros in every prediction file
+    labelled = {s.terrain for s in used}
+    classes = tuple(t.name for t in session.terrains() if t.name in labelled)
     segments = [(index[s.log_id], s.start, s.stop, classes.index(s.terrain)) for s in used]
     if len({s[3] for s in segments}) < 2:
         raise WorkbenchError(f"{session.path}: label segments of at least two terrains before training the classifier")

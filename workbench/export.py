@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -224,7 +225,7 @@ def _arrays_for(bundle: ModelBundle, files: Sequence[Path], options: IngestOptio
             continue
         for p in parsed:
             try:
-                a = align(p, IngestOptions(rate_hz=bundle.rate_hz, allow_gaps=options.allow_gaps))
+                a = align(p, replace(options, rate_hz=bundle.rate_hz))  # the rate the model was trained at
             except IngestError as exc:
                 errors.append(exc)
                 continue
@@ -246,6 +247,11 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
         return 2, [f"error: {exc}"]
     if not bundle.classifiers:
         return 2, [f"error: {bundle_dir}: the bundle has no classifier"]
+    if options.target_rate is not None and abs(options.target_rate - bundle.rate_hz) > 1e-9:
+        return 2, [
+            f"error: {bundle_dir}: the model runs at {bundle.rate_hz:g} Hz, so logs are aligned at that rate; "
+            f"--rate {options.target_rate:g} would feed it another (leave --rate out)"
+        ]
     names, arrays, lines = [], [], []
     for name, item in _arrays_for(bundle, files, options):
         if name is None:

@@ -53,8 +53,8 @@ CHILD = textwrap.dedent(
     if where == "register":
         Session.register_model = lambda *a, **k: die()
     if where == "epoch":  # start afresh, so the kill comes at the step asked for (resuming: test_checkpoint.py)
-        ckpt = os.path.join(path, "cache", "checkpoints", cycle.PREDICTOR_CHECKPOINT)
-        if os.path.exists(ckpt):
+        import glob
+        for ckpt in glob.glob(os.path.join(path, "cache", "checkpoints", "predictor*.safetensors")):
             os.remove(ckpt)
     config = TrainConfig(max_epochs=3, patience=2, chunk=32, piece=256, batch_size=16, label_piece=64, context=32,
                          k_folds=3)

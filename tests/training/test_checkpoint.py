@@ -104,20 +104,29 @@ def test_a_stopped_fit_goes_on_from_its_checkpoint_to_the_uninterrupted_result(t
         torch.testing.assert_close(again.model.state_dict()[k], v, rtol=1e-6, atol=1e-7)
 
 
-def test_another_configuration_ignores_the_checkpoint(tmp_path: Path) -> None:
+def test_another_configuration_keeps_its_own_checkpoint_and_is_told_of_the_other(tmp_path: Path) -> None:
+    """A checkpoint of other settings was silently discarded: the new run restarted at epoch 1 over it."""
     logs = sine_logs(8, 256)
     path = tmp_path / "predictor.safetensors"
-    fit_predictor(logs, config=SMALL, hidden=8, checkpoint=path)
-    assert load_checkpoint(path, "x") is None and path.exists()
+    first = fit_predictor(logs, config=SMALL, hidden=8, checkpoint=path)
+    assert first.checkpoint is not None and first.checkpoint.exists() and first.checkpoint != path
+    assert load_checkpoint(first.checkpoint, "x") is None
     heard: list[tuple[int, int]] = []
+    told: list[str] = []
     other = fit_predictor(
         logs,
         config=TrainConfig(**{**SMALL.__dict__, "lr": 0.01}),
         hidden=8,
         checkpoint=path,
         on_resume=lambda e, b: heard.append((e, b)),
+        on_other=told.append,
     )
     assert heard == [] and other.resumed_from is None and len(other.history) == 4
+    assert len(told) == 1 and "lr 0.005 (now 0.01)" in told[0] and "epoch" in told[0], told
+    assert first.checkpoint.exists() and other.checkpoint.exists()  # neither replaced the other
+    again: list[tuple[int, int]] = []
+    fit_predictor(logs, config=SMALL, hidden=8, checkpoint=path, on_resume=lambda e, b: again.append((e, b)))
+    assert again, "the first settings still resume from their own checkpoint"
 
 
 def test_memory_mapped_logs_train_the_same_model_as_arrays(tmp_path: Path) -> None:

@@ -41,6 +41,9 @@ def test_the_first_classifier_is_the_default_family_and_retrains_keep_the_family
     bundle = load_bundle(session.path / c.path)
     assert bundle.family == "default" and bundle.spectral is not None and len(bundle.classifiers) == 5
     assert bundle.classifiers[0].config.n_features == bundle.spectral.step_width
+    labelled = {seg.terrain for seg in session.segments()}
+    assert set(bundle.classes) == labelled  # wall 4: a terrain nobody labelled is no class (no empty card rows)
+    assert list(bundle.classes) == [t.name for t in session.terrains() if t.name in labelled]
     assert {"accuracy", "macro_f1", "confusion", "pseudo_stretches"} <= set(c.metrics)
     paper = cycle.train_classifier(session, model="paper", config=TINY, hidden=8)
     assert paper.config["model"] == "paper" and load_bundle(session.path / paper.path).family == "paper"
@@ -55,7 +58,7 @@ def test_scores_stream_and_classify_agree_on_every_step(session: Session, tmp_pa
         cycle.train_classifier(session, model="default")
     log = session.logs()[0]
     scored = score_session(session, [log.id])[log.id]
-    assert scored.probs.shape == (log.n_samples, len(session.terrains()))
+    assert scored.probs.shape == (log.n_samples, len({seg.terrain for seg in session.segments()}))
     np.testing.assert_allclose(scored.probs.sum(1), 1.0, atol=1e-5)
     _, bundle = cycle.active_bundle(session)
     streamed = StreamingClassifier(bundle).run(np.asarray(session.array(log.id)))
@@ -68,7 +71,7 @@ def test_scores_stream_and_classify_agree_on_every_step(session: Session, tmp_pa
     assert code == 0, lines
     pred = pd.read_csv(tmp_path / "p.csv")
     assert len(pred) == log.n_samples
-    np.testing.assert_allclose(pred[[f"p_{t.name}" for t in session.terrains()]].to_numpy(), scored.probs, atol=1e-4)
+    np.testing.assert_allclose(pred[[f"p_{c}" for c in bundle.classes]].to_numpy(), scored.probs, atol=1e-4)
 
 
 def _options():

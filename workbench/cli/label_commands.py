@@ -24,14 +24,27 @@ def labels_export(session: Pos[Path], out: Path) -> None:
         print(f"wrote {len(s.segments())} segment(s) to {out}")
 
 
-def labels_import(session: Pos[Path], file: Pos[Path], author: str = "") -> None:
+def labels_import(
+    session: Pos[Path], file: Pos[Path], author: str = "", create_terrains: bool = False, reference: bool = False
+) -> None:
     """Import a label file: every row, or nothing when any row names an unknown log or terrain.
 
     Args:
         session: The session folder.
-        file: A .csv, .parquet or .json label file.
+        file: A .csv, .parquet or .json label file (columns log, terrain, start_s/end_s or start_sample/end_sample).
         author: Author for rows that name none (default: your user name).
+        create_terrains: Add the terrains the file names that the session lacks (none when the file is refused).
+        reference: Store the rows as reference truth for `workbench evaluate session`, kept apart from the labels
+            (they never train a model); it replaces the reference of each log the file names.
     """
     with Session.open(session) as s:
-        added = s.import_labels(file, author=author or getpass.getuser())
-        print(f"imported {len(added)} segment(s) from {file}")
+        before = {t.name for t in s.terrains()}
+        if reference:
+            n = s.import_reference(file, create_terrains=create_terrains)
+            print(f"imported {n} reference row(s) from {file} (evaluation only, never labels)")
+        else:
+            added = s.import_labels(file, author=author or getpass.getuser(), create_terrains=create_terrains)
+            print(f"imported {len(added)} segment(s) from {file}")
+        new = [t.name for t in s.terrains() if t.name not in before]
+        if new:
+            print(f"added terrain(s): {', '.join(new)}")

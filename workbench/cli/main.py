@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import tyro
 
@@ -119,6 +119,49 @@ def info(session: Pos[Path]) -> None:
             )
         print("terrains: " + ", ".join(t.name for t in s.terrains()))
         print(f"{len(segments)} label segment(s)")
+
+
+def terrains(
+    session: Pos[Path],
+    action: Pos[Literal["list", "add", "rename", "remove"]] = "list",
+    names: Pos[tuple[str, ...]] = (),
+    color: str | None = None,
+) -> None:
+    """List, add, rename or remove terrain classes.
+
+    `workbench terrains S` lists them with their labelled time; `add NAME...` adds; `rename OLD NEW` renames (labels
+    follow); `remove NAME...` removes terrains no label uses (a used one is refused, nothing removed).
+
+    Args:
+        session: The session folder.
+        action: list, add, rename or remove.
+        names: The terrain names the action takes.
+        color: Colour of an added terrain, #rrggbb (default: the next of a palette).
+    """
+    with Session.open(session) as s:
+        if action == "add":
+            if not names:
+                raise WorkbenchError("terrains add: name at least one terrain")
+            for name in names:
+                t = s.add_terrain(name, color=color)
+                print(f"added terrain {t.name} ({t.color})")
+        elif action == "rename":
+            if len(names) != 2:
+                raise WorkbenchError("terrains rename: give the old name and the new one")
+            s.rename_terrain(*names)
+            print(f"renamed terrain {names[0]} to {names[1]}")
+        elif action == "remove":
+            if not names:
+                raise WorkbenchError("terrains remove: name at least one terrain")
+            s.remove_terrains(names)
+            print(f"removed terrain(s): {', '.join(names)}")
+        else:
+            seconds: dict[str, float] = {}
+            rates = {x.id: x.rate_hz for x in s.logs()}
+            for seg in s.segments():
+                seconds[seg.terrain] = seconds.get(seg.terrain, 0.0) + seg.length / rates[seg.log_id]
+            for t in s.terrains():
+                print(f"  {t.name:<20} {t.color}  {seconds.get(t.name, 0.0):>9.1f} s labelled")
 
 
 def serve(
@@ -242,6 +285,7 @@ COMMANDS = {
     "classify": model_commands.classify,
     "evaluate": evaluate_command.evaluate,
     "labels": labels,
+    "terrains": terrains,
     "serve": serve,
     "demo": demo,
 }

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 from typing import Literal
 
@@ -14,28 +15,60 @@ from training import FeatureMode, TrainConfig
 Pos = tyro.conf.Positional
 
 
-class _Bar:
-    """A tqdm bar fed by training progress reports (fraction of the run, loss, validation loss)."""
+PROGRESS_EVERY_S = 10.0  # a progress line this often when the output is not a terminal (a log file, CI)
 
-    def __init__(self, desc: str) -> None:
+
+class _Bar:
+    """Training progress: a tqdm bar on a terminal; elsewhere (output to a file) a line every
+    ``PROGRESS_EVERY_S`` seconds with the fraction done, epoch, loss and the time left."""
+
+    def __init__(self, desc: str, *, every_s: float | None = None) -> None:
         from tqdm import tqdm
 
-        self.bar = tqdm(
-            total=1000, desc=desc, unit="‰", disable=None, bar_format="{l_bar}{bar}| {elapsed}<{remaining} {postfix}"
+        self.desc, self.every_s = desc, PROGRESS_EVERY_S if every_s is None else every_s
+        self.lines = not sys.stdout.isatty()
+        self.t0 = self.last = time.monotonic()
+        self.post = ""
+        self.bar = (
+            None
+            if self.lines
+            else tqdm(total=1000, desc=desc, unit="‰", bar_format="{l_bar}{bar}| {elapsed}<{remaining} {postfix}")
         )
 
     def __call__(self, p) -> None:
-        self.bar.n = int(p.fraction * 1000)
         post = f"epoch {p.epoch} loss {p.train_loss:.4f}"
         if p.folds > 1:
             post = f"fold {p.fold}/{p.folds} " + post
         if p.val_loss is not None:
             post += f" val {p.val_loss:.4f}"
-        self.bar.set_postfix_str(post, refresh=False)
-        self.bar.refresh()
+        self.post = post
+        if self.bar is not None:
+            self.bar.n = int(p.fraction * 1000)
+            self.bar.set_postfix_str(post, refresh=False)
+            self.bar.refresh()
+            return
+        now = time.monotonic()
+        if now - self.last >= self.every_s:
+            self.last = now
+            spent = now - self.t0
+            left = spent * (1 - p.fraction) / p.fraction if p.fraction > 0 else float("nan")
+            print(
+                f"{self.desc}: {p.fraction:.0%} {post}, {_clock(spent)} spent, about {_clock(left)} left",
+                flush=True,
+            )
 
     def close(self) -> None:
-        self.bar.close()
+        if self.bar is not None:
+            self.bar.close()
+        elif self.post:
+            print(f"{self.desc}: done in {_clock(time.monotonic() - self.t0)} ({self.post})", flush=True)
+
+
+def _clock(seconds: float) -> str:
+    if seconds != seconds:  # NaN: nothing done yet to judge by
+        return "?"
+    m, s = divmod(round(seconds), 60)
+    return f"{m // 60}:{m % 60:02d}:{s:02d}" if m >= 60 else f"{m}:{s:02d}"
 
 
 def check_device(device: str) -> None:
@@ -123,9 +156,16 @@ def _train_predictor(s: Session, config: TrainConfig, hidden: int) -> None:
         where = f"epoch {epoch}" + (f", batch {batch}" if batch else "")
         print(f"predictor: resuming from the checkpoint at {where}", file=sys.stderr)
 
+    def other(line: str) -> None:
+        print(
+            f"predictor: a checkpoint of another run is kept ({line}); this run starts at epoch 1, and running again "
+            "with those settings resumes that one",
+            file=sys.stderr,
+        )
+
     bar = _Bar("predictor")
     try:
-        v = cycle.train_predictor(s, config=config, hidden=hidden, progress=bar, on_resume=resumed)
+        v = cycle.train_predictor(s, config=config, hidden=hidden, progress=bar, on_resume=resumed, on_other=other)
     finally:
         bar.close()
     print(
@@ -180,17 +220,35 @@ def export(session: Pos[Path], out: Path, predictions: bool = False) -> None:
         print(f"{path}  {what}")
 
 
-def classify(bundle: Pos[Path], files: Pos[list[Path]], out: Path) -> int:
+def classify(
+    bundle: Pos[Path],
+    files: Pos[list[Path]],
+    out: Path,
+    mapping: Path | None = None,
+    allow_gaps: bool = False,
+    rate: float | None = None,
+) -> int:
     """Per-timestep terrain predictions for log files with an exported bundle (no session needed).
+
+    The files are read as `workbench ingest` reads them, with the same options.
 
     Args:
         bundle: A model bundle folder (from `workbench export`).
         files: Log files (MCAP / CSV) with the channels the model was trained on.
         out: Output table (.csv, .parquet or .json).
+        mapping: TOML or JSON file naming topics/columns to read, as for `workbench ingest` (a headerless CSV's
+            `[csv]` section included).
+        allow_gaps: Accept NaN/inf samples and dropouts, recording them as gaps instead of refusing the file.
+        rate: Rate (Hz) of the aligned time base; default: the fastest stream's median rate.
     """
+    from sessions import load_mapping
+
     from ..export import classify_files
 
-    code, lines = classify_files(bundle, files, out, IngestOptions())
+    options = IngestOptions(
+        mapping=load_mapping(mapping) if mapping else IngestOptions().mapping, rate_hz=rate, allow_gaps=allow_gaps
+    )
+    code, lines = classify_files(bundle, files, out, options)
     for line in lines:
         print(line, file=sys.stderr if line.startswith("error:") else sys.stdout)
     return code

@@ -54,7 +54,30 @@ class LabelPanel:
             self.undo_button = gui.add_button("Undo my last change (U)", icon="arrow-back-up")
             self.undo_button.on_click(lambda _: host.guard(self.undo))
         self.summary = gui.add_html("")
+        with gui.add_folder("Terrains", expand_by_default=False):
+            self.terrain_name = gui.add_text("Name", "", hint="A new terrain, or the new name of the one chosen above")
+            self.add_terrain_button = gui.add_button("Add terrain", icon="plus")
+            self.add_terrain_button.on_click(lambda _: host.guard(lambda: self._terrains("add")))
+            self.rename_terrain_button = gui.add_button("Rename chosen terrain", icon="pencil")
+            self.rename_terrain_button.on_click(lambda _: host.guard(lambda: self._terrains("rename")))
+            self.remove_terrain_button = gui.add_button("Remove chosen terrain", icon="trash", color="red")
+            self.remove_terrain_button.on_click(lambda _: host.guard(lambda: self._terrains("remove")))
         self.refresh()
+
+    def _terrains(self, action: str) -> None:
+        """Add, rename or remove a terrain (a used one is refused by the session, with its reason shown)."""
+        name, chosen = self.terrain_name.value.strip(), self.terrain.value
+        if action == "add":
+            self.host.state.change_terrains("add", name)
+            self.host.notify("Terrain added", name, color="green")
+        elif action == "rename":
+            self.host.state.change_terrains("rename", chosen, name)
+            self.host.notify("Terrain renamed", f"{chosen} → {name}; its labels follow", color="blue")
+        else:
+            self.host.state.change_terrains("remove", chosen)
+            self.host.notify("Terrain removed", chosen, color="blue")
+        with self.host.quiet():
+            self.terrain_name.value = ""
 
     # -------------------------------------------------------------------------------------------- range
     def _set_range(self, start: int, stop: int) -> None:

@@ -160,6 +160,21 @@ class SharedState:
         self.notify("logs")
         self.refresh(scores=True)
 
+    def change_terrains(self, action: str, name: str, new: str = "") -> None:
+        """Add (``name``), rename (``name`` to ``new``) or remove (``name``, refused while labels use it) a terrain;
+        every view hears of it as a label change."""
+        if action == "add":
+            self.session.add_terrain(name)
+        elif action == "rename":
+            self.session.rename_terrain(name, new)
+        elif action == "remove":
+            self.session.remove_terrain(name)
+        else:
+            raise ValueError(f"unknown terrain action {action!r}")
+        with self._lock:
+            self._terrains = self.session.terrains()
+        self._labels_changed()
+
     # --------------------------------------------------------------------------------------------- labels
     def add_label(self, log_id: int, start: int, stop: int, terrain: str, *, author: str, source: str) -> Segment:
         """Commit a label (it is saved when this returns); every view hears of it."""

@@ -87,3 +87,111 @@ def test_a_stream_that_sends_each_sample_twice_is_read_at_its_own_rate(tmp_path:
     assert log.rate_hz == 50.0 and 240 <= log.n_samples <= 250
     got = np.asarray(Session.open(tmp_path / "s").rows(log.id)[:100])
     np.testing.assert_allclose(got, x[:100], atol=1e-5)  # every sample once, on the grid
+
+
+def test_terrains_are_managed_from_the_command_line_and_label_files(tmp_path: Path, demo_mcap: Path, capsys) -> None:
+    """Wall 4: `unknown terrain 'ice'; nothing was imported`, and no command to add, rename or remove terrains."""
+    s = tmp_path / "s"
+    run("new", s)
+    run("ingest", s, demo_mcap)
+    labels = tmp_path / "labels.csv"
+    labels.write_text("log,terrain,start_s,end_s\nwalk,ice,1.0,5.0\nwalk,snow,10.0,12.0\nwalk,grass,20.0,22.0\n")
+    assert run("labels", "import", s, labels) == 2
+    assert "unknown terrain 'ice'; nothing was imported (add it with `workbench terrains" in capsys.readouterr().err
+    assert run("labels", "import", s, labels, "--create-terrains") == 0
+    assert "added terrain(s): ice, snow" in capsys.readouterr().out
+    assert run("terrains", s, "remove", "concrete", "gravel", "mulch", "dirt", "sand") == 0
+    assert run("terrains", s, "remove", "grass") == 2  # labels use it: refused, nothing removed
+    assert "labels 1 segment(s)" in capsys.readouterr().err
+    assert run("terrains", s, "rename", "snow", "powder") == 0
+    assert run("terrains", s, "add", "mud", "--color", "#123456") == 0
+    capsys.readouterr()
+    assert run("terrains", s) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in out] == ["grass", "ice", "powder", "mud"]
+    assert "4.0 s labelled" in out[1] and "#123456" in out[3]
+    with Session.open(s) as session:
+        assert {seg.terrain for seg in session.segments()} == {"grass", "ice", "powder"}  # the rename followed
+
+
+def test_reference_truth_is_imported_apart_from_labels(tmp_path: Path, demo_mcap: Path, capsys) -> None:
+    """Wall 7, last part: per-row terrain names could not become reference truth."""
+    s = tmp_path / "s"
+    run("new", s)
+    run("ingest", s, demo_mcap)
+    truth = tmp_path / "truth.csv"
+    truth.write_text("log,terrain,start_s,end_s\nwalk,flooring,0.0,40.0\nwalk,carpet,40.0,80.0\n")
+    assert run("labels", "import", s, truth, "--reference", "--create-terrains") == 0
+    assert "imported 2 reference row(s)" in capsys.readouterr().out
+    with Session.open(s) as session:
+        (log,) = session.logs()
+        assert session.segments() == [] and [r[2] for r in session.reference(log.id)] == ["flooring", "carpet"]
+
+
+def test_training_prints_progress_lines_when_its_output_goes_to_a_file(tmp_path: Path, demo_mcap: Path) -> None:
+    """Wall 5: `workbench train` printed nothing for 20 minutes when its output went to a file."""
+    import subprocess
+    import sys
+
+    s = tmp_path / "s"
+    run("new", s)
+    run("ingest", s, demo_mcap)
+    code = (
+        "import sys; from workbench.cli import model_commands as m; m.PROGRESS_EVERY_S = 0.0; "
+        "from workbench.cli import main; sys.exit(main(sys.argv[1:]))"
+    )
+    with open(tmp_path / "train.log", "w") as out:
+        done = subprocess.run(
+            [sys.executable, "-c", code, "train", str(s), "--stage", "predictor", "--max-epochs", "2", "--hidden", "8"],
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            timeout=300,
+        )
+    text = (tmp_path / "train.log").read_text()
+    assert done.returncode == 0, text[-2000:]
+    lines = [x for x in text.splitlines() if x.startswith("predictor: ") and "left" in x]
+    assert lines and "epoch" in lines[-1] and "loss" in lines[-1] and "spent, about" in lines[-1]
+    assert "predictor: done in" in text and "\r" not in text  # lines, not a bar redrawn in place
+
+
+def _walk_csv(path: Path, freq: float, seed: int, *, hole: bool = False) -> Path:
+    """A headerless 3-channel IMU CSV at 100 Hz vibrating at ``freq`` (a terrain), no time column."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(3000) / 100.0
+    x = np.column_stack([np.sin(2 * np.pi * freq * t + k) + 0.3 * rng.normal(size=len(t)) for k in range(3)])
+    text = [",".join(f"{v:.4f}" for v in row) for row in x]
+    if hole:
+        text[1500] = ",".join(["", *text[1500].split(",")[1:]])  # a dropped cell
+    path.write_text("\n".join(text) + "\n")
+    return path
+
+
+def test_classify_reads_files_as_ingest_does(tmp_path: Path, capsys) -> None:
+    """Wall 6: `classify` took none of ingest's options, yet told the user to `use --allow-gaps`, which it refused;
+    headerless files could not be classified."""
+    mapping = tmp_path / "m.toml"
+    mapping.write_text('[csv]\nheader = false\ncolumns = ["ax", "ay", "az"]\nsample_rate_hz = 100.0\n')
+    logs = [_walk_csv(tmp_path / f"w{i}.csv", (8.0, 25.0)[i % 2], i) for i in range(4)]
+    s = tmp_path / "s"
+    run("new", s)
+    assert run("ingest", s, *logs, "--mapping", mapping) == 0
+    labels = tmp_path / "labels.csv"
+    labels.write_text(
+        "log,terrain,start_s,end_s\n" + "".join(f"w{i},{('soft', 'hard')[i % 2]},2.0,12.0\n" for i in range(4))
+    )
+    assert run("labels", "import", s, labels, "--create-terrains") == 0
+    assert run("train", s, "--hidden", "8", "--max-epochs", "1") == 0
+    assert run("export", s, "--out", tmp_path / "x") == 0
+    new = _walk_csv(tmp_path / "new.csv", 25.0, 9, hole=True)
+    capsys.readouterr()
+    args = ["classify", tmp_path / "x" / "bundle", new, "--out", tmp_path / "p.csv", "--mapping", mapping]
+    assert run(*args) == 2
+    assert "use --allow-gaps" in capsys.readouterr().err
+    assert run(*args, "--allow-gaps") == 0
+    import pandas as pd
+
+    pred = pd.read_csv(tmp_path / "p.csv")
+    assert len(pred) > 2900 and set(pred["terrain"]) <= {"soft", "hard"}
+    assert (pred["terrain"].iloc[200:] == "hard").mean() > 0.9
+    assert run(*args, "--allow-gaps", "--rate", "50") == 2
+    assert "the model runs at 100 Hz" in capsys.readouterr().err

@@ -58,6 +58,21 @@ def test_a_saved_label_is_committed_before_views_hear_of_it_and_the_queue_follow
     assert len(state.session.segments()) == n
 
 
+def test_terrains_are_added_renamed_and_removed_from_the_page(state: SharedState) -> None:
+    heard: list[str] = []
+    state.subscribe(heard.append)
+    state.change_terrains("add", "ice")
+    wait_for(lambda: "labels" in heard)
+    assert [t.name for t in state.terrains()][-1] == "ice"
+    state.change_terrains("rename", "ice", "black ice")
+    used = state.session.segments()[0].terrain
+    with pytest.raises(WorkbenchError, match="relabel or delete them first"):
+        state.change_terrains("remove", used)  # labels use it: refused, kept
+    assert used in [t.name for t in state.terrains()]
+    state.change_terrains("remove", "black ice")
+    assert "black ice" not in [t.name for t in state.terrains()]
+
+
 def test_the_strategy_reranks_the_shared_queue(state: SharedState) -> None:
     heard: list[str] = []
     state.subscribe(heard.append)
