@@ -43,6 +43,30 @@ class TopicReport:
     unusable: str | None
 
 
+# Message types that carry vectors and quaternions but are no robot sensor: estimates, transforms, commands. Their
+# fields look like an IMU's to the shape-based inference, so they are left out unless a mapping names the topic.
+NOT_SENSORS = {
+    "nav_msgs/Odometry": "a state estimate",
+    "tf2_msgs/TFMessage": "a transform tree",
+    "geometry_msgs/TransformStamped": "a transform",
+    "geometry_msgs/PoseWithCovarianceStamped": "a pose estimate",
+    "geometry_msgs/PoseStamped": "a pose",
+    "geometry_msgs/Pose": "a pose",
+    "geometry_msgs/PoseArray": "poses",
+    "geometry_msgs/Twist": "a velocity command",
+    "geometry_msgs/TwistStamped": "a velocity command or estimate",
+    "geometry_msgs/PointStamped": "a point",
+    "nav_msgs/Path": "a path",
+    "visualization_msgs/Marker": "a visualisation",
+    "visualization_msgs/MarkerArray": "a visualisation",
+}
+
+
+def not_a_sensor(schema: str) -> str | None:
+    """What a message type is when it is no sensor (ROS 2 ``pkg/msg/Type`` or ROS 1 ``pkg/Type``), else None."""
+    return NOT_SENSORS.get(schema.replace("/msg/", "/"))
+
+
 def _decoder_for(encoding: str, schema) -> Callable[[bytes], object]:
     if encoding == "json":
         return lambda data: json.loads(data)
@@ -184,6 +208,11 @@ def read_mcap(
             t = topics[channel.id] = _Topic(channel.topic, schema.name if schema else "")
             if channel.topic in mapping.ignore or (explicit and channel.topic not in explicit):
                 t.unusable = "ignored by the mapping file"
+            elif channel.topic not in explicit and not_a_sensor(t.schema):
+                t.unusable = (
+                    f"not a sensor: {t.schema} is {not_a_sensor(t.schema)} (name the topic in a mapping file to read "
+                    "it anyway)"
+                )
             else:
                 try:
                     t.decode = _decoder_for(channel.message_encoding, schema)

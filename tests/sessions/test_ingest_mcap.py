@@ -170,6 +170,61 @@ def test_no_usable_sensor_channel(session: Session, tmp_path: Path) -> None:
     )
 
 
+POSE_PARTS = f"""{"=" * 80}
+MSG: geometry_msgs/Pose
+geometry_msgs/Point position
+geometry_msgs/Quaternion orientation
+{"=" * 80}
+MSG: geometry_msgs/Point
+float64 x
+float64 y
+float64 z
+{"=" * 80}
+MSG: geometry_msgs/Quaternion
+float64 x
+float64 y
+float64 z
+float64 w
+{"=" * 80}
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+{"=" * 80}
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+"""
+POSE_STAMPED_SCHEMA = "std_msgs/Header header\ngeometry_msgs/Pose pose\n" + POSE_PARTS
+
+
+def test_an_mcap_of_estimates_and_transforms_only_is_refused(session: Session, tmp_path: Path) -> None:
+    """Wall 8: odometry, TF and pose topics were read as 27 "sensor" channels; they are estimates, not sensors."""
+    from mcap_ros2.writer import Writer
+
+    path = tmp_path / "odom.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f)
+        s = w.register_msgdef("geometry_msgs/msg/PoseStamped", POSE_STAMPED_SCHEMA)
+        for i in range(50):
+            msg = {
+                "header": {"stamp": {"sec": 1000, "nanosec": i * 10_000_000}, "frame_id": "map"},
+                "pose": {
+                    "position": {"x": 0.1 * i, "y": 0.0, "z": 0.0},
+                    "orientation": {"x": 0, "y": 0, "z": 0, "w": 1},
+                },
+            }
+            w.write_message("/pose", s, msg, log_time=1000 * 10**9 + i * 10**7, publish_time=1)
+        w.finish()
+    err = _refused(
+        session, path, r"no usable sensor channel \(/pose: not a sensor: geometry_msgs/msg/PoseStamped is a pose"
+    )
+    assert "mapping file" in err.reason
+    mapping = tmp_path / "m.toml"  # named in a mapping, it is read: the user decides
+    mapping.write_text('[[channels]]\nsource = "/pose"\nfield = "pose.position.x"\nname = "x"\n')
+    (log,) = session.ingest([path], options=IngestOptions(mapping=load_mapping(mapping)))
+    assert log.channel_names == ("pose/x",)  # named after its topic, as every MCAP channel
+
+
 def test_one_bad_file_does_not_stop_the_others(session: Session, tmp_path: Path, demo_mcap: Path) -> None:
     (tmp_path / "bad.mcap").write_bytes(b"nope")
     errors: list[IngestError] = []
