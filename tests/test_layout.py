@@ -90,7 +90,7 @@ def _outside_code():
 
 
 def test_packages_are_used_through_their_public_names() -> None:
-    """Outside a package, ``from training import fit_classifier``, never ``from training.fit_classifier import``;
+    """Outside a package, ``from training import fit_classifier``, never ``from training.classifier_fit import``;
     workbench's rooms likewise (``workbench.ui``, not ``workbench.ui.state``)."""
     bad = []
     for path, rel in _outside_code():
@@ -157,3 +157,23 @@ def test_every_error_class_belongs_to_the_one_family() -> None:
                     strays.append(f"{name}.{cls_name}")
     assert {"IngestError", "LabelError", "SessionError", "BundleError"} <= checked, sorted(checked)
     assert not strays, strays
+
+
+def test_no_public_name_is_also_a_module_of_its_package() -> None:
+    """``training`` loads its names on first use: a function named like a module of the package would be replaced by
+    that module as soon as anything imports it (``from training import fit_predictor`` gave the module)."""
+    import training
+
+    modules = {p.stem for p in (REPO / "training").glob("*.py")}
+    clashes = [n for n in training.__all__ if n in modules and n not in training._SUBMODULES]
+    assert not clashes, clashes
+
+
+def test_help_and_settings_never_load_torch() -> None:
+    """``workbench --help`` and commands that need only settings start without PyTorch (about 2 s of imports)."""
+    import subprocess
+    import sys
+
+    code = "import sys, workbench.cli, training; training.TrainConfig; print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, check=True)
+    assert out.stdout.strip() == "False", out.stderr[-2000:]

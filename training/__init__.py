@@ -2,136 +2,142 @@
 ONNX export, bundles and evaluation protocols.
 
 Takes arrays, never sessions: ``workbench`` wires it to the session store and scores logs with it.
+
+Names are imported on first use (PEP 562): ``from training import TrainConfig`` loads ``training.config`` alone,
+so a command that needs only settings (``workbench --help``, ``ingest``, ``labels``) never loads PyTorch.
 """
 
-from . import distributed
-from .bundle import ModelBundle, load_bundle, parameter_count, save_bundle
-from .checkpoint import Checkpoint, load_checkpoint, save_checkpoint
-from .config import FEATURE_MODES, ClassifierConfig, ElasticNet, FeatureMode, PredictorConfig, TrainConfig, to_dict
-from .data import Normalizer, Piece, cut_pieces, neighbour_pairs, stage1_batch
-from .evaluate_sequences import held_out_logs_protocol, qcat_protocol
-from .evaluate_spectral import borealtc_window_protocol, window_inputs
-from .evaluate_windows import (
-    FoldResult,
-    Split,
-    WindowProtocol,
-    borealtc_protocol,
-    labelled_subset,
-    outer_folds,
-    partitions,
-    windows,
-)
-from .fit_classifier import ClassifierFit, fit_classifier
-from .fit_predictor import PredictorFit, fit_predictor, split_pieces
-from .fit_window import Stretch, WindowFitConfig, fit_window_classifier
-from .inference import (
-    LazyFeatures,
-    Stage1Outputs,
-    ensemble_pass,
-    padded_groups,
-    predictor_pass,
-    run_classifiers,
-    run_predictor,
-)
-from .losses import classifier_loss, elastic_net, predictor_loss
-from .metrics import classification_metrics, expected_calibration_error
-from .models import Classifier, Predictor
-from .onnx_export import check_onnx, export_onnx, run_onnx
-from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
-from .spectral import (
-    SpectralConfig,
-    SpectralSteps,
-    SpectralStream,
-    frame_ends,
-    frame_features,
-    log_frames,
-    log_summaries,
-    per_step,
-    split_channels,
-    stacked_frames,
-    summary_windows,
-)
-from .stream import StreamingClassifier
-from .training_errors import BundleError, TrainingError
-from .window_classifier import WindowClassifier, WindowClassifierConfig
+from __future__ import annotations
 
-__all__ = [
-    "FEATURE_MODES",
-    "BundleError",
-    "CancelFn",
-    "Cancelled",
-    "Checkpoint",
-    "Classifier",
-    "ClassifierConfig",
-    "ClassifierFit",
-    "ElasticNet",
-    "FeatureMode",
-    "FoldResult",
-    "LazyFeatures",
-    "ModelBundle",
-    "Normalizer",
-    "Piece",
-    "Predictor",
-    "PredictorConfig",
-    "PredictorFit",
-    "Progress",
-    "ProgressFn",
-    "SpectralConfig",
-    "SpectralSteps",
-    "SpectralStream",
-    "Split",
-    "Stage1Outputs",
-    "StreamingClassifier",
-    "Stretch",
-    "TrainConfig",
-    "TrainingError",
-    "WindowClassifier",
-    "WindowClassifierConfig",
-    "WindowFitConfig",
-    "WindowProtocol",
-    "borealtc_protocol",
-    "borealtc_window_protocol",
-    "check_onnx",
-    "classification_metrics",
-    "classifier_loss",
-    "cut_pieces",
-    "distributed",
-    "elastic_net",
-    "ensemble_pass",
-    "expected_calibration_error",
-    "export_onnx",
-    "fit_classifier",
-    "fit_predictor",
-    "fit_window_classifier",
-    "frame_ends",
-    "frame_features",
-    "held_out_logs_protocol",
-    "labelled_subset",
-    "load_bundle",
-    "load_checkpoint",
-    "log_frames",
-    "log_summaries",
-    "neighbour_pairs",
-    "never",
-    "outer_folds",
-    "padded_groups",
-    "parameter_count",
-    "partitions",
-    "per_step",
-    "predictor_loss",
-    "predictor_pass",
-    "qcat_protocol",
-    "run_classifiers",
-    "run_onnx",
-    "run_predictor",
-    "save_bundle",
-    "save_checkpoint",
-    "split_channels",
-    "split_pieces",
-    "stacked_frames",
-    "stage1_batch",
-    "summary_windows",
-    "to_dict",
-    "window_inputs",
-    "windows",
-]
+import importlib
+from typing import Any
+
+_MODULES: dict[str, tuple[str, ...]] = {
+    "bundle": (
+        "ModelBundle",
+        "load_bundle",
+        "parameter_count",
+        "save_bundle",
+    ),
+    "checkpoint": (
+        "Checkpoint",
+        "load_checkpoint",
+        "save_checkpoint",
+    ),
+    "config": (
+        "ClassifierConfig",
+        "ElasticNet",
+        "FEATURE_MODES",
+        "FeatureMode",
+        "PredictorConfig",
+        "TrainConfig",
+        "WindowFitConfig",
+        "to_dict",
+    ),
+    "data": (
+        "Normalizer",
+        "Piece",
+        "cut_pieces",
+        "neighbour_pairs",
+        "stage1_batch",
+    ),
+    "evaluate_sequences": (
+        "held_out_logs_protocol",
+        "qcat_protocol",
+    ),
+    "evaluate_spectral": (
+        "borealtc_window_protocol",
+        "window_inputs",
+    ),
+    "evaluate_windows": (
+        "FoldResult",
+        "Split",
+        "WindowProtocol",
+        "borealtc_protocol",
+        "labelled_subset",
+        "outer_folds",
+        "partitions",
+        "windows",
+    ),
+    "classifier_fit": ("ClassifierFit", "fit_classifier"),
+    "predictor_fit": ("PredictorFit", "fit_predictor", "split_pieces"),
+    "fit_window": (
+        "Stretch",
+        "fit_window_classifier",
+    ),
+    "inference": (
+        "LazyFeatures",
+        "Stage1Outputs",
+        "ensemble_pass",
+        "padded_groups",
+        "predictor_pass",
+        "run_classifiers",
+        "run_predictor",
+    ),
+    "losses": (
+        "classifier_loss",
+        "elastic_net",
+        "predictor_loss",
+    ),
+    "metrics": (
+        "classification_metrics",
+        "expected_calibration_error",
+    ),
+    "models": (
+        "Classifier",
+        "Predictor",
+    ),
+    "onnx_export": (
+        "check_onnx",
+        "export_onnx",
+        "run_onnx",
+    ),
+    "progress": (
+        "CancelFn",
+        "Cancelled",
+        "Progress",
+        "ProgressFn",
+        "never",
+    ),
+    "spectral": (
+        "SpectralConfig",
+        "SpectralSteps",
+        "SpectralStream",
+        "frame_ends",
+        "frame_features",
+        "log_frames",
+        "log_summaries",
+        "per_step",
+        "split_channels",
+        "stacked_frames",
+        "summary_windows",
+    ),
+    "stream": ("StreamingClassifier",),
+    "training_errors": (
+        "BundleError",
+        "TrainingError",
+    ),
+    "window_classifier": (
+        "WindowClassifier",
+        "WindowClassifierConfig",
+    ),
+}
+_OWNER = {name: module for module, names in _MODULES.items() for name in names}
+_SUBMODULES = ("distributed",)
+
+__all__ = sorted([*_OWNER, *_SUBMODULES])
+
+
+def __getattr__(name: str) -> Any:
+    if name in _SUBMODULES:
+        return importlib.import_module(f".{name}", __name__)
+    module = _OWNER.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return __all__

@@ -8,11 +8,11 @@ from dataclasses import replace
 
 import numpy as np
 
+from .classifier_fit import fit_classifier
 from .config import FeatureMode, TrainConfig
-from .fit_classifier import fit_classifier
-from .fit_predictor import fit_predictor
 from .inference import run_classifiers, run_predictor
 from .metrics import classification_metrics
+from .predictor_fit import fit_predictor
 
 
 def _split_groups(groups: np.ndarray, fractions: Sequence[float], rng: np.random.Generator) -> list[np.ndarray]:

@@ -15,9 +15,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from .config import WindowFitConfig
 from .data import Normalizer
 from .evaluate_windows import FoldResult, Split, WindowProtocol, labelled_subset, outer_folds, partitions
-from .fit_window import WindowFitConfig, fit_window_classifier
+from .fit_window import fit_window_classifier
 from .inference import run_classifiers
 from .metrics import classification_metrics, expected_calibration_error
 from .spectral import SpectralConfig, SpectralSteps, frame_features, log_frames, stacked_frames

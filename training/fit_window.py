@@ -18,14 +18,14 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import torch
 from sklearn.model_selection import GroupKFold, StratifiedGroupKFold
 from torch.nn import functional as F
 
-from .fit_classifier import ClassifierFit, Segment, fold_indices
+from .classifier_fit import ClassifierFit, Segment, fold_indices
+from .config import WindowFitConfig
 from .metrics import classification_metrics
 from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
 from .spectral import SpectralSteps
@@ -34,41 +34,6 @@ from .window_classifier import WindowClassifier, WindowClassifierConfig
 PSEUDO_STRIDE = 3  # rows of a stretch self-training reads: every third frame
 PREDICT_CHUNK = 4096  # steps per call when scoring segments: bounds the stacked frames in memory
 Stretch = tuple[int, int, int]  # (log index, start, stop): unlabelled, no change point inside
-
-
-@dataclass(frozen=True)
-class WindowFitConfig:
-    """How the window classifier is fitted.
-
-    Attributes:
-        k_folds: Folds over segments; the fold models form the ensemble.
-        hidden: Channels of the network's convolutions.
-        epochs: Passes over the labelled rows.
-        refit_epochs: Passes over labelled and pseudo-labelled rows when self-training refits.
-        max_steps: Most optimiser steps of one fit, whatever the data's size (bounds a Retrain on a big session).
-        batch: Rows per optimiser step.
-        lr: AdamW learning rate.
-        weight_decay: AdamW's decoupled L2 penalty.
-        noise: Standard deviation of Gaussian noise on the standardised frames while training.
-        self_training: Refit each fold with pseudo-labelled stretches.
-        agree: Share of a stretch's frames that must agree before it is pseudo-labelled.
-        held_out: Also measure accuracy on held-out logs (folds over logs: as many fits again).
-        seed: Seed of the folds, initial weights and batches.
-    """
-
-    k_folds: int = 5
-    hidden: int = 64
-    epochs: int = 60
-    refit_epochs: int = 30
-    max_steps: int = 2000
-    batch: int = 128
-    lr: float = 3e-3
-    weight_decay: float = 1e-2
-    noise: float = 0.05
-    self_training: bool = True
-    agree: float = 0.9
-    held_out: bool = True
-    seed: int = 0
 
 
 def _rows(features: SpectralSteps, start: int, stop: int) -> np.ndarray:

@@ -11,7 +11,7 @@ import torch
 
 from training.checkpoint import Checkpoint, fingerprint, load_checkpoint, save_checkpoint
 from training.config import TrainConfig
-from training.fit_predictor import fit_predictor
+from training.predictor_fit import fit_predictor
 from training.progress import Cancelled
 
 from .test_models import sine_logs

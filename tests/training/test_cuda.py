@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from training.config import TrainConfig
-from training.fit_predictor import fit_predictor
+from training.predictor_fit import fit_predictor
 
 from .test_checkpoint import SMALL
 from .test_models import sine_logs

@@ -66,7 +66,7 @@ def test_full_losses_add_the_penalty() -> None:
 
 
 def test_class_weights_make_each_class_count_by_its_weight() -> None:
-    from training.fit_classifier import balanced_weights
+    from training.classifier_fit import balanced_weights
 
     # 3 steps of class 0 (p = 0.7 each), 1 step of class 2 (p = 0.1)
     logits = torch.log(torch.tensor([[[0.7, 0.2, 0.1]] * 3 + [[0.2, 0.7, 0.1]]]))  # (1, 4, 3)
