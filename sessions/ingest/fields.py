@@ -1,12 +1,14 @@
 """Find sensor fields inside decoded messages by their shape, at any nesting depth.
 
-Works on ROS 2 messages decoded by mcap-ros2-support (objects with ``__slots__``) and on JSON objects (dicts)
-alike. Recognised: ``sensor_msgs/Imu`` (orientation, angular_velocity, linear_acceleration), ``geometry_msgs/Wrench``
-(force, torque), ``Vector3`` and ``Quaternion``, including inside custom messages and fixed-length arrays of them.
+Works on ROS 2 messages decoded by mcap-ros2-support (objects with ``__slots__``), on rosbags' messages
+(dataclasses) and on JSON objects (dicts) alike. Recognised: ``sensor_msgs/Imu`` (orientation, angular_velocity,
+linear_acceleration), ``geometry_msgs/Wrench`` (force, torque), ``Vector3`` and ``Quaternion``, including inside
+custom messages and fixed-length arrays of them.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -36,6 +38,8 @@ class FieldSpec:
 def keys(obj: object) -> tuple[str, ...]:
     if isinstance(obj, dict):
         return tuple(obj)
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):  # rosbags' messages
+        return tuple(f.name for f in dataclasses.fields(obj) if not f.name.startswith("__"))  # not __msgtype__
     slots = getattr(type(obj), "__slots__", None)
     return tuple(slots) if slots else ()
 

@@ -190,6 +190,25 @@ def read_mcap(
         IngestError: The file is empty, not MCAP, truncated or corrupt, or has no usable sensor channel.
     """
     path = Path(path)
+    return read_topics(
+        path,
+        options,
+        feed=lambda on_message, reset: _read(path, on_message, reset, on_bytes),
+        decoder_for=lambda channel, schema: _decoder_for(channel.message_encoding, schema),
+        fmt="mcap",
+    )
+
+
+Feed = Callable[[Callable[[object, object, object], None], Callable[[], None]], None]
+
+
+def read_topics(
+    path: Path, options: IngestOptions, *, feed: Feed, decoder_for: Callable[[object, object], Callable], fmt: str
+) -> tuple[ParsedLog, list[TopicReport]]:
+    """Streams from any message log: ``feed(on_message, reset)`` calls ``on_message(schema, channel, message)``
+    for every message (``schema.name``; ``channel.id``, ``.topic``; ``message.data``, ``.log_time`` in ns), and
+    ``decoder_for(channel, schema)`` gives the function that decodes a message's bytes. MCAP and ROS bags share
+    this: the same message types, fields and mapping."""
     mapping = options.mapping
     explicit: dict[str, list[ChannelSpec]] = {}
     for spec in mapping.channels:
@@ -215,7 +234,7 @@ def read_mcap(
                 )
             else:
                 try:
-                    t.decode = _decoder_for(channel.message_encoding, schema)
+                    t.decode = decoder_for(channel, schema)
                 except Exception as exc:
                     t.unusable = f"cannot decode: {exc}"
         if t.unusable:
@@ -266,7 +285,7 @@ def read_mcap(
         stamp = stamp_seconds(msg, header) if header is not None else None
         t.rows.append(stamp if stamp is not None else message.log_time * 1e-9, row)
 
-    _read(path, on_message, reset, on_bytes)
+    feed(on_message, reset)
 
     usable = [t for t in topics.values() if not t.unusable and t.rows is not None and len(t.rows)]
     reports = [
@@ -313,7 +332,7 @@ def read_mcap(
             name=path.stem,
             source_path=str(path),
             files=(str(path),),
-            format="mcap",
+            format=fmt,
             streams=tuple(streams),
             reference=reference,
         ),

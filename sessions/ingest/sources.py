@@ -7,18 +7,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import IngestError
+from .bag_reader import BAG_SUFFIXES, read_bag
 from .base import IngestOptions, ParsedLog
 from .csv_reader import BOREAL_RE, QCAT_RE, is_borealtc, is_qcat, read_borealtc, read_generic_csv, read_qcat
 from .mcap_reader import TopicReport, read_mcap
 
-LOG_SUFFIXES = (".mcap", ".csv")
+LOG_SUFFIXES = (".mcap", ".csv", *BAG_SUFFIXES)
 
 
 @dataclass(frozen=True)
 class Source:
     """The files of one recording and how to read them."""
 
-    format: str  # "mcap" | "qcat" | "borealtc" | "csv"
+    format: str  # "mcap" | "bag" | "qcat" | "borealtc" | "csv"
     files: tuple[Path, ...]
 
     @property
@@ -37,7 +38,7 @@ def _expand(paths: list[Path]) -> list[Path]:
         if p.is_dir():
             found = sorted(q for q in p.rglob("*") if q.is_file() and q.suffix.lower() in LOG_SUFFIXES)
             if not found:
-                raise IngestError(p, "folder holds no .mcap or .csv files")
+                raise IngestError(p, "folder holds no .mcap, .bag, .db3 or .csv files")
             out.extend(found)
         elif p.exists():
             out.append(p)
@@ -68,6 +69,8 @@ def plan_sources(paths: list[str | Path]) -> tuple[list[Source], list[IngestErro
         suffix = f.suffix.lower()
         if suffix == ".mcap":
             group, fmt = [f], "mcap"
+        elif suffix in BAG_SUFFIXES:
+            group, fmt = [f], "bag"
         elif suffix == ".csv" and is_borealtc(f):
             m = BOREAL_RE.match(f.name)
             assert m is not None
@@ -82,7 +85,8 @@ def plan_sources(paths: list[str | Path]) -> tuple[list[Source], list[IngestErro
         elif suffix == ".csv":
             group, fmt = [f], "csv"
         else:
-            errors.append(IngestError(f, f"unsupported file type {f.suffix or '(none)'!r}; expected .mcap or .csv"))
+            kind = f.suffix or "(none)"
+            errors.append(IngestError(f, f"unsupported file type {kind!r}; expected .mcap, .bag, .db3 or .csv"))
             continue
         seen.update(q.resolve() for q in group)
         sources.append(Source(fmt, tuple(group)))
@@ -102,6 +106,9 @@ def read_source(
     try:
         if source.format == "mcap":
             parsed, reports = read_mcap(source.path, options, on_bytes=on_bytes)
+            return [parsed], reports
+        if source.format == "bag":
+            parsed, reports = read_bag(source.path, options, on_bytes=on_bytes)
             return [parsed], reports
         if source.format == "borealtc":
             logs = [read_borealtc(list(source.files), options)]

@@ -156,10 +156,12 @@ def test_allow_gaps_turns_nan_rows_into_recorded_gaps(session: Session, tmp_path
 def test_missing_file_and_unsupported_type(session: Session, tmp_path: Path) -> None:
     with pytest.raises(IngestError, match="no such file"):
         session.ingest([tmp_path / "nope.csv"])
-    with pytest.raises(IngestError, match=r"unsupported file type '\.bag'"):
+    with pytest.raises(IngestError, match=r"unsupported file type '\.txt'"):
+        session.ingest([write(tmp_path / "x.txt", "x")])
+    with pytest.raises(IngestError, match="not a readable ROS bag"):  # a .bag is read as a bag: this one is none
         session.ingest([write(tmp_path / "x.bag", "x")])
     (tmp_path / "sub").mkdir()
-    with pytest.raises(IngestError, match=r"folder holds no \.mcap or \.csv files"):
+    with pytest.raises(IngestError, match=r"folder holds no \.mcap, \.bag, \.db3 or \.csv files"):
         session.ingest([tmp_path / "sub"])
 
 

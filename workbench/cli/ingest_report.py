@@ -103,12 +103,12 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
                 lines.append(f"#      gap in {gap.stream}: samples {gap.start}-{gap.stop}: {gap.reason}")
             for ch in log.channels:
                 src, _, field = ch.source.partition(":")
-                key = (src if source.format == "mcap" else field, ch.name)
+                key = (src if source.format in ("mcap", "bag") else field, ch.name)
                 if key in seen:
                     continue
                 seen.add(key)
                 entry = ["[[channels]]", f"source = {_toml_str(key[0])}"]
-                if source.format == "mcap":
+                if source.format in ("mcap", "bag"):
                     entry.append(f"field = {_toml_str(field)}")
                 entry += [f"name = {_toml_str(ch.name)}", f"unit = {_toml_str(ch.unit)}", ""]
                 channel_lines.extend(entry)
