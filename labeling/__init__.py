@@ -17,6 +17,7 @@ from .simulate import (
     table,
     time_to_reach,
 )
+from .stretches import PredictedStretch, predicted_stretches
 from .suggest import STRATEGIES, Strategy, Suggestion, candidates, class_weights, coverage, suggest
 from .tracks import (
     KINDS,
@@ -42,6 +43,7 @@ __all__ = [
     "Labelled",
     "Learner",
     "LogScores",
+    "PredictedStretch",
     "Round",
     "Snap",
     "Strategy",
@@ -60,6 +62,7 @@ __all__ = [
     "mutual_information",
     "normalised_tracks",
     "oracle",
+    "predicted_stretches",
     "savings",
     "session_normaliser",
     "simulate",
