@@ -76,14 +76,14 @@ def _train(
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     per_epoch = -(-len(xt) // config.batch)
     epochs = max(1, min(epochs, config.max_steps // max(per_epoch, 1)))
+    noise_scale = config.noise / model.in_scale.repeat(model.config.window)  # (W·F,) standardised units, raw scale
     model.train()
     for _ in range(epochs):
         if cancel():
             raise Cancelled("classifier training cancelled")
         for idx in torch.randperm(len(xt), generator=gen).split(config.batch):
             xb = xt[idx]
-            noise = torch.randn(xb.shape, generator=gen) * config.noise
-            xb = xb + noise / model.in_scale.repeat(model.config.window)  # the noise is in standardised units
+            xb = xb + torch.randn(xb.shape, generator=gen) * noise_scale
             loss = F.cross_entropy(model.logits(xb), yt[idx])
             opt.zero_grad()
             loss.backward()

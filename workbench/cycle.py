@@ -145,8 +145,9 @@ def train_predictor(
             session, "predictor", bundle, {"train": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs]}
         )
         result["version"] = version.id
-    with contextlib.suppress(OSError, TypeError):
-        fit.checkpoint.unlink()  # the version holds the result now
+    if fit.checkpoint is not None:
+        with contextlib.suppress(OSError):
+            fit.checkpoint.unlink()  # the version holds the result now
     distributed.broadcast_json({"version": version.id})
     return version
 

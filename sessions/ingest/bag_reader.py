@@ -61,14 +61,10 @@ def read_bag(
         raise IngestError(path, f"not a readable ROS bag: {type(exc).__name__}: {exc}") from None
 
     def feed(on_message, reset) -> None:
-        count = 0
         try:
             for connection, timestamp, raw in reader.messages():
                 schema, channel = _Schema(connection.msgtype), _Channel(connection.id, connection.topic)
                 on_message(schema, channel, _Message(raw, int(timestamp)))
-                count += 1
-                if on_bytes is not None and count % 4096 == 0:
-                    on_bytes(min(path.stat().st_size, count))
         except IngestError:
             raise
         except Exception as exc:
@@ -81,6 +77,6 @@ def read_bag(
         parsed, reports = read_topics(path, options, feed=feed, decoder_for=decoder_for, fmt="bag")
     finally:
         reader.close()
-    if on_bytes is not None:
+    if on_bytes is not None:  # rosbags gives no byte position while reading: the whole file at the end
         on_bytes(path.stat().st_size)
     return parsed, reports

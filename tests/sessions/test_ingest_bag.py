@@ -42,20 +42,25 @@ def _messages(ts):
     return imu, wrench
 
 
+def _write(writer, serialize, ts, seconds: float) -> None:
+    """An IMU at 100 Hz and a foot wrench at 50 Hz through an open rosbags writer."""
+    imu, wrench = _messages(ts)
+    c_imu = writer.add_connection("/robot/imu", "sensor_msgs/msg/Imu", typestore=ts)
+    c_foot = writer.add_connection("/robot/feet/fl", "geometry_msgs/msg/WrenchStamped", typestore=ts)
+    for i in range(int(seconds * RATE)):
+        t = 1000.0 + i / RATE
+        writer.write(c_imu, int(t * 1e9), serialize(imu(t, i), "sensor_msgs/msg/Imu"))
+        if i % 2 == 0:
+            writer.write(c_foot, int(t * 1e9), serialize(wrench(t, i), "geometry_msgs/msg/WrenchStamped"))
+
+
 def write_ros1(path: Path, seconds: float = 2.0) -> Path:
     from rosbags.rosbag1 import Writer
     from rosbags.typesys import Stores, get_typestore
 
     ts = get_typestore(Stores.ROS1_NOETIC)
-    imu, wrench = _messages(ts)
     with Writer(path) as w:
-        c_imu = w.add_connection("/robot/imu", "sensor_msgs/msg/Imu", typestore=ts)
-        c_foot = w.add_connection("/robot/feet/fl", "geometry_msgs/msg/WrenchStamped", typestore=ts)
-        for i in range(int(seconds * RATE)):
-            t = 1000.0 + i / RATE
-            w.write(c_imu, int(t * 1e9), ts.serialize_ros1(imu(t, i), "sensor_msgs/msg/Imu"))
-            if i % 2 == 0:
-                w.write(c_foot, int(t * 1e9), ts.serialize_ros1(wrench(t, i), "geometry_msgs/msg/WrenchStamped"))
+        _write(w, ts.serialize_ros1, ts, seconds)
     return path
 
 
@@ -64,15 +69,8 @@ def write_ros2(folder: Path, seconds: float = 2.0) -> Path:
     from rosbags.typesys import Stores, get_typestore
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
-    imu, wrench = _messages(ts)
     with Writer(folder, version=8) as w:
-        c_imu = w.add_connection("/robot/imu", "sensor_msgs/msg/Imu", typestore=ts)
-        c_foot = w.add_connection("/robot/feet/fl", "geometry_msgs/msg/WrenchStamped", typestore=ts)
-        for i in range(int(seconds * RATE)):
-            t = 1000.0 + i / RATE
-            w.write(c_imu, int(t * 1e9), ts.serialize_cdr(imu(t, i), "sensor_msgs/msg/Imu"))
-            if i % 2 == 0:
-                w.write(c_foot, int(t * 1e9), ts.serialize_cdr(wrench(t, i), "geometry_msgs/msg/WrenchStamped"))
+        _write(w, ts.serialize_cdr, ts, seconds)
     return next(folder.glob("*.db3"))
 
 
