@@ -27,6 +27,12 @@ from training import (
 PREDICTOR_BATCH = 64  # logs per stage-1 call when filling the cache
 
 
+def stage1_cached(session: Session, version: ModelVersion, logs: Sequence[LogInfo]) -> bool:
+    """Every one of ``logs`` has its stage-1 outputs of ``version`` in the session's cache."""
+    cache = session.cache_dir(f"stage1-v{version.id:04d}")
+    return all((cache / f"{x.id:06d}.error.npy").exists() for x in logs)
+
+
 def stage1_outputs(
     session: Session, version: ModelVersion, bundle: ModelBundle, logs: Sequence[LogInfo]
 ) -> dict[int, Stage1Outputs]:

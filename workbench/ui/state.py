@@ -15,6 +15,7 @@ import numpy as np
 import labeling
 from sessions import LogInfo, Segment, Session, Terrain, WorkbenchError
 
+from ..score_store import queue_key, store_queue, store_scores, stored_queue, stored_scores
 from ..scores import SessionScores, compute_scores
 from ..stage_inputs import log_change_points
 from ..suggestions import suggest_for_session
@@ -66,6 +67,7 @@ class SharedState:
         self._on_error = on_error or (lambda msg: print(msg, flush=True))
         self.busy = ""  # what the worker is doing, for the status line
         self.problem = ""  # why the last refresh failed (one line), shown in every page until one succeeds
+        self._queue_of: tuple[SessionScores, str] | None = None  # what the queue was ranked from: (scores, key)
         self._pending: dict[Event, None] = {}  # events not yet delivered, in order
         self._pending_cv = threading.Condition()
         self._delivering = False
@@ -278,7 +280,31 @@ class SharedState:
             cps = a + log_change_points(self.session.samples(log_id, a, b), surprise, rate_hz=log.rate_hz)
         return labeling.snap_range(start, stop, cps, radius=radius)
 
+    def _restore(self) -> None:
+        """Draw the last scoring and queue kept in the session at once; score again only when they are stale."""
+        try:
+            stored = stored_scores(self.session)
+        except Exception as exc:  # a cache that cannot be read is recomputed, never a reason not to start
+            self._on_error(f"stored scores not used ({type(exc).__name__}: {exc}); scoring the logs again")
+            return
+        if stored is None:
+            return
+        self.scores = stored.scores
+        self.scored = True
+        self._scores_wanted = not stored.complete
+        key = queue_key(self.session, self.strategy, self.terrains())
+        rows = stored_queue(self.session, stored.scores, key=key)
+        if rows is not None:
+            logs = {x.id: x for x in self.logs()}
+            queue = [Queued((r[0], r[1], r[2]), logs[r[0]], r[1], r[2], r[3], r[4], r[5]) for r in rows if r[0] in logs]
+            with self._lock:
+                self.queue = queue
+            self._queue_of = (stored.scores, key)
+        self.notify("scores")
+        self.notify("suggestions")
+
     def _work(self) -> None:
+        self._restore()
         while not self._stop.is_set():
             self._dirty.wait()
             if self._stop.is_set():
@@ -297,10 +323,16 @@ class SharedState:
                     self.scores = compute_scores(self.session)
                     self.scored = True
                     self.notify("scores")
-                self.busy = "updating suggestions"
-                queue = self._compute_queue()
-                with self._lock:
-                    self.queue = queue
+                    self._keep(store_scores, self.session, self.scores)
+                key = queue_key(self.session, self.strategy, self.terrains())
+                if self._queue_of is None or self._queue_of[0] is not self.scores or self._queue_of[1] != key:
+                    self.busy = "updating suggestions"
+                    queue = self._compute_queue()
+                    with self._lock:
+                        self.queue = queue
+                    self._queue_of = (self.scores, key)
+                    rows = [(q.log.id, q.start, q.stop, q.reason, q.guess, q.score) for q in queue]
+                    self._keep(store_queue, self.session, self.scores, rows, key=key)
                 self.notify("suggestions")
             except USER_ERRORS as exc:
                 # a damaged model or session: one line in every page and in the server's output, no traceback
@@ -317,6 +349,13 @@ class SharedState:
                 self.scored = True
                 self.busy = ""
                 self.notify("job")
+
+    def _keep(self, store: Callable[..., object], *args: object, **kwargs: object) -> None:
+        """Store for the next start; a full disk costs the next start its head start, nothing more."""
+        try:
+            store(*args, **kwargs)
+        except OSError as exc:
+            self._on_error(f"could not keep the scores for the next start: {exc}")
 
     def _compute_queue(self) -> list[Queued]:
         scores = self.scores

@@ -22,6 +22,7 @@ from ..user_errors import USER_ERRORS, one_line
 from . import charts
 from .decimate import decimate
 from .legend import legend_html
+from .status_bar import StatusBar
 from .track_data import track_inputs
 
 if TYPE_CHECKING:
@@ -92,6 +93,9 @@ class ClientView:
         self._traces_tab = self.traces_panel.add_tab("Traces", icon="chart-line")
         with self._traces_tab:
             self._build_traces()
+        self.status_bar = StatusBar(
+            self, retrain=lambda: self.train_panel.retrain(), export=lambda: self.data_panel.download_bundle()
+        )
         tabs = gui.add_tab_group()
         # suggestions first: the page opens on "what to label next"
         suggest_tab = tabs.add_tab("Suggest", icon="bulb")
@@ -105,6 +109,7 @@ class ClientView:
             self.data_panel = DataPanel(self)
         self.robot = RobotView(self)
         self._hotkeys()
+        self.status_bar.refresh()
         self._unsubscribe = state.subscribe(self._on_event)
         self.redraw()
 
@@ -298,6 +303,7 @@ class ClientView:
                 self.train_panel.refresh(event)
             if event in ("labels", "models"):
                 self.data_panel.refresh()
+            self.status_bar.refresh()
 
     def redraw(self) -> None:
         """Draw the window: traces decimated per pixel, tracks, cursor; the robot at the cursor."""

@@ -1,0 +1,95 @@
+"""The last scoring and queue kept in the session: read back as they were, refused once anything they came from
+changed, and used by the shared state so that a restart draws at once instead of scoring every log again."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sessions import Session
+from tests.workbench.test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
+from workbench import cycle
+from workbench.demo import generate_demo_logs
+from workbench.score_store import queue_key, store_queue, store_scores, stored_queue, stored_scores
+from workbench.scores import compute_scores
+from workbench.ui import state as state_module
+from workbench.ui.state import SharedState
+
+
+def test_stored_scores_read_back_equal_and_complete(trained: Session) -> None:  # noqa: F811
+    assert stored_scores(trained) is None  # nothing kept yet
+    scores = compute_scores(trained)
+    store_scores(trained, scores)
+    back = stored_scores(trained)
+    assert back is not None and back.complete
+    got = back.scores
+    assert (got.predictor, got.classifier, got.classes) == (scores.predictor, scores.classifier, scores.classes)
+    assert set(got.scores) == set(scores.scores)
+    for log_id, s in scores.scores.items():
+        g = got.scores[log_id]
+        np.testing.assert_array_equal(g.surprise, s.surprise)
+        np.testing.assert_array_equal(g.probs, s.probs)
+        np.testing.assert_array_equal(g.disagreement, s.disagreement)
+        assert set(got.tracks[log_id]) == set(scores.tracks[log_id])
+        for kind, track in scores.tracks[log_id].items():
+            np.testing.assert_array_equal(got.tracks[log_id][kind], track)
+        np.testing.assert_array_equal(got.embeddings[log_id][100:140], scores.embeddings[log_id][100:140])
+
+
+def test_a_new_log_makes_the_stored_scores_incomplete(trained: Session, tmp_path: Path) -> None:  # noqa: F811
+    store_scores(trained, compute_scores(trained))
+    (extra,) = generate_demo_logs(tmp_path / "more", n_logs=1, minutes=0.3, seed=9)
+    trained.ingest([extra])
+    back = stored_scores(trained)
+    assert back is not None and not back.complete  # drawn at once, then the worker scores again
+    assert len(back.scores.scores) == len(trained.logs()) - 1
+
+
+def test_another_active_model_leaves_the_stored_scores_unused(trained: Session) -> None:  # noqa: F811
+    store_scores(trained, compute_scores(trained))
+    cycle.train_classifier(trained, config=TINY, hidden=8)  # a new version, active
+    assert stored_scores(trained) is None
+    store_scores(trained, compute_scores(trained))
+    assert len(list((trained.path / "cache").glob("scores-*"))) == 1  # the older model's scores are removed
+    assert stored_scores(trained) is not None
+
+
+def test_the_queue_is_stale_once_a_label_changes(trained: Session) -> None:  # noqa: F811
+    scores = compute_scores(trained)
+    store_scores(trained, scores)
+    log = trained.logs()[0]
+    key = queue_key(trained, "combined", trained.terrains())
+    rows = [(log.id, 10, 60, "uncertain", "grass", 0.5)]
+    store_queue(trained, scores, rows, key=key)
+    assert stored_queue(trained, scores, key=key) == [tuple(r) for r in rows]
+    assert stored_queue(trained, scores, key=queue_key(trained, "random", trained.terrains())) is None
+    trained.add_segment(log.id, 200, 260, "grass", author="t", source="manual")
+    assert stored_queue(trained, scores, key=queue_key(trained, "combined", trained.terrains())) is None
+
+
+def test_a_restart_draws_the_stored_scores_and_queue_without_scoring(
+    trained: Session,  # noqa: F811
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    first = SharedState(trained, on_error=pytest.fail)
+    deadline = time.monotonic() + 120
+    while not (first.scored and first.queue and not first.busy) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    queue = [(q.key, q.reason, q.guess) for q in first.queue]
+    first.stop()
+    assert queue
+
+    def no_scoring(*args, **kwargs):
+        raise AssertionError("scored again though nothing changed")
+
+    monkeypatch.setattr(state_module, "compute_scores", no_scoring)
+    monkeypatch.setattr(SharedState, "_compute_queue", no_scoring)
+    second = SharedState(trained, on_error=pytest.fail)
+    deadline = time.monotonic() + 10
+    while not (second.scored and second.queue) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert [(q.key, q.reason, q.guess) for q in second.queue] == queue
+    second.stop()

@@ -1,0 +1,72 @@
+"""The line above the tabs: which model is active, how much is labelled, what the server is doing, and the two
+things a person comes back to after labelling (Retrain, Export), so neither has to be found in a tab first."""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .host import PanelHost
+
+RETRAIN = "Retrain"
+EXPORT = "Export"
+
+
+def status_html(host: PanelHost) -> str:
+    """The status line: active classifier (or predictor) with its held-out accuracy, labels, what runs."""
+    state, job = host.state, host.job
+    session = state.session
+    classifier = session.active_model("classifier")
+    predictor = session.active_model("predictor")
+    if classifier is not None:
+        m = classifier.metrics
+        held = m.get("held_out_logs") or {}
+        acc = held.get("accuracy")
+        model = f"<b>{html.escape(str(classifier.config.get('model', 'paper')))} v{classifier.id}</b>" + (
+            f" · {100 * acc:.0f} % on held-out logs" if acc is not None else ""
+        )
+    elif predictor is not None:
+        model = f"<b>stage 1 v{predictor.id}</b> · no classifier yet"
+    else:
+        model = "<b>no model yet</b>"
+    segments = session.segments()
+    rates = {x.id: x.rate_hz for x in state.logs()}
+    seconds = sum(s.length / rates.get(s.log_id, 1.0) for s in segments)
+    terrains = len({s.terrain for s in segments})
+    labels = f"{len(segments)} labels · {seconds:.0f} s · {terrains} terrains"
+    st = job.status
+    if st.state in ("running", "refining"):
+        doing = f"training {100 * st.fraction:.0f} %"
+    elif state.busy:
+        doing = state.busy
+    elif st.state in ("failed", "cancelled"):
+        doing = f"last training {st.state}"
+    else:
+        doing = ""
+    doing_html = f" · <i style='color:#1565c0'>{html.escape(doing)}…</i>" if doing else ""
+    return f"<div style='font-size:0.8em;line-height:1.5'>{model}<br>{labels}{doing_html}</div>"
+
+
+class StatusBar:
+    """The status line and its Retrain / Export buttons; redrawn on label, model, job and score events."""
+
+    def __init__(self, host: PanelHost, *, retrain: Callable[[], None], export: Callable[[], None]) -> None:
+        self.host = host
+        gui = host.client.gui
+        self.line = gui.add_html("")
+        self.buttons = gui.add_button_group(
+            "Model",
+            (RETRAIN, EXPORT),
+            hint="Retrain (key R): stage 2 on the labels, in the background. Export: the model bundle (PyTorch, ONNX, card) as a zip",
+        )
+        actions = {RETRAIN: retrain, EXPORT: export}
+        self.buttons.on_click(lambda event: host.guard(actions[event.target.value]))
+        self._drawn = ""
+
+    def refresh(self) -> None:
+        content = status_html(self.host)
+        if content != self._drawn:  # job progress arrives twice a second: send only what changed
+            self._drawn = content
+            self.line.content = content
