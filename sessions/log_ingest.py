@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from . import labels as _labels
+from .cameras import place_cameras, stage_cameras
 from .errors import IngestError, SessionError
 from .ingest import AlignedLog, IngestOptions, align, plan_sources, read_source
 from .logs import LogInfo
@@ -138,6 +139,7 @@ class LogIngest:
         # The same recording again keeps the copy we have: no array is written for it.
         ids = {name: int(i) for name, i in self._read("SELECT name, id FROM logs WHERE source_sha256 = ?", (sha,))}
         staged: list[tuple[AlignedLog, Path]] = []
+        cameras: dict[str, list[tuple[Path, Path, dict]]] = {}
         placed: list[Path] = []
         try:
             for log in aligned:
@@ -145,6 +147,7 @@ class LogIngest:
                     continue
                 assert isinstance(log.data, NpyWriter), "ingest aligns into staged files"
                 staged.append((log, log.data.path))  # written and synced while aligning
+                cameras[log.parsed.name] = stage_cameras(logs_dir, log.parsed.cameras, t0=log.t0)
             with self._write() as conn:
                 for log, tmp in staged:
                     row = conn.execute(  # another process may have ingested it meanwhile
@@ -158,6 +161,12 @@ class LogIngest:
                     conn.execute("UPDATE logs SET file = ? WHERE id = ?", (f"{LOGS_DIR}/{final.name}", log_id))
                     os.replace(tmp, final)
                     placed.append(final)
+                    if cameras[log.parsed.name]:
+                        entries, files = place_cameras(logs_dir, log_id, cameras[log.parsed.name])
+                        placed.extend(files)
+                        row = conn.execute("SELECT info FROM logs WHERE id = ?", (log_id,)).fetchone()
+                        info = {**json.loads(row[0]), "cameras": entries}
+                        conn.execute("UPDATE logs SET info = ? WHERE id = ?", (json.dumps(info), log_id))
                     ids[log.parsed.name] = log_id
                 fsync_dir(logs_dir)
         except BaseException:
@@ -169,6 +178,10 @@ class LogIngest:
             for _, tmp in staged:
                 with contextlib.suppress(OSError):
                     tmp.unlink()
+            for frames, index, _ in (c for cams in cameras.values() for c in cams):
+                for p in (frames, index):
+                    with contextlib.suppress(OSError):
+                        p.unlink()
         return [self.log(ids[log.parsed.name]) for log in aligned]
 
     @staticmethod

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import labels as _labels
+from .cameras import CameraStore
 from .errors import LabelError, SessionError
 from .log_files import checked_log_file
 from .log_ingest import LOGS_DIR, LogIngest
@@ -30,7 +31,7 @@ _STALE_TMP_S = 600.0  # leftovers older than this are from a crashed ingest, not
 TERRAIN_COLOR = re.compile(r"#[0-9a-fA-F]{6}")
 
 
-class Session(LogIngest, ModelRegistry):
+class Session(LogIngest, CameraStore, ModelRegistry):
     """A session folder. Thread-safe: one SQLite connection guarded by a lock; every write is one transaction.
 
     Use :meth:`create` or :meth:`open`, not the constructor.
@@ -41,6 +42,8 @@ class Session(LogIngest, ModelRegistry):
         self._conn = conn
         self._lock = threading.RLock()
         self._arrays: dict[int, np.ndarray] = {}
+        self._camera_index: dict[tuple[int, int], tuple[np.ndarray, Path]] = {}
+        self._camera_lock = threading.Lock()
 
     # ----------------------------------------------------------------------------------------------- lifecycle
     @classmethod
@@ -129,6 +132,10 @@ class Session(LogIngest, ModelRegistry):
         """Remove what crashed ingests and model saves left: files and folders no catalog row points to."""
         known = {r[0] for r in self._read("SELECT file FROM logs")}
         cutoff = time.time() - _STALE_TMP_S
+        for f in (self.path / LOGS_DIR).glob(".tmp-*"):  # staged arrays and camera files of a crashed ingest
+            if f.stat().st_mtime < cutoff:
+                with contextlib.suppress(OSError):
+                    f.unlink()
         for f in (self.path / LOGS_DIR).glob("*.npy"):
             rel = f"{LOGS_DIR}/{f.name}"
             if rel not in known and f.stat().st_mtime < cutoff:

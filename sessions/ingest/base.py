@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..rowfiles import FileRows
+from .image_topics import CameraStream
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,7 @@ class ParsedLog:
     # Reference truth as (start_s, stop_s, terrain), absolute on the streams' clock: for evaluation only.
     reference: tuple[tuple[float, float, str], ...] = ()
     notes: tuple[str, ...] = ()
+    cameras: tuple[CameraStream, ...] = ()  # camera frames, kept beside the arrays
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,7 @@ class IngestOptions:
     rate_hz: float | None = None  # overrides mapping.rate_hz
     allow_gaps: bool = False
     gap_samples: float = 5.0  # a stream silent for more than this many of its own periods is in a gap
+    camera_fps: float = 2.0  # most camera frames kept a second per image topic (0: none): terrain changes over seconds
 
     @property
     def target_rate(self) -> float | None:

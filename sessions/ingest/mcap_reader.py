@@ -14,6 +14,7 @@ import numpy as np
 from ..errors import IngestError
 from .base import ChannelSpec, IngestOptions, ParsedLog, Stream
 from .fields import FieldSpec, format_path, get, infer_fields, parse_path, stamp_seconds
+from .image_topics import CameraCollector, is_camera
 from .spill import RowBuffer, reorder
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -30,6 +31,7 @@ class _Topic:
     unusable: str | None = None  # why the topic gives no channels
     rows: RowBuffer | None = None  # stamps and field values, spilled to disk
     dropped: int = 0
+    camera: CameraCollector | None = None  # an image topic: its frames, kept beside the streams
 
 
 @dataclass(frozen=True)
@@ -41,6 +43,7 @@ class TopicReport:
     messages: int
     channels: tuple[tuple[str, str, str], ...]  # (field, unit, ...) for usable topics
     unusable: str | None
+    note: str = ""  # what a camera topic gave
 
 
 # Message types that carry vectors and quaternions but are no robot sensor: estimates, transforms, commands. Their
@@ -225,8 +228,11 @@ def read_topics(
         t = topics.get(channel.id)
         if t is None:
             t = topics[channel.id] = _Topic(channel.topic, schema.name if schema else "")
-            if channel.topic in mapping.ignore or (explicit and channel.topic not in explicit):
+            camera = is_camera(t.schema)
+            if channel.topic in mapping.ignore or (explicit and channel.topic not in explicit and not camera):
                 t.unusable = "ignored by the mapping file"
+            elif camera and not options.camera_fps > 0:
+                t.unusable = "camera frames not kept (camera_fps 0)"
             elif channel.topic not in explicit and not_a_sensor(t.schema):
                 t.unusable = (
                     f"not a sensor: {t.schema} is {not_a_sensor(t.schema)} (name the topic in a mapping file to read "
@@ -237,7 +243,18 @@ def read_topics(
                     t.decode = decoder_for(channel, schema)
                 except Exception as exc:
                     t.unusable = f"cannot decode: {exc}"
+                if camera and not t.unusable:
+                    t.camera = CameraCollector(t.topic, t.schema, fps=options.camera_fps)
         if t.unusable:
+            return
+        if t.camera is not None:
+            if t.camera.wants(message.log_time):  # frames past the rate cap are never decoded
+                try:
+                    msg = t.decode(message.data)
+                except Exception as exc:
+                    t.camera.skip(f"cannot decode: {exc}")
+                else:
+                    t.camera.add(msg, message.log_time)
             return
         try:
             msg = t.decode(message.data)
@@ -295,9 +312,11 @@ def read_topics(
             counts.get(t.topic, 0),
             tuple((format_path(f.path), f.unit, "") for f in t.fields) if not t.unusable else (),
             t.unusable,
+            t.camera.note if t.camera is not None else "",
         )
         for t in topics.values()
     ]
+    cameras = tuple(c for t in topics.values() if t.camera is not None and (c := t.camera.result()) is not None)
     if not usable:
         if not topics:
             reason = "no messages"
@@ -335,6 +354,7 @@ def read_topics(
             format=fmt,
             streams=tuple(streams),
             reference=reference,
+            cameras=cameras,
         ),
         reports,
     )

@@ -8,6 +8,8 @@ layout mistake cannot pass unnoticed.
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 
 _SEP = "=" * 80
@@ -51,6 +53,31 @@ geometry_msgs/Vector3 force
 geometry_msgs/Vector3 torque
 {_VECTOR3}
 """
+
+
+COMPRESSED_IMAGE_SCHEMA = f"""std_msgs/Header header
+string format
+uint8[] data
+{_HEADER_DEFS}
+"""
+
+
+def compressed_image(stamp: float, frame_id: str, fmt: str, data: bytes) -> bytes:
+    """CDR bytes of one sensor_msgs/CompressedImage (variable length: encoded one at a time, they are few)."""
+    body = bytearray()
+
+    def pad4() -> None:  # alignment counts from after the encapsulation header
+        body.extend(b"\0" * (-len(body) % 4))
+
+    sec = int(np.floor(stamp))
+    body += struct.pack("<iI", sec, min(round((stamp - sec) * 1e9), 999_999_999))
+    for text in (frame_id, fmt):
+        raw = text.encode() + b"\0"
+        pad4()
+        body += struct.pack("<I", len(raw)) + raw
+    pad4()
+    body += struct.pack("<I", len(data)) + data
+    return b"\x00\x01\x00\x00" + bytes(body)
 
 
 def _header_dtype(frame_id: str, n_floats: int) -> tuple[np.dtype, int]:

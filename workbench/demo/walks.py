@@ -61,6 +61,7 @@ class Walk:
     accel: np.ndarray  # (T, 3) m/s²
     quat: np.ndarray  # (T, 4) x, y, z, w
     truth: tuple[tuple[float, float, str], ...]  # (start_s, stop_s, terrain) relative to t0
+    distance: np.ndarray  # (T,) m walked since t0 (the demo camera's ground moves with it)
 
 
 def _smooth(x: np.ndarray, n: int) -> np.ndarray:
@@ -195,14 +196,24 @@ def generate_walk(seed: int, duration_s: float, *, t0: float = 1.7e9) -> Walk:
         ],
         axis=1,
     )
-    return Walk(t0, t, forces, gyro, accel, quat, tuple(truth))
+    return Walk(t0, t, forces, gyro, accel, quat, tuple(truth), np.cumsum(speed) / fs)
 
 
-def write_walk(walk: Walk, path: str | Path, *, seed: int = 0) -> Path:
-    """Write a walk as a ROS 2 MCAP file (zstd chunks) plus its ``.truth.json`` sidecar."""
+def write_walk(walk: Walk, path: str | Path, *, seed: int = 0, camera: bool = True) -> Path:
+    """Write a walk as a ROS 2 MCAP file (zstd chunks) plus its ``.truth.json`` sidecar; with ``camera``, a
+    downward camera's JPEGs too (``/camera/ground/compressed``, 5 frames a second)."""
     from mcap.writer import CompressionType, Writer
 
-    from .ros2_cdr import IMU_SCHEMA, WRENCH_STAMPED_SCHEMA, encode, imu_values, wrench_values
+    from .ground_camera import ground_frames
+    from .ros2_cdr import (
+        COMPRESSED_IMAGE_SCHEMA,
+        IMU_SCHEMA,
+        WRENCH_STAMPED_SCHEMA,
+        compressed_image,
+        encode,
+        imu_values,
+        wrench_values,
+    )
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -212,7 +223,8 @@ def write_walk(walk: Walk, path: str | Path, *, seed: int = 0) -> Path:
     foot_idx = np.arange(0, len(walk.times), step)
     foot_t = walk.t0 + walk.times[foot_idx] + 0.003 + rng.normal(0, 0.0004, foot_idx.size)
     imu_t = walk.t0 + walk.times
-    records: list[tuple[int, np.ndarray, bytes, int]] = []  # (channel, stamps, buffer, record size)
+    # (channel, stamps, buffer of fixed-size records and their size, or a list of variable-size messages and 0)
+    records: list[tuple[int, np.ndarray, bytes | list[bytes], int]] = []
 
     tmp = path.with_name(f".{path.name}.tmp")
     with open(tmp, "wb") as f:
@@ -229,19 +241,27 @@ def write_walk(walk: Walk, path: str | Path, *, seed: int = 0) -> Path:
             ch = writer.register_channel(f"/feet/{foot}", "cdr", wrench_schema)
             buf, size = encode(foot_t, wrench_values(walk.forces[foot_idx, j]), f"{foot}_foot")
             records.append((ch, foot_t, buf, size))
+        if camera:
+            image_schema = writer.register_schema(
+                "sensor_msgs/msg/CompressedImage", "ros2msg", COMPRESSED_IMAGE_SCHEMA.encode()
+            )
+            ch = writer.register_channel("/camera/ground/compressed", "cdr", image_schema)
+            cam_t, jpegs = ground_frames(walk, seed=seed)
+            messages = [compressed_image(t, "camera", "jpeg", j) for t, j in zip(cam_t, jpegs, strict=True)]
+            records.append((ch, cam_t, messages, 0))
         # Interleave all topics in time order, as a recorder would.
         chan = np.concatenate([np.full(len(r[1]), i) for i, r in enumerate(records)])
         row = np.concatenate([np.arange(len(r[1])) for r in records])
         stamps = np.concatenate([r[1] for r in records])
         order = np.argsort(stamps, kind="stable")
         ns = np.round(stamps[order] * 1e9).astype(np.int64).tolist()
-        views = [memoryview(r[2]) for r in records]
+        views = [memoryview(r[2]) if r[3] else r[2] for r in records]
         sizes = [r[3] for r in records]
         ids = [r[0] for r in records]
         add = writer.add_message
         for c, r, t_ns in zip(chan[order].tolist(), row[order].tolist(), ns, strict=True):
             size = sizes[c]
-            add(ids[c], t_ns, views[c][r * size : (r + 1) * size], t_ns)
+            add(ids[c], t_ns, views[c][r * size : (r + 1) * size] if size else views[c][r], t_ns)
         writer.finish()
     tmp.replace(path)
 

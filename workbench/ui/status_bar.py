@@ -59,7 +59,8 @@ class StatusBar:
         self.buttons = gui.add_button_group(
             "Model",
             (RETRAIN, EXPORT),
-            hint="Retrain (key R): stage 2 on the labels, in the background. Export: the model bundle (PyTorch, ONNX, card) as a zip",
+            hint="Retrain (key R): stage 2 on the labels, in the background. "
+            "Export: the model bundle (PyTorch, ONNX, card) as a zip",
         )
         actions = {RETRAIN: retrain, EXPORT: export}
         self.buttons.on_click(lambda event: host.guard(actions[event.target.value]))
