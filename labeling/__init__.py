@@ -17,7 +17,7 @@ from .simulate import (
     table,
     time_to_reach,
 )
-from .stretches import PredictedStretch, predicted_stretches
+from .stretches import PredictedStretch, predicted_stretches, uncovered
 from .suggest import STRATEGIES, Strategy, Suggestion, candidates, class_weights, coverage, suggest
 from .tracks import (
     KINDS,
@@ -72,4 +72,5 @@ __all__ = [
     "suggest",
     "table",
     "time_to_reach",
+    "uncovered",
 ]

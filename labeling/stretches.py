@@ -8,6 +8,8 @@ for the UI's opacity. Arrays in, arrays out.
 
 from __future__ import annotations
 
+import heapq
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,25 +44,65 @@ def predicted_stretches(probs: np.ndarray, *, window: int, min_len: int) -> list
     if n == 0:
         return []
     p = np.stack([smooth(probs[:, j], window) for j in range(k)], axis=1)  # (T, K)
+    cum = np.concatenate([np.zeros((1, k)), np.cumsum(p, axis=0)])  # (T + 1, K): a run's mean in O(1)
     label = p.argmax(axis=1)  # (T,)
     edges = np.flatnonzero(np.diff(label)) + 1
-    runs = [[int(a), int(b), int(label[a])] for a, b in zip(np.r_[0, edges], np.r_[edges, n], strict=True)]
-    while len(runs) > 1:
-        short = min(range(len(runs)), key=lambda i: runs[i][1] - runs[i][0])
-        a, b, _ = runs[short]
-        if b - a >= min_len:
+    starts = np.r_[0, edges].tolist()
+    stops = np.r_[edges, n].tolist()
+    terrain = label[starts].tolist()
+    r = len(starts)
+    before, after = list(range(-1, r - 1)), [*range(1, r), -1]  # neighbours, as a linked list
+    alive = [True] * r
+
+    def mean(i: int, a: int, b: int) -> float:  # run i's terrain's smoothed probability over [a, b)
+        return float(cum[b, terrain[i]] - cum[a, terrain[i]]) / (b - a)
+
+    # Shortest run first (the earliest among equals), each merged into the neighbour it is more like: a heap with
+    # stale entries skipped, since runs only grow. An hour of flicker has thousands of runs.
+    heap = [(stops[i] - starts[i], i) for i in range(r)]
+    heapq.heapify(heap)
+    while heap:
+        length, i = heapq.heappop(heap)
+        if not alive[i] or length != stops[i] - starts[i]:
+            continue
+        if length >= min_len:
             break
-        left = runs[short - 1] if short > 0 else None
-        right = runs[short + 1] if short + 1 < len(runs) else None
-        score = {id(r): p[a:b, r[2]].mean() for r in (left, right) if r is not None}
-        into = max((r for r in (left, right) if r is not None), key=lambda r: score[id(r)])
-        into[0], into[1] = min(into[0], a), max(into[1], b)
-        del runs[short]
-        merged = []  # neighbours that now share a terrain become one
-        for r in runs:
-            if merged and merged[-1][2] == r[2]:
-                merged[-1][1] = r[1]
-            else:
-                merged.append(r)
-        runs = merged
-    return [PredictedStretch(a, b, c, float(p[a:b, c].mean())) for a, b, c in runs]
+        left, right = before[i], after[i]
+        if left < 0 and right < 0:
+            break
+        a, b = starts[i], stops[i]
+        into = max((j for j in (left, right) if j >= 0), key=lambda j: mean(j, a, b))
+        starts[into], stops[into] = min(starts[into], a), max(stops[into], b)
+        alive[i] = False
+        if left >= 0:
+            after[left] = right
+        if right >= 0:
+            before[right] = left
+        if left >= 0 and right >= 0 and terrain[left] == terrain[right]:  # neighbours of one terrain become one
+            stops[left] = stops[right]
+            alive[right] = False
+            after[left] = after[right]
+            if after[right] >= 0:
+                before[after[right]] = left
+            into = left
+        heapq.heappush(heap, (stops[into] - starts[into], into))
+    out = []
+    i = next(j for j in range(r) if alive[j] and before[j] < 0)
+    while i >= 0:
+        a, b = starts[i], stops[i]
+        out.append(PredictedStretch(a, b, terrain[i], mean(i, a, b)))
+        i = after[i]
+    return out
+
+
+def uncovered(start: int, stop: int, covered: Sequence[tuple[int, int]], *, min_len: int = 1) -> list[tuple[int, int]]:
+    """The parts of ``[start, stop)`` outside every ``[a, b)`` of ``covered``, each at least ``min_len`` long: what
+    accepting a stretch labels without touching a label a person already made."""
+    pieces, at = [], start
+    for a, b in sorted((max(a, start), min(b, stop)) for a, b in covered if b > start and a < stop):
+        if a - at >= min_len:
+            pieces.append((at, a))
+        at = max(at, b)
+    if stop - at >= min_len:
+        pieces.append((at, stop))
+    return pieces

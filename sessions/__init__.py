@@ -3,6 +3,7 @@
 Knows nothing of training, labelling strategies or the UI; ``workbench`` composes them.
 """
 
+from .cameras import CameraFrame, CameraInfo
 from .errors import IngestError, LabelError, SessionError, WorkbenchError
 from .ingest import (
     AlignedLog,
@@ -26,6 +27,8 @@ __all__ = [
     "DEFAULT_TERRAINS",
     "SCHEMA_VERSION",
     "AlignedLog",
+    "CameraFrame",
+    "CameraInfo",
     "Channel",
     "FileRows",
     "Gap",

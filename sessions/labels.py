@@ -140,19 +140,40 @@ def add_segment(
     kind: str = "add",
 ) -> Segment:
     """Insert a segment, merging same-terrain neighbours. Returns the segment as stored."""
-    _check_range(conn, log_id, start, stop)
+    (segment,) = add_segments(
+        conn, log_id=log_id, ranges=[(start, stop)], terrain=terrain, author=author, source=source, kind=kind
+    )
+    return segment
+
+
+def add_segments(
+    conn: sqlite3.Connection,
+    *,
+    log_id: int,
+    ranges: Iterable[tuple[int, int]],
+    terrain: str,
+    author: str,
+    source: str,
+    kind: str = "accept",
+) -> list[Segment]:
+    """Insert several segments of one terrain as one action (one undo reverts them all); each merges as
+    :func:`add_segment` does."""
     terrain_id = _terrain_id(conn, terrain)
     op_id = _begin_op(conn, author, kind)
-    start, stop, _ = _place(conn, op_id, log_id=log_id, start=start, stop=stop, terrain_id=terrain_id, keep=None)
-    at = now()
-    cur = conn.execute(
-        "INSERT INTO segments (log_id, start, stop, terrain_id, author, source, created_at, updated_at) "
-        "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-        (log_id, start, stop, terrain_id, author, source, at, at),
-    )
-    segment_id = int(cur.lastrowid)
-    _record(conn, op_id, segment_id, None, _get_row(conn, segment_id))
-    return get_segment(conn, segment_id)
+    out = []
+    for start, stop in ranges:
+        _check_range(conn, log_id, start, stop)
+        start, stop, _ = _place(conn, op_id, log_id=log_id, start=start, stop=stop, terrain_id=terrain_id, keep=None)
+        at = now()
+        cur = conn.execute(
+            "INSERT INTO segments (log_id, start, stop, terrain_id, author, source, created_at, updated_at) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            (log_id, start, stop, terrain_id, author, source, at, at),
+        )
+        segment_id = int(cur.lastrowid)
+        _record(conn, op_id, segment_id, None, _get_row(conn, segment_id))
+        out.append(get_segment(conn, segment_id))
+    return out
 
 
 def change_segment(

@@ -8,6 +8,7 @@ refused with one line before anything reads it.
 
 from __future__ import annotations
 
+import os
 import stat
 from pathlib import Path
 
@@ -19,6 +20,25 @@ from .logs import LogInfo
 FLOAT32 = np.dtype("<f4")
 
 
+def checked_in_logs(session: Path, rel: str, *, name: str, what: str) -> tuple[Path, os.stat_result]:
+    """A file the catalog names (``rel``), refused unless it is a regular file inside ``session/logs``.
+
+    Raises:
+        SessionError: ``{name}: {what} ...`` when it leaves the logs folder, is missing, a link or no regular file.
+    """
+    p = Path(rel)
+    if p.is_absolute() or ".." in p.parts or p.parts[:1] != ("logs",):
+        raise SessionError(f"{name}: the catalog points outside the session's logs folder; the session was changed")
+    path = session / p
+    try:
+        info = path.lstat()
+    except OSError as exc:
+        raise SessionError(f"{name}: cannot read {what} ({exc.strerror or exc}); re-ingest the log") from None
+    if stat.S_ISLNK(info.st_mode) or not stat.S_ISREG(info.st_mode):
+        raise SessionError(f"{name}: {what} is a link or no regular file; the session was changed")
+    return path, info
+
+
 def checked_log_file(session: Path, log: LogInfo) -> tuple[Path, int]:
     """The path of ``log``'s array inside ``session`` and the byte offset of its data.
 
@@ -27,16 +47,7 @@ def checked_log_file(session: Path, log: LogInfo) -> tuple[Path, int]:
             not a C-ordered float32 ``.npy`` array of the log's ``(samples, channels)``, whole.
     """
     name = f"{session}: log {log.name!r} ({log.file})"
-    rel = Path(log.file)
-    if rel.is_absolute() or ".." in rel.parts or rel.parts[:1] != ("logs",):
-        raise SessionError(f"{name}: the catalog points outside the session's logs folder; the session was changed")
-    path = session / rel
-    try:
-        info = path.lstat()
-    except OSError as exc:
-        raise SessionError(f"{name}: cannot read the log's array ({exc.strerror or exc}); re-ingest the log") from None
-    if stat.S_ISLNK(info.st_mode) or not stat.S_ISREG(info.st_mode):
-        raise SessionError(f"{name}: the log's array is a link or no regular file; the session was changed")
+    path, info = checked_in_logs(session, log.file, name=name, what="the log's array")
     try:
         with open(path, "rb") as f:
             version = np.lib.format.read_magic(f)

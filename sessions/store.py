@@ -290,6 +290,21 @@ class Session(LogIngest, CameraStore, ModelRegistry):
                 conn, log_id=log_id, start=start, stop=stop, terrain=terrain, author=author, source=source
             )
 
+    def add_segments(
+        self, log_id: int, ranges: Sequence[tuple[int, int]], terrain: str, *, author: str, source: str
+    ) -> list[Segment]:
+        """Label several ranges of a log with one terrain as one action: one undo reverts them all (accepting a
+        model's stretch around labels already there).
+
+        Raises:
+            LabelError: A bad range, unknown log or terrain, or overlap with another terrain's segment; nothing is
+                saved then.
+        """
+        with self._write() as conn:
+            return _labels.add_segments(
+                conn, log_id=log_id, ranges=ranges, terrain=terrain, author=author, source=source
+            )
+
     def change_segment(
         self,
         segment_id: int,

@@ -20,20 +20,25 @@ pytestmark = pytest.mark.browser
 TINY = ("--hidden", "8", "--stage1-epochs", "2", "--stage2-epochs", "3")
 
 
-@pytest.fixture(scope="module")
-def base_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def tiny_trained_session(root: Path, *, seed: int, labelled: float) -> Path:
+    """Two short demo walks (with their camera) in a session at ``root / "base"``, ``labelled`` of the time labelled
+    in 2 s pieces, and tiny models of both stages."""
     from workbench.cycle import train_classifier, train_predictor
     from workbench.demo import generate_demo_logs, seed_labels
 
-    root = tmp_path_factory.mktemp("ui")
-    logs = generate_demo_logs(root / "logs", n_logs=2, minutes=0.6, seed=3)
+    logs = generate_demo_logs(root / "logs", n_logs=2, minutes=0.6, seed=seed)
     path = root / "base"
     with Session.create(path) as s:
         s.ingest(logs)
-        seed_labels(s, 0.15, seed=0, segment_s=2.0)
+        seed_labels(s, labelled, seed=0, segment_s=2.0)
         train_predictor(s, config=TrainConfig(max_epochs=2, piece=256), hidden=8)
         train_classifier(s, config=TrainConfig(max_epochs=3, k_folds=2), hidden=8)
     return path
+
+
+@pytest.fixture(scope="module")
+def base_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tiny_trained_session(tmp_path_factory.mktemp("ui"), seed=3, labelled=0.15)
 
 
 @pytest.fixture

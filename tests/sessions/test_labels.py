@@ -189,3 +189,20 @@ def test_random_edits_keep_segments_disjoint_and_every_action_in_history(
             if x.stop == y.start:
                 assert x.terrain != y.terrain, "touching same-terrain segments must have merged"
         assert len(session.history()) == accepted
+
+
+def test_several_ranges_saved_as_one_action_and_undone_together(session: Session, log_id: int) -> None:
+    session.add_segment(log_id, 100, 200, "sand", author="ana")
+    session.add_segment(log_id, 300, 320, "grass", author="ana")
+    accepted = session.add_segments(
+        log_id, [(0, 100), (200, 300), (320, 500)], "grass", author="ana", source="accepted"
+    )
+    # the grass pieces touching the grass label merge with it; the sand label is left alone
+    assert spans(session) == [(0, 100, "grass"), (100, 200, "sand"), (200, 500, "grass")]
+    assert {s.source for s in accepted} == {"accepted"}
+    assert session.history(limit=1)[0].kind == "accept"
+    session.undo(author="ana")
+    assert spans(session) == [(100, 200, "sand"), (300, 320, "grass")]
+    with pytest.raises(LabelError, match="another terrain"):  # all or nothing
+        session.add_segments(log_id, [(0, 50), (150, 160)], "dirt", author="ana", source="accepted")
+    assert spans(session) == [(100, 200, "sand"), (300, 320, "grass")]

@@ -83,6 +83,8 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
                 lines.append(
                     f"#   topic {report.topic} ({report.schema}, {report.messages} msgs): not used: {report.unusable}"
                 )
+            elif report.note:
+                lines.append(f"#   topic {report.topic} ({report.schema}, {report.messages} msgs): {report.note}")
             else:
                 lines.append(
                     f"#   topic {report.topic} ({report.schema}, {report.messages} msgs): {len(report.channels)} fields"

@@ -44,6 +44,7 @@ def ingest(
     dry_run: bool = False,
     allow_gaps: bool = False,
     rate: float | None = None,
+    camera_fps: float = IngestOptions.camera_fps,
 ) -> int:
     """Ingest robot logs (ROS 2 MCAP, QCAT / BorealTC / generic CSV; folders are searched) into a session.
 
@@ -57,11 +58,16 @@ def ingest(
         dry_run: Show what would be read (channels, rates, gaps) as an editable mapping file; write nothing.
         allow_gaps: Accept NaN/inf samples and dropouts, recording them as gaps instead of refusing the file.
         rate: Rate (Hz) of the aligned time base; default: the fastest stream's median rate.
+        camera_fps: Most camera frames kept a second per image topic (sensor_msgs/Image, CompressedImage), stored
+            as JPEG beside the log for the UI; 0 keeps none.
     """
+    if not camera_fps >= 0:
+        raise WorkbenchError(f"--camera-fps must be 0 or more, not {camera_fps}")
     options = IngestOptions(
         mapping=load_mapping(mapping) if mapping else IngestOptions().mapping,
         rate_hz=rate,
         allow_gaps=allow_gaps,
+        camera_fps=camera_fps,
     )
     if dry_run:
         ok, text = dry_run_report(files, options)
@@ -112,6 +118,7 @@ def info(session: Pos[Path]) -> None:
         for log in logs:
             lab = sum(seg.length for seg in segments if seg.log_id == log.id)
             ref = f"  reference={log.reference_terrain}" if log.reference_terrain else ""
+            ref += "".join(f"  camera {c.topic} ({c.frames} frames)" for c in s.cameras(log.id))
             print(
                 f"  {log.id:>4}  {log.name:<{width}}  {log.format:<8} {log.duration_s:>9.1f} s  "
                 f"{log.rate_hz:>7g} Hz  {log.n_channels:>3} ch  {len(log.gaps):>3} gaps  "

@@ -124,8 +124,12 @@ class TrackInputs:
     suggested: np.ndarray  # (P,) bool
     current: np.ndarray  # (P,) bool: the suggestion being looked at
     selection: np.ndarray  # (P,) bool
+    confidence: np.ndarray | None = None  # (P,) the predicted stretch's mean probability
+    review: np.ndarray | None = None  # (P,) bool: the stretch under review
 
 
+# The model's stretches are drawn more opaque the surer it is: below 0.6, 0.6 to 0.8, above 0.8 (hex alpha).
+CONFIDENCE_LEVELS = ((0.0, "38"), (0.6, "80"), (0.8, "e6"))
 ROWS = {"labels": (5.1, 5.9), "model": (4.1, 4.9), "suggested": (3.1, 3.9), "scores": (0.0, 2.9)}
 
 
@@ -160,8 +164,17 @@ def tracks_chart(
     for k, (name, color) in enumerate(terrains):
         add(_band(x.labels == k, "labels"), f"label {name}", color, fill_to=ROWS["labels"][0])
     if x.predicted is not None:
+        conf = x.confidence if x.confidence is not None else np.ones(len(x.predicted))
+        bounds = [lo for lo, _ in CONFIDENCE_LEVELS[1:]] + [np.inf]
         for k, (name, color) in enumerate(terrains):
-            add(_band(x.predicted == k, "model"), f"model {name}", color + "99", fill_to=ROWS["model"][0])
+            for (lo, alpha), hi in zip(CONFIDENCE_LEVELS, bounds, strict=True):
+                level = (x.predicted == k) & (conf >= lo) & (conf < hi)
+                add(_band(level, "model"), f"model {name} ≥{lo:g}", color + alpha, fill_to=ROWS["model"][0])
+        # the stretch under review: a dark bar along the top of the model row (always a series: a new series list
+        # rebuilds the chart)
+        review = x.review if x.review is not None else np.zeros(len(x.predicted), bool)
+        bar = ROWS["model"][1] + 0.05
+        add(np.where(review, bar + 0.15, bar), "stretch under review", "#212121", fill_to=bar)
     add(_band(x.suggested, "suggested"), "suggested", SUGGESTED + "66", fill_to=ROWS["suggested"][0])
     add(_band(x.current, "suggested"), "current suggestion", SUGGESTED, fill_to=ROWS["suggested"][0])
     top = ROWS["scores"][1]

@@ -42,6 +42,10 @@ class Queued:
         return self.start / self.log.rate_hz, self.stop / self.log.rate_hz
 
 
+# The model track and its review show stretches, not steps: probabilities smoothed over a second, and runs shorter
+# than two seconds merged into a neighbour (the model's frames flicker at 0.2 s; a person judges stretches).
+STRETCH_WINDOW_S = 1.0
+STRETCH_MIN_S = 2.0
 SNAP_CONTEXT_S = 10  # seconds of signal either side of a range that its snap looks at before the log's are known
 
 
@@ -67,6 +71,7 @@ class SharedState:
         self._on_error = on_error or (lambda msg: print(msg, flush=True))
         self.busy = ""  # what the worker is doing, for the status line
         self.problem = ""  # why the last refresh failed (one line), shown in every page until one succeeds
+        self._stretches: tuple[SessionScores, dict[int, list[labeling.PredictedStretch]]] = (self.scores, {})
         self._queue_of: tuple[SessionScores, str] | None = None  # what the queue was ranked from: (scores, key)
         self._pending: dict[Event, None] = {}  # events not yet delivered, in order
         self._pending_cv = threading.Condition()
@@ -183,6 +188,35 @@ class SharedState:
         seg = self.session.add_segment(log_id, start, stop, terrain, author=author, source=source)
         self._labels_changed()
         return seg
+
+    def add_labels(
+        self, log_id: int, ranges: list[tuple[int, int]], terrain: str, *, author: str, source: str
+    ) -> list[Segment]:
+        """Commit several ranges of one terrain as one action (one undo reverts them); every view hears of it."""
+        segs = self.session.add_segments(log_id, ranges, terrain, author=author, source=source)
+        self._labels_changed()
+        return segs
+
+    def stretches(self, log_id: int) -> list[labeling.PredictedStretch]:
+        """The model's predicted stretches of a log (none before a classifier), computed once per scoring."""
+        scores = self.scores
+        with self._lock:
+            if self._stretches[0] is not scores:
+                self._stretches = (scores, {})
+            found = self._stretches[1].get(log_id)
+        if found is not None:
+            return found
+        s = scores.scores.get(log_id)
+        if s is None or s.probs is None:
+            return []
+        rate = self.log(log_id).rate_hz
+        found = labeling.predicted_stretches(
+            s.probs, window=max(1, round(STRETCH_WINDOW_S * rate)), min_len=max(1, round(STRETCH_MIN_S * rate))
+        )
+        with self._lock:
+            if self._stretches[0] is scores:
+                self._stretches[1][log_id] = found
+        return found
 
     def change_label(self, segment_id: int, *, author: str, **changes: object) -> Segment:
         seg = self.session.change_segment(segment_id, author=author, **changes)  # type: ignore[arg-type]

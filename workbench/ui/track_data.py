@@ -7,6 +7,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+import labeling
 from sessions import LogInfo, Segment
 
 from ..scores import SessionScores
@@ -24,6 +25,8 @@ def track_inputs(
     suggested: Sequence[tuple[int, int]] = (),
     current: tuple[int, int] | None = None,
     selection: tuple[int, int] | None = None,
+    stretches: Sequence[labeling.PredictedStretch] = (),
+    review: tuple[int, int] | None = None,
 ) -> TrackInputs:
     """What the tracks chart draws for the visible window of ``log``.
 
@@ -37,6 +40,8 @@ def track_inputs(
         suggested: ``[start, stop)`` samples of the queued suggestions in this log.
         current: ``[start, stop)`` of the suggestion being shown, when it lies in this log.
         selection: ``[start, stop)`` of the range being labelled.
+        stretches: The model's predicted stretches of the log (``scores.classes`` indices): the model track.
+        review: ``[start, stop)`` of the stretch under review.
     """
     segs = [(s.start, s.stop, terrains.index(s.terrain)) for s in segments if s.terrain in terrains]
     idx = np.clip(np.round(t * log.rate_hz).astype(np.int64), 0, max(0, log.n_samples - 1))  # (P,)
@@ -45,7 +50,7 @@ def track_inputs(
     rel = idx - lo
     labels = per_sample_labels(hi - lo, [(x - lo, y - lo, k) for x, y, k in segs if y > lo and x < hi])[rel]
     tracks = scores.tracks.get(log.id)
-    predicted = surprise = unsure = highlight = None
+    predicted = confidence = surprise = unsure = highlight = None
     if tracks is not None:
         win = {k: v[lo:hi] for k, v in tracks.items()}
         surprise = bucket_max(win["surprise"], rel)
@@ -57,10 +62,12 @@ def track_inputs(
             if k in win:
                 high |= win[k] >= threshold
         highlight = high[rel]
-        probs = scores.scores[log.id].probs if log.id in scores.scores else None
-        if probs is not None:
-            order = [terrains.index(c) if c in terrains else -1 for c in scores.classes]
-            predicted = np.asarray(order)[probs[idx].argmax(axis=1)]
+    if stretches:
+        order = np.asarray([terrains.index(c) if c in terrains else -1 for c in scores.classes])
+        starts = np.asarray([x.start for x in stretches])
+        j = np.clip(np.searchsorted(starts, idx, side="right") - 1, 0, len(stretches) - 1)  # (P,)
+        predicted = order[np.asarray([x.terrain for x in stretches])[j]]
+        confidence = np.asarray([x.confidence for x in stretches])[j]
     in_suggestion = np.zeros(len(idx), bool)
     for a, b in suggested:
         in_suggestion |= (idx >= a) & (idx < b)
@@ -70,7 +77,22 @@ def track_inputs(
     in_selection = np.zeros(len(idx), bool)
     if selection is not None:
         in_selection = (idx >= selection[0]) & (idx < selection[1])
-    return TrackInputs(t, labels, predicted, surprise, unsure, highlight, in_suggestion, in_current, in_selection)
+    in_review = np.zeros(len(idx), bool)
+    if review is not None:
+        in_review = (idx >= review[0]) & (idx < review[1])
+    return TrackInputs(
+        t,
+        labels,
+        predicted,
+        surprise,
+        unsure,
+        highlight,
+        in_suggestion,
+        in_current,
+        in_selection,
+        confidence=confidence,
+        review=in_review,
+    )
 
 
 def bucket_max(track: np.ndarray, idx: np.ndarray) -> np.ndarray:

@@ -56,8 +56,10 @@ class ClientView:
             self._build()
 
     def _build(self) -> None:
+        from .camera_panel import CameraPanel
         from .panel_data import DataPanel
         from .panel_label import LabelPanel
+        from .panel_review import ReviewPanel
         from .panel_suggest import SuggestPanel
         from .panel_train import TrainPanel
         from .robot import RobotView
@@ -101,6 +103,7 @@ class ClientView:
         suggest_tab = tabs.add_tab("Suggest", icon="bulb")
         with tabs.add_tab("Label", icon="tag"):
             self.label_panel = LabelPanel(self)
+            self.review_panel = ReviewPanel(self)
         with suggest_tab:
             self.suggest_panel = SuggestPanel(self)
         with tabs.add_tab("Train", icon="brain"):
@@ -108,6 +111,7 @@ class ClientView:
         with tabs.add_tab("Data", icon="database"):
             self.data_panel = DataPanel(self)
         self.robot = RobotView(self)
+        self.camera = CameraPanel(self)
         self._hotkeys()
         self.status_bar.refresh()
         self._unsubscribe = state.subscribe(self._on_event)
@@ -203,6 +207,9 @@ class ClientView:
         bind("Next suggestion", "N", self.suggest_panel.next, desc="N: show the next suggested segment")
         bind("Accept guess", "A", self.suggest_panel.accept, desc="A: label the suggestion with the model's guess")
         bind("Skip suggestion", "X", self.suggest_panel.skip)
+        bind("Next stretch", "J", lambda: self.review_panel.step(1), desc="J: the model's next predicted stretch")
+        bind("Previous stretch", "K", lambda: self.review_panel.step(-1), desc="K: the model's previous stretch")
+        bind("Accept stretch", "Y", self.review_panel.accept, desc="Y: label the stretch as the model predicts")
         bind("Retrain", "R", self.train_panel.retrain, desc="R: retrain the classifier in the background")
         bind("Play / pause", "space", self.robot.toggle_play)
 
@@ -222,6 +229,7 @@ class ClientView:
         if changed:
             self.selection = None
             self.set_widget(self.log_dropdown, f"{log.id}: {log.name}")
+            self.review_panel.refresh()
         if start_s is not None and stop_s is not None:
             span = stop_s - start_s
             self.width_s = next((w for w in WIDTHS_S if w >= max(2.5 * span, CONTEXT_S)), WIDTHS_S[-1])
@@ -297,6 +305,8 @@ class ClientView:
                 self.redraw()
             if event == "labels":
                 self.label_panel.refresh()
+            if event in ("labels", "scores"):
+                self.review_panel.refresh()
             if event in ("suggestions", "scores", "labels"):
                 self.suggest_panel.refresh()
             if event in ("job", "models", "scores"):
@@ -348,6 +358,7 @@ class ClientView:
                     problem=self.state.problem,
                 )
             self.robot.update()
+            self.camera.update()
 
     def _rebuild_charts(self, tracks: dict, specs: list[dict]) -> None:
         for h in [self.tracks_chart, *self._charts]:
@@ -377,6 +388,8 @@ class ClientView:
             suggested=[(q.start, q.stop) for q in queue],
             current=current,
             selection=self.selection,
+            stretches=self.state.stretches(log.id),
+            review=self.review_panel.review_range(),
         )
 
     def close(self) -> None:

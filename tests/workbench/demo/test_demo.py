@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.demo import FOOT_HZ, IMU_HZ, TERRAINS, generate_demo_logs, generate_walk
+from workbench.demo.ground_camera import CAMERA_FPS, HEIGHT, ground_frames, terrain_tile
 
 
 def test_same_seed_same_walk_other_seed_other_walk() -> None:
@@ -59,7 +60,29 @@ def test_written_logs_have_two_rates_and_a_truth_sidecar(tmp_path: Path) -> None
     with open(path, "rb") as f:
         summary = make_reader(f).get_summary()
     topics = {c.topic: summary.statistics.channel_message_counts[i] for i, c in summary.channels.items()}
-    assert set(topics) == {"/imu", "/feet/fl", "/feet/fr", "/feet/rl", "/feet/rr"}
+    assert set(topics) == {"/imu", "/feet/fl", "/feet/fr", "/feet/rl", "/feet/rr", "/camera/ground/compressed"}
     assert abs(topics["/imu"] / topics["/feet/fl"] - IMU_HZ / FOOT_HZ) < 0.01
+    assert abs(topics["/camera/ground/compressed"] / topics["/imu"] - CAMERA_FPS / IMU_HZ) < 0.002
     truth = json.loads(path.with_name("walk_000.truth.json").read_text())
     assert truth["log"] == "walk_000.mcap" and truth["segments"][0]["terrain"] in TERRAINS
+
+
+def test_the_demo_camera_shows_the_terrain_under_the_feet() -> None:
+    """Mid-patch, a frame's middle rows look like the patch's terrain: closest in mean colour to its texture."""
+    import io
+
+    from PIL import Image
+
+    walk = generate_walk(11, 90.0)
+    stamps, frames = ground_frames(walk, seed=11)
+    colours = {k: terrain_tile(k, 11).reshape(-1, 3).mean(axis=0) for k in TERRAINS}
+    checked = 0
+    for a, b, terrain in walk.truth:
+        if b - a < 4.0:
+            continue
+        i = int(np.argmin(np.abs(stamps - walk.t0 - (a + b) / 2)))
+        rows = np.asarray(Image.open(io.BytesIO(frames[i])).convert("RGB"), np.float64)[HEIGHT // 3 : 2 * HEIGHT // 3]
+        mean = rows.reshape(-1, 3).mean(axis=0)
+        assert min(colours, key=lambda k: np.linalg.norm(colours[k] - mean)) == terrain
+        checked += 1
+    assert checked >= 3

@@ -1,0 +1,113 @@
+"""The first screen of a session scored before: tracks, suggestions and the status line drawn from what the session
+kept, the camera frame following the cursor, and the model's stretch accepted with one key (and undone)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import time
+from pathlib import Path
+
+import pytest
+
+from sessions import Session
+
+from .conftest import ARTIFACTS, close_notifications, open_tab, save_screenshot
+from .test_workbench_ui import TINY, blur, open_workbench, rows, set_cursor, tiny_trained_session, wait_until
+
+pytestmark = pytest.mark.browser
+
+
+@pytest.fixture(scope="module")
+def scored_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Two short demo walks with their camera, a few labels, tiny models, and one scoring kept in the session (as
+    a server leaves it when it stops)."""
+    from workbench.ui import SharedState
+
+    path = tiny_trained_session(tmp_path_factory.mktemp("first"), seed=5, labelled=0.1)
+    with Session.open(path) as s:
+        state = SharedState(s)
+        wait_until(lambda: state.scored and state.queue and not state.busy, timeout=120, what="the first scoring")
+        state.stop()
+    return path
+
+
+@pytest.fixture
+def session_path(scored_session: Path, tmp_path: Path) -> Path:
+    path = tmp_path / "s"
+    shutil.copytree(scored_session, path)
+    return path
+
+
+def kept_files(path: Path) -> dict[str, float]:
+    return {str(p): p.stat().st_mtime for p in (path / "cache").glob("scores-*/*")}
+
+
+def test_the_first_screen_is_drawn_from_the_kept_scoring(session_path: Path, serve, page) -> None:
+    kept = kept_files(session_path)
+    assert any(p.endswith("queue.json") for p in kept)
+    server = serve(session_path, *TINY)
+    started = time.monotonic()
+    page.goto(server.url)
+    page.get_by_text("segments suggested").wait_for(timeout=30_000)  # the queue, without a scoring pass
+    page.get_by_text(re.compile(r"^default v\d+")).first.wait_for(timeout=10_000)  # the status line: the model
+    page.get_by_role("button", name="Retrain", exact=True).wait_for(timeout=10_000)
+    page.get_by_role("button", name="Export", exact=True).wait_for(timeout=10_000)
+    page.locator("img[data-frame]").wait_for(timeout=10_000)  # the camera, at the cursor
+    drawn = time.monotonic() - started
+    (ARTIFACTS / "first-screen.txt").parent.mkdir(exist_ok=True)
+    (ARTIFACTS / "first-screen.txt").write_text(f"suggestions, status line and camera drawn {drawn:.1f} s after goto\n")
+    close_notifications(page)
+    save_screenshot(page, "first-screen")
+    assert re.search(r"\d+ labels · \d+ s · \d+ terrains", page.inner_text("body"))
+    time.sleep(1.0)
+    assert kept_files(session_path) == kept  # nothing was scored again: the kept files were neither redone nor lost
+    assert "scoring logs" not in page.inner_text("body")
+
+
+def shown_at(page) -> float:
+    """The time of the camera frame on screen, from its caption."""
+    caption = page.get_by_text(re.compile(r"frame \d+ of \d+ at")).first.inner_text()
+    return float(re.search(r"at ([\d.]+) s", caption).group(1))
+
+
+def test_the_camera_frame_follows_the_cursor(session_path: Path, serve, page) -> None:
+    server = serve(session_path, *TINY)
+    open_workbench(page, server.url)
+    frame = page.locator("img[data-frame]")
+    frame.wait_for(timeout=10_000)
+    numbers = []
+    for cursor in (2.0, 12.0, 25.0):
+        set_cursor(page, cursor)
+        wait_until(lambda c=cursor: abs(shown_at(page) - c) <= 0.35, timeout=10, what=f"the frame at {cursor} s")
+        numbers.append(int(frame.get_attribute("data-frame")))
+    assert numbers == sorted(numbers) and len(set(numbers)) == 3
+    before = frame.get_attribute("src")
+    page.keyboard.press("ArrowRight")  # the cursor moves 1/20 of the window: 1.5 s at 30 s, three frames on
+    wait_until(lambda: frame.get_attribute("src") != before, timeout=10, what="a new frame after the arrow key")
+    save_screenshot(page, "camera-follows-cursor")
+
+
+def test_a_predicted_stretch_is_accepted_with_one_key_and_undone(session_path: Path, serve, page) -> None:
+    before = rows(session_path)
+    server = serve(session_path, *TINY)
+    open_workbench(page, server.url)
+    open_tab(page, "Label")
+    blur(page)
+    page.keyboard.press("j")
+    page.get_by_text(re.compile(r"Stretch \d+ of \d+")).first.wait_for(timeout=10_000)
+    close_notifications(page)
+    save_screenshot(page, "stretch-review")
+    page.keyboard.press("y")
+    accepted = wait_until(lambda: rows(session_path, "s.source = 'accepted'"), what="the accepted stretch in SQLite")
+    labelled = {(g, a, b) for g, a, b, _, _ in before}
+    classes = {r[3] for r in before}  # the classifier was trained on exactly these terrains
+    assert len({r[3] for r in accepted}) == 1 and accepted[0][3] in classes
+    for g, a, b, _, _ in accepted:  # only unlabelled time
+        assert not any(g == h and a < y and x < b for h, x, y in labelled)
+    page.get_by_text("Accepted").first.wait_for(timeout=10_000)
+    save_screenshot(page, "stretch-accepted")
+    close_notifications(page)
+    blur(page)
+    page.keyboard.press("u")
+    wait_until(lambda: rows(session_path) == before, what="the acceptance undone")
