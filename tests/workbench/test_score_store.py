@@ -16,7 +16,7 @@ from workbench.demo import generate_demo_logs
 from workbench.score_store import queue_key, store_queue, store_scores, stored_queue, stored_scores
 from workbench.scores import compute_scores
 from workbench.ui import state as state_module
-from workbench.ui.state import SharedState
+from workbench.ui.state import SharedState, score_and_keep
 
 
 def test_stored_scores_read_back_equal_and_complete(trained: Session) -> None:  # noqa: F811
@@ -93,3 +93,12 @@ def test_a_restart_draws_the_stored_scores_and_queue_without_scoring(
         time.sleep(0.02)
     assert [(q.key, q.reason, q.guess) for q in second.queue] == queue
     second.stop()
+
+
+def test_score_and_keep_leaves_a_whole_scoring_and_queue(trained: Session) -> None:  # noqa: F811
+    """What `workbench demo` runs before serving, so the page's first screen needs no scoring."""
+    assert score_and_keep(trained)
+    back = stored_scores(trained)
+    assert back is not None and back.complete
+    key = queue_key(trained, "combined", trained.terrains())
+    assert stored_queue(trained, back.scores, key=key)

@@ -275,6 +275,11 @@ def demo(
                 )
             else:
                 print("classifier: skipped (the seed labels cover fewer than two terrains)")
+            from ..ui import score_and_keep
+
+            with Session.open(session) as s:
+                print("scoring the logs for the page's first screen", flush=True)
+                score_and_keep(s)
     if serve_ui:
         serve(session, host=host, port=port, hidden=hidden)
 

@@ -2,8 +2,18 @@
 
 from .app import WorkbenchApp
 from .jobs import JobStatus, TrainJob
-from .state import Queued, SharedState
+from .state import Queued, SharedState, score_and_keep
 from .uploads import MAX_UPLOAD_MB, safe_name
 from .view import ClientView
 
-__all__ = ["MAX_UPLOAD_MB", "ClientView", "JobStatus", "Queued", "SharedState", "TrainJob", "WorkbenchApp", "safe_name"]
+__all__ = [
+    "MAX_UPLOAD_MB",
+    "ClientView",
+    "JobStatus",
+    "Queued",
+    "SharedState",
+    "TrainJob",
+    "WorkbenchApp",
+    "safe_name",
+    "score_and_keep",
+]

@@ -260,11 +260,13 @@ class SharedState:
             else:
                 self._viewed[view] = log_id
 
-    def wait_idle(self, *, stop: Callable[[], bool], poll_s: float = 0.2) -> bool:
-        """Block until no rescore or queue update is pending or running; False when ``stop()`` said to give up."""
+    def wait_idle(self, *, stop: Callable[[], bool], poll_s: float = 0.2, deadline_s: float | None = None) -> bool:
+        """Block until no rescore or queue update is pending or running; False when ``stop()`` said to give up or
+        ``deadline_s`` passed."""
         quiet = 0
+        end = None if deadline_s is None else time.monotonic() + deadline_s
         while quiet < 2:  # twice in a row: the worker clears its flag a moment before it says it is busy
-            if stop() or self._stop.is_set():
+            if stop() or self._stop.is_set() or (end is not None and time.monotonic() > end):
                 return False
             time.sleep(poll_s)
             quiet = quiet + 1 if not (self.busy or self._dirty.is_set()) else 0
@@ -402,3 +404,14 @@ class SharedState:
             guess = None if s.guess is None or s.guess >= len(scores.classes) else scores.classes[s.guess]
             out.append(Queued((log.id, s.start, s.stop), log, s.start, s.stop, s.reason, guess, s.score))
         return out
+
+
+def score_and_keep(session: Session, *, timeout_s: float = 3600.0) -> bool:
+    """Score every log and rank the suggestion queue once, kept in the session, so the page's first screen draws
+    them at once (``workbench demo`` does this before serving). Returns False when it did not finish in time."""
+    errors: list[str] = []
+    state = SharedState(session, on_error=errors.append)
+    try:
+        return state.wait_idle(stop=lambda: False, deadline_s=timeout_s) and not errors
+    finally:
+        state.stop()
