@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import torch
-from common import Row, fmt_s, parse_args, record
+from common import Row, fmt_s, hosted_like_the_server, parse_args, record
 
 from sessions import Session
 from training import TrainConfig
@@ -131,51 +131,57 @@ def main() -> None:
         label_until(session, order, 0.05, total)
         labelled = sum(s.length for s in session.segments())
 
-        # ours: the UI's Retrain, the log on screen refreshed first
-        state = SharedState(session)
-        while not state.scored or state.busy:
-            time.sleep(0.05)
-        acc_before = accuracy(session, state.scores, logs)  # the active model, before the retrain
-        shown = order[-1]  # an unlabelled trial on screen
-        state.set_viewed("bench", shown.id)
-        before = session.active_model("classifier").id
-        events: list[tuple[float, int | None, int]] = []
-        done = threading.Event()
+        # ours: the UI's Retrain, the log on screen refreshed first; its torch work on this thread, as the server
+        # hosts it (workbench.torch_lane)
+        def ours() -> tuple:
+            state = SharedState(session)
+            while not state.scored or state.busy:
+                time.sleep(0.05)
+            acc_before = accuracy(session, state.scores, logs)  # the active model, before the retrain
+            shown = order[-1]  # an unlabelled trial on screen
+            state.set_viewed("bench", shown.id)
+            before = session.active_model("classifier").id
+            events: list[tuple[float, int | None, int]] = []
+            done = threading.Event()
 
-        def heard(event: str) -> None:
-            if event == "scores":
-                events.append((time.perf_counter(), state.scores.classifier, len(state.scores.scores)))
-                if state.scores.classifier not in (None, before) and len(state.scores.scores) == len(logs):
-                    done.set()
+            def heard(event: str) -> None:
+                if event == "scores":
+                    events.append((time.perf_counter(), state.scores.classifier, len(state.scores.scores)))
+                    if state.scores.classifier not in (None, before) and len(state.scores.scores) == len(logs):
+                        done.set()
 
-        state.subscribe(heard)
-        job = TrainJob(state, hidden=HIDDEN, classifier_config=STAGE2)
-        t0 = time.perf_counter()
-        job.start()
-        done.wait(3600)
-        fresh = [(t, n) for t, v, n in events if v not in (None, before)]
-        t_view = fresh[0][0] - t0
-        t_all = fresh[-1][0] - t0
-        view_first = fresh[0][1] < len(logs)
-        acc_ours = accuracy(session, state.scores, logs)
-        # then the job's refining phase: stage 2 from scratch in the background, its scores of every log
-        quick = state.scores.classifier
-        refined = threading.Event()
-        state.subscribe(
-            lambda e: (
-                refined.set()
-                if e == "scores"
-                and state.scores.classifier not in (None, before, quick)
-                and len(state.scores.scores) == len(logs)
-                else None
+            state.subscribe(heard)
+            job = TrainJob(state, hidden=HIDDEN, classifier_config=STAGE2)
+            t0 = time.perf_counter()
+            job.start()
+            done.wait(3600)
+            fresh = [(t, n) for t, v, n in events if v not in (None, before)]
+            t_view = fresh[0][0] - t0
+            t_all = fresh[-1][0] - t0
+            view_first = fresh[0][1] < len(logs)
+            acc_ours = accuracy(session, state.scores, logs)
+            # then the job's refining phase: stage 2 from scratch in the background, its scores of every log
+            quick = state.scores.classifier
+            refined = threading.Event()
+            state.subscribe(
+                lambda e: (
+                    refined.set()
+                    if e == "scores"
+                    and state.scores.classifier not in (None, before, quick)
+                    and len(state.scores.scores) == len(logs)
+                    else None
+                )
             )
-        )
-        refined.wait(3600)
-        t_refined = time.perf_counter() - t0
-        acc_refined = accuracy(session, state.scores, logs)
-        while job.running:
-            time.sleep(0.1)
-        state.stop()
+            refined.wait(3600)
+            t_refined = time.perf_counter() - t0
+            acc_refined = accuracy(session, state.scores, logs)
+            while job.running:
+                time.sleep(0.1)
+            state.stop()
+
+            return acc_before, t_view, t_all, view_first, acc_ours, t_refined, acc_refined
+
+        acc_before, t_view, t_all, view_first, acc_ours, t_refined, acc_refined = hosted_like_the_server(ours)
 
         # naive: both stages from scratch, then everything rescored
         t0 = time.perf_counter()

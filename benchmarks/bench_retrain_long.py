@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from common import Row, fmt_s, parse_args, record
+from common import Row, fmt_s, hosted_like_the_server, parse_args, record
 
 from sessions import Session
 from training import TrainConfig
@@ -139,7 +139,7 @@ def main() -> None:
             config = replace(RETRAIN.classifier, consistency=weight)
             session.activate_model(setup.id)
             torch.manual_seed(0)
-            t_view, t_all, acc_quick = retrain(session, config, shown)
+            t_view, t_all, acc_quick = hosted_like_the_server(lambda c=config: retrain(session, c, shown))
             torch.manual_seed(0)
             t = time.perf_counter()
             cycle.train_classifier(session, config=config, hidden=HIDDEN, warm_start=False)

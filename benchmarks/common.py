@@ -15,11 +15,13 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
+T = TypeVar("T")
 sys.path.insert(0, str(ROOT))
 
 
@@ -107,3 +109,27 @@ def table(rows: list[Row]) -> str:
         for r in rows
     ]
     return "\n".join([head, *body])
+
+
+def hosted_like_the_server(fn: Callable[[], T]) -> T:
+    """Run ``fn`` in a second thread while this thread serves ``workbench.torch_lane.LANE``, as ``workbench serve``
+    hosts the UI: the Retrain's and the scoring's torch work then runs here. Returns what ``fn`` returned."""
+    import threading
+
+    from workbench.torch_lane import LANE
+
+    out: list[T] = []
+    errors: list[BaseException] = []
+
+    def target() -> None:
+        try:
+            out.append(fn())
+        except BaseException as exc:  # raised again in this thread
+            errors.append(exc)
+
+    worker = threading.Thread(target=target, name="bench-ui")
+    LANE.serve(stop=lambda: not worker.is_alive(), started=worker.start)
+    worker.join()
+    if errors:
+        raise errors[0]
+    return out[0]

@@ -212,7 +212,16 @@ def serve(
             "change the session, over plain HTTP; prefer an SSH tunnel to a loopback server, see README",
             file=sys.stderr,
         )
-    app = WorkbenchApp(s, host=host, port=port, token=token, hidden=hidden, max_epochs=(stage1_epochs, stage2_epochs))
+    from ..torch_lane import LANE
+
+    LANE.expect()  # serve_forever gives this thread to the torch work: the scoring worker must not start its own
+    try:
+        app = WorkbenchApp(
+            s, host=host, port=port, token=token, hidden=hidden, max_epochs=(stage1_epochs, stage2_epochs)
+        )
+    except BaseException:
+        LANE.expect_no_more()
+        raise
     print(f"workbench serving {s.path} at {app.url}", flush=True)
     app.serve_forever()
 

@@ -4,13 +4,13 @@ changes made by other processes."""
 from __future__ import annotations
 
 import threading
-import time
 from dataclasses import replace
 from pathlib import Path
 
 from sessions import Session
 
 from ..retrain import RETRAIN
+from ..torch_lane import LANE
 from .uploads import MAX_UPLOAD_MB, limit_uploads, safe_name
 
 
@@ -121,9 +121,9 @@ class WorkbenchApp:
         self.server.stop()
 
     def serve_forever(self) -> None:
+        """Serve until Ctrl+C; this thread runs every PyTorch call of the server (``workbench.torch_lane``)."""
         try:
-            while True:
-                time.sleep(3600)
+            LANE.serve(stop=self._stop.is_set)
         except KeyboardInterrupt:
             pass
         finally:

@@ -19,6 +19,7 @@ from training import Cancelled, Progress, TrainConfig
 
 from ..cycle import train_classifier, train_predictor
 from ..retrain import RETRAIN
+from ..torch_lane import LANE
 from ..user_errors import USER_ERRORS, one_line
 from .state import SharedState
 
@@ -141,7 +142,8 @@ class TrainJob:
         hidden = self.hidden
         try:
             if "predictor" in stages:
-                train_predictor(
+                LANE.run(
+                    train_predictor,
                     self.state.session,
                     config=self.predictor_config,
                     hidden=self.hidden,
@@ -153,7 +155,8 @@ class TrainJob:
                 p = self.state.session.active_model("predictor")
                 hidden = int(p.config.get("hidden", self.hidden)) if p is not None else self.hidden
                 warm_epochs = None if predictor_run else self.warm_epochs
-                version = train_classifier(
+                version = LANE.run(
+                    train_classifier,
                     self.state.session,
                     config=self.classifier_config,
                     warm_epochs=warm_epochs,
@@ -204,7 +207,8 @@ class TrainJob:
         started = time.monotonic()
         replaced = False
         try:
-            version = train_classifier(
+            version = LANE.run(
+                train_classifier,
                 self.state.session,
                 config=self.classifier_config,
                 warm_start=False,

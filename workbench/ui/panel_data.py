@@ -121,12 +121,13 @@ class DataPanel:
 
     def download_bundle(self) -> None:
         from ..export import export_all
+        from ..torch_lane import LANE
 
         session = self.host.state.session
         self.host.notify("Exporting", "building the bundle and checking ONNX against PyTorch", color="blue")
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "export"
-            export_all(session, out)
+            LANE.run(export_all, session, out)
             buf = io.BytesIO()
             with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
                 for p in sorted(out.rglob("*")):

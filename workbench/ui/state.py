@@ -19,6 +19,7 @@ from ..score_store import queue_key, store_queue, store_scores, stored_queue, st
 from ..scores import SessionScores, compute_scores
 from ..stage_inputs import log_change_points
 from ..suggestions import suggest_for_session
+from ..torch_lane import LANE
 from ..user_errors import USER_ERRORS, one_line
 
 Event = str  # "labels" | "scores" | "suggestions" | "job" | "models" | "logs"
@@ -319,7 +320,7 @@ class SharedState:
     def _restore(self) -> None:
         """Draw the last scoring and queue kept in the session at once; score again only when they are stale."""
         try:
-            stored = stored_scores(self.session)
+            stored = LANE.run(stored_scores, self.session)
         except Exception as exc:  # a cache that cannot be read is recomputed, never a reason not to start
             self._on_error(f"stored scores not used ({type(exc).__name__}: {exc}); scoring the logs again")
             return
@@ -354,9 +355,9 @@ class SharedState:
                     self.busy = "scoring logs"
                     self.notify("job")
                     if first and len(first) < len(self._logs):
-                        self.scores = compute_scores(self.session, log_ids=first)
+                        self.scores = LANE.run(compute_scores, self.session, log_ids=first)
                         self.notify("scores")
-                    self.scores = compute_scores(self.session)
+                    self.scores = LANE.run(compute_scores, self.session)
                     self.scored = True
                     self.notify("scores")
                     self._keep(store_scores, self.session, self.scores)
@@ -408,10 +409,22 @@ class SharedState:
 
 def score_and_keep(session: Session, *, timeout_s: float = 3600.0) -> bool:
     """Score every log and rank the suggestion queue once, kept in the session, so the page's first screen draws
-    them at once (``workbench demo`` does this before serving). Returns False when it did not finish in time."""
+    them at once (``workbench demo`` does this before serving). The calling thread runs the torch work (it may have
+    trained already: see ``workbench.torch_lane``). Returns False when it did not finish in time."""
     errors: list[str] = []
-    state = SharedState(session, on_error=errors.append)
-    try:
-        return state.wait_idle(stop=lambda: False, deadline_s=timeout_s) and not errors
-    finally:
-        state.stop()
+    finished: list[bool] = []
+
+    def score() -> None:
+        state = SharedState(session, on_error=errors.append)
+        try:
+            finished.append(state.wait_idle(stop=lambda: False, deadline_s=timeout_s))
+        finally:
+            state.stop()
+
+    waiter = threading.Thread(target=score, name="score-and-keep", daemon=True)
+    if LANE.serving:
+        waiter.start()
+    else:  # the worker's torch work comes to this thread
+        LANE.serve(stop=lambda: not waiter.is_alive(), started=waiter.start)
+    waiter.join()
+    return bool(finished and finished[0]) and not errors
