@@ -35,7 +35,6 @@ from sessions import Session
 from training import TrainConfig
 from workbench import cycle
 from workbench.demo import TERRAINS, generate_walk
-from workbench.retrain import RETRAIN
 from workbench.scores import compute_scores
 from workbench.ui import SharedState, TrainJob
 
@@ -162,6 +161,10 @@ def main() -> None:
             acc_ours = accuracy(session, state.scores, logs)
             # then the job's refining phase: stage 2 from scratch in the background, its scores of every log
             quick = state.scores.classifier
+            warm = next(v for v in session.model_versions("classifier") if v.id == quick).config.get("warm_start")
+            if not warm:  # the default family fits stage 2 afresh in every Retrain: there is no refining phase
+                state.stop()
+                return acc_before, t_view, t_all, view_first, acc_ours, None, None
             refined = threading.Event()
             state.subscribe(
                 lambda e: (
@@ -195,17 +198,25 @@ def main() -> None:
         Row(
             f"retrain cycle: Retrain pressed → highlights of the log in view refreshed ({len(logs)} trials, "
             f"{total:,} steps, {100 * labelled / total:.1f} % labelled)",
-            f"{fmt_s(t_view)} (all logs rescored: {fmt_s(t_all)}; the model from scratch in their place: "
-            f"{fmt_s(t_refined)})",
+            f"{fmt_s(t_view)} (all logs rescored: {fmt_s(t_all)}; "
+            + (
+                f"the model from scratch in their place: {fmt_s(t_refined)})"
+                if t_refined is not None
+                else "the Retrain trains stage 2 from scratch: no refining phase)"
+            ),
             f"naive cycle, both stages from scratch + full rescore (a lower bound: stage 1 one epoch, stage 2 "
             f"≤ {STAGE2.max_epochs} epochs): {fmt_s(t_naive)}",
             f"{ratio:.1f}× faster",
-            "≤ 15 s and ≥ 20× faster",
-            bool(t_view <= 15.0 and ratio >= 20.0),
-            f"unlabelled trials: quick fine-tune {100 * acc_ours:.2f} %, then from scratch in the background "
-            f"{100 * acc_refined:.2f} % (naive: {100 * acc_naive:.2f} %; before the retrain: "
-            f"{100 * acc_before:.2f} %); "
-            f"fine-tune {RETRAIN.warm_epochs} epoch(s); view first: {'yes' if view_first else '**no**'}",
+            "≤ 10 s, ≥ 20× faster, accuracy within 1 point of the naive cycle's",
+            bool(t_view <= 10.0 and ratio >= 20.0 and acc_ours >= acc_naive - 0.01),
+            (
+                f"unlabelled trials: quick fine-tune {100 * acc_ours:.2f} %, then from scratch in the background "
+                f"{100 * acc_refined:.2f} %"
+                if acc_refined is not None
+                else f"unlabelled trials: the Retrain's model {100 * acc_ours:.2f} %"
+            )
+            + f" (naive: {100 * acc_naive:.2f} %; before the retrain: {100 * acc_before:.2f} %); "
+            f"view first: {'yes' if view_first else '**no**'}",
         )
     ]
     record("retrain", rows, device=args.device)

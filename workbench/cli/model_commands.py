@@ -246,7 +246,10 @@ def classify(
     from ..export import classify_files
 
     options = IngestOptions(
-        mapping=load_mapping(mapping) if mapping else IngestOptions().mapping, rate_hz=rate, allow_gaps=allow_gaps
+        mapping=load_mapping(mapping) if mapping else IngestOptions().mapping,
+        rate_hz=rate,
+        allow_gaps=allow_gaps,
+        camera_fps=0,  # predictions need no pictures: image topics are not decoded
     )
     code, lines = classify_files(bundle, files, out, options)
     for line in lines:
