@@ -13,11 +13,13 @@ import numpy as np
 
 from ..errors import IngestError
 from .base import ChannelSpec, IngestOptions, ParsedLog, Stream
+from .cdr_block import decode_block, float64_fields
 from .fields import FieldSpec, format_path, get, infer_fields, parse_path, stamp_seconds
 from .image_topics import CameraCollector, is_camera
 from .spill import RowBuffer, reorder
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
+BLOCK_MESSAGES = 4096  # messages of a block topic decoded at once (a few MB: memory stays bounded)
 
 
 @dataclass
@@ -32,6 +34,9 @@ class _Topic:
     rows: RowBuffer | None = None  # stamps and field values, spilled to disk
     dropped: int = 0
     camera: CameraCollector | None = None  # an image topic: its frames, kept beside the streams
+    layout: dict | None = None  # float positions when its messages are a header and floats (cdr_block)
+    block: np.ndarray | None = None  # the fields' positions in that layout, once the fields are known
+    pending: list[tuple[int, bytes]] = field(default_factory=list)  # (log time, message) not yet decoded
 
 
 @dataclass(frozen=True)
@@ -199,19 +204,37 @@ def read_mcap(
         feed=lambda on_message, reset: _read(path, on_message, reset, on_bytes),
         decoder_for=lambda channel, schema: _decoder_for(channel.message_encoding, schema),
         fmt="mcap",
+        block_layout=_block_layout,
     )
+
+
+def _block_layout(channel, schema) -> dict | None:
+    """The float layout of a CDR topic whose messages are a header and floats, else None."""
+    if channel.message_encoding != "cdr" or schema is None or schema.encoding != "ros2msg":
+        return None
+    try:
+        return float64_fields(schema.data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError):
+        return None
 
 
 Feed = Callable[[Callable[[object, object, object], None], Callable[[], None]], None]
 
 
 def read_topics(
-    path: Path, options: IngestOptions, *, feed: Feed, decoder_for: Callable[[object, object], Callable], fmt: str
+    path: Path,
+    options: IngestOptions,
+    *,
+    feed: Feed,
+    decoder_for: Callable[[object, object], Callable],
+    fmt: str,
+    block_layout: Callable[[object, object], dict | None] | None = None,
 ) -> tuple[ParsedLog, list[TopicReport]]:
     """Streams from any message log: ``feed(on_message, reset)`` calls ``on_message(schema, channel, message)``
     for every message (``schema.name``; ``channel.id``, ``.topic``; ``message.data``, ``.log_time`` in ns), and
     ``decoder_for(channel, schema)`` gives the function that decodes a message's bytes. MCAP and ROS bags share
-    this: the same message types, fields and mapping."""
+    this: the same message types, fields and mapping. ``block_layout(channel, schema)``, where given, says which
+    topics' messages are a header and floats only (``cdr_block``): those are decoded a block at a time."""
     mapping = options.mapping
     explicit: dict[str, list[ChannelSpec]] = {}
     for spec in mapping.channels:
@@ -245,6 +268,8 @@ def read_topics(
                     t.unusable = f"cannot decode: {exc}"
                 if camera and not t.unusable:
                     t.camera = CameraCollector(t.topic, t.schema, fps=options.camera_fps)
+                elif block_layout is not None and not t.unusable:
+                    t.layout = block_layout(channel, schema)
         if t.unusable:
             return
         if t.camera is not None:
@@ -256,8 +281,17 @@ def read_topics(
                 else:
                     t.camera.add(msg, message.log_time)
             return
+        if t.block is not None:
+            t.pending.append((message.log_time, bytes(message.data)))
+            if len(t.pending) >= BLOCK_MESSAGES:
+                flush(t)
+            return
+        add(t, message.data, message.log_time)
+
+    def add(t: _Topic, data: bytes, log_time: int) -> None:
+        """One message through the library's decoder."""
         try:
-            msg = t.decode(message.data)
+            msg = t.decode(data)
         except Exception as exc:
             if not t.fields:
                 t.unusable = f"cannot decode: {exc}"
@@ -268,26 +302,28 @@ def read_topics(
             raise IngestError(
                 path,
                 f"message cannot be decoded: {exc}",
-                where=f"topic {t.topic}, log time {message.log_time}",
+                where=f"topic {t.topic}, log time {log_time}",
             ) from None
         if not t.fields:
-            if channel.topic in explicit:
-                t.fields = [
-                    FieldSpec(parse_path(s.field), s.name or s.field, s.unit, None) for s in explicit[channel.topic]
-                ]
+            if t.topic in explicit:
+                t.fields = [FieldSpec(parse_path(s.field), s.name or s.field, s.unit, None) for s in explicit[t.topic]]
             else:
                 t.fields = infer_fields(msg)
             if not t.fields:
                 t.unusable = f"no sensor fields recognised in {t.schema or 'its messages'}"
                 return
             t.rows = RowBuffer(len(t.fields))
+            if t.layout is not None and all(f.header in (None, ()) for f in t.fields):
+                paths = [tuple(f.path) for f in t.fields]
+                if all(p in t.layout for p in paths):  # the next messages go a block at a time
+                    t.block = np.asarray([t.layout[p] for p in paths])
         try:
             row = [float(get(msg, f.path)) for f in t.fields]
         except (AttributeError, KeyError, IndexError, TypeError, ValueError) as exc:
             raise IngestError(
                 path,
                 f"field missing or not numeric: {exc}",
-                where=f"topic {t.topic}, log time {message.log_time}",
+                where=f"topic {t.topic}, log time {log_time}",
             ) from None
         if not all(np.isfinite(row)):
             if options.allow_gaps:
@@ -296,13 +332,38 @@ def read_topics(
             raise IngestError(
                 path,
                 "NaN or infinite value (use --allow-gaps to record it as a gap)",
-                where=f"topic {t.topic}, log time {message.log_time}",
+                where=f"topic {t.topic}, log time {log_time}",
             )
         header = t.fields[0].header
         stamp = stamp_seconds(msg, header) if header is not None else None
-        t.rows.append(stamp if stamp is not None else message.log_time * 1e-9, row)
+        t.rows.append(stamp if stamp is not None else log_time * 1e-9, row)
+
+    def flush(t: _Topic) -> None:
+        """Decode the pending messages of a block topic; any that do not fit the layout go through ``add``."""
+        pending, t.pending = t.pending, []
+        if not pending or t.rows is None or t.block is None or t.layout is None:
+            return
+        log_ns = np.fromiter((p[0] for p in pending), np.int64, len(pending))
+        stamps, values, ok = decode_block([p[1] for p in pending], len(t.layout))
+        for i in np.flatnonzero(~ok):
+            add(t, pending[i][1], int(log_ns[i]))
+        rows = values[ok][:, t.block]  # (n, fields)
+        use = np.isfinite(stamps[ok]) if t.fields[0].header is not None else np.zeros(int(ok.sum()), bool)
+        times = np.where(use, stamps[ok], log_ns[ok] * 1e-9)
+        finite = np.isfinite(rows).all(axis=1)
+        if not finite.all():
+            if not options.allow_gaps:
+                raise IngestError(
+                    path,
+                    "NaN or infinite value (use --allow-gaps to record it as a gap)",
+                    where=f"topic {t.topic}, log time {int(log_ns[ok][~finite][0])}",
+                )
+            t.dropped += int((~finite).sum())
+        t.rows.append_block(times[finite], rows[finite])
 
     feed(on_message, reset)
+    for t in topics.values():
+        flush(t)
 
     usable = [t for t in topics.values() if not t.unusable and t.rows is not None and len(t.rows)]
     reports = [

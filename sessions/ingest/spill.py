@@ -43,6 +43,21 @@ class RowBuffer:
         if self._used == BLOCK_ROWS:
             self._flush()
 
+    def append_block(self, times: np.ndarray, values: np.ndarray) -> None:
+        """Append ``(n,)`` stamps and ``(n, K)`` values at once."""
+        i = 0
+        while i < len(times):
+            take = min(len(times) - i, BLOCK_ROWS - self._used)
+            while self._n + take > len(self._times):
+                self._times = np.concatenate([self._times, np.empty_like(self._times)])
+            self._times[self._n : self._n + take] = times[i : i + take]
+            self._block[self._used : self._used + take] = values[i : i + take]
+            self._used += take
+            self._n += take
+            i += take
+            if self._used == BLOCK_ROWS:
+                self._flush()
+
     def extend(self, rows: np.ndarray) -> None:
         """Append ``(n, K)`` values at once (no stamps: for copies of values only)."""
         self._flush()

@@ -1,17 +1,20 @@
 """Demo data: synthetic quadruped walks written as ROS 2 MCAP (with their own CDR writer), and labels seeded from a
 session's reference truth."""
 
-from .ros2_cdr import IMU_SCHEMA, WRENCH_STAMPED_SCHEMA
+from .ros2_cdr import COMPRESSED_IMAGE_SCHEMA, IMU_SCHEMA, WRENCH_STAMPED_SCHEMA
+from .ros2_cdr import encode as encode_stamped_floats
 from .seed_labels import seed_labels
 from .walks import FOOT_HZ, IMU_HZ, TERRAINS, Walk, generate_demo_logs, generate_walk, write_walk
 
 __all__ = [
+    "COMPRESSED_IMAGE_SCHEMA",
     "FOOT_HZ",
     "IMU_HZ",
     "IMU_SCHEMA",
     "TERRAINS",
     "WRENCH_STAMPED_SCHEMA",
     "Walk",
+    "encode_stamped_floats",
     "generate_demo_logs",
     "generate_walk",
     "seed_labels",
