@@ -40,10 +40,12 @@ class ReviewPanel:
             return None
         return self.current[1].start, self.current[1].stop
 
-    def _open_time(self, stretch: labeling.PredictedStretch) -> int:
+    def _open_time(self, stretch: labeling.PredictedStretch, covered: list[tuple[int, int]] | None = None) -> int:
+        """Samples of ``stretch`` nobody labelled (``covered``: the log's labelled ranges, read when not given)."""
         log = self.host.log
         assert log is not None
-        covered = [(s.start, s.stop) for s in self.host.state.session.segments(log.id)]
+        if covered is None:
+            covered = [(s.start, s.stop) for s in self.host.state.session.segments(log.id)]
         pieces = labeling.uncovered(stretch.start, stretch.stop, covered, min_len=round(MIN_PIECE_S * log.rate_hz))
         return sum(b - a for a, b in pieces)
 
@@ -59,7 +61,8 @@ class ReviewPanel:
         at = here[0] if here is not None else log.sample_at(self.host.cursor_s) - (1 if direction > 0 else 0)
         order = stretches if direction > 0 else stretches[::-1]
         ahead = [x for x in order if (x.start > at if direction > 0 else x.start < at)]
-        found = next((x for x in ahead if self._open_time(x) > 0), None)
+        covered = [(s.start, s.stop) for s in self.host.state.session.segments(log.id)]  # once, not per stretch
+        found = next((x for x in ahead if self._open_time(x, covered) > 0), None)
         if found is None:
             self.host.notify(
                 "No more",
