@@ -140,19 +140,24 @@ class CameraStore:
         """``(N,)`` times of a camera's kept frames, seconds since the log's first sample."""
         return np.asarray(self._index(log_id, camera)[0]["t"])
 
-    def camera_frame(
-        self, log_id: int, seconds: float, *, camera: int = 0, within_s: float = 1.0
-    ) -> CameraFrame | None:
-        """The frame shown at ``seconds`` into a log: the nearest kept one, or ``None`` when none is within
+    def camera_frame_number(self, log_id: int, seconds: float, *, camera: int = 0, within_s: float = 1.0) -> int | None:
+        """The number of the kept frame nearest ``seconds`` into a log, or ``None`` when none is within
         ``within_s`` (a camera that started late or dropped out shows nothing, not a stale picture)."""
-        index, frames = self._index(log_id, camera)
-        t = index["t"]
+        t = self._index(log_id, camera)[0]["t"]
         if not len(t):
             return None
         j = int(np.searchsorted(t, seconds))
         i = min((k for k in (j - 1, j) if 0 <= k < len(t)), key=lambda k: abs(float(t[k]) - seconds))
-        if abs(float(t[i]) - seconds) > within_s:
+        return None if abs(float(t[i]) - seconds) > within_s else i
+
+    def camera_frame(
+        self, log_id: int, seconds: float, *, camera: int = 0, within_s: float = 1.0
+    ) -> CameraFrame | None:
+        """The frame shown at ``seconds`` into a log (:meth:`camera_frame_number`), with its JPEG bytes."""
+        i = self.camera_frame_number(log_id, seconds, camera=camera, within_s=within_s)
+        if i is None:
             return None
+        index, frames = self._index(log_id, camera)
         with open(frames, "rb") as f:
             f.seek(int(index["offset"][i]))
             data = f.read(int(index["size"][i]))

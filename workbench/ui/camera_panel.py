@@ -64,16 +64,21 @@ class CameraPanel:
             self.panel.visible = bool(cams)
             if not cams:
                 return
-            frame = session.camera_frame(log.id, self.host.cursor_s, camera=self._camera, within_s=WITHIN_S)
+            number = session.camera_frame_number(log.id, self.host.cursor_s, camera=self._camera, within_s=WITHIN_S)
+            key = (log.id, self._camera, number)
+            if key == self._shown:  # redraws come with every cursor step: read a frame only when it changes
+                return
+            frame = (
+                None
+                if number is None
+                else session.camera_frame(log.id, self.host.cursor_s, camera=self._camera, within_s=WITHIN_S)
+            )
         except USER_ERRORS as exc:  # damaged camera files: one line where the picture would be
             self.panel.visible = True
             self.picture.content = f"<p style='color:#c62828;font-size:0.8em'>{html.escape(one_line(exc))}</p>"
             self._shown = None
             return
         cam = cams[self._camera]
-        key = (log.id, self._camera, None if frame is None else frame.number)
-        if key == self._shown:
-            return
         self._shown = key
         topic = html.escape(cam.topic)
         if frame is None:
