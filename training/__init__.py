@@ -121,6 +121,10 @@ _MODULES: dict[str, tuple[str, ...]] = {
         "WindowClassifier",
         "WindowClassifierConfig",
     ),
+    "window_finetune": (
+        "assign_folds",
+        "fine_tune_window_classifier",
+    ),
 }
 _OWNER = {name: module for module, names in _MODULES.items() for name in names}
 _SUBMODULES = ("distributed",)

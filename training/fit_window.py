@@ -78,10 +78,12 @@ def _train(
     epochs = max(1, min(epochs, config.max_steps // max(per_epoch, 1)))
     noise_scale = config.noise / model.in_scale.repeat(model.config.window)  # (W·F,) standardised units, raw scale
     model.train()
+    left = config.max_steps  # an epoch longer than the budget (a huge label set) stops part-way
     for _ in range(epochs):
         if cancel():
             raise Cancelled("classifier training cancelled")
-        for idx in torch.randperm(len(xt), generator=gen).split(config.batch):
+        for idx in torch.randperm(len(xt), generator=gen).split(config.batch)[:left]:
+            left -= 1
             xb = xt[idx]
             xb = xb + torch.randn(xb.shape, generator=gen) * noise_scale
             loss = F.cross_entropy(model.logits(xb), yt[idx])

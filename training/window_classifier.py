@@ -63,7 +63,6 @@ class WindowClassifier(nn.Module):
         f, h = config.frame_width, config.hidden
         self.register_buffer("in_mean", torch.zeros(f))
         self.register_buffer("in_scale", torch.ones(f))
-        self.drop = nn.Dropout(config.dropout)
         self.mix = nn.Conv1d(f, h, 1)
         self.conv = nn.Conv1d(h, h, 3, padding=1)
         self.head = nn.Linear(2 * h, config.n_classes)
@@ -72,7 +71,7 @@ class WindowClassifier(nn.Module):
         """``windows (N, W·F)`` -> ``logits (N, K)``."""
         cfg = self.config
         x = windows.unflatten(1, (cfg.window, cfg.frame_width))  # (N, W, F)
-        x = self.drop((x - self.in_mean) * self.in_scale).transpose(1, 2)  # (N, F, W)
+        x = _dropout((x - self.in_mean) * self.in_scale, cfg.dropout, self.training).transpose(1, 2)  # (N, F, W)
         h = F.gelu(self.mix(x), approximate="tanh")  # (N, H, W)
         h = F.gelu(self.conv(h), approximate="tanh")  # (N, H, W)
         mean = h.mean(dim=2)  # (N, H)
@@ -114,6 +113,16 @@ class WindowClassifier(nn.Module):
             "head": self.head.weight.detach().T.contiguous().numpy(),
             "head_b": self.head.bias.detach().numpy(),
         }
+
+
+def _dropout(x: torch.Tensor, p: float, training: bool) -> torch.Tensor:
+    """Dropout drawn as a uniform number against ``p``: the distribution of ``F.dropout``, whose Bernoulli sampler
+    is 2.4 times slower on a CPU (a 128 × 7 × 220 batch: 1.14 ms against 0.48), and the input's dropout was over a
+    third of a fit's time."""
+    if not training or p <= 0.0:
+        return x
+    keep = torch.rand(x.shape, device=x.device) >= p  # (N, W, F)
+    return x * keep * (1.0 / (1.0 - p))
 
 
 def gelu_tanh(x: np.ndarray) -> np.ndarray:

@@ -23,7 +23,9 @@ from training import (
     ProgressFn,
     TrainConfig,
     WindowFitConfig,
+    assign_folds,
     distributed,
+    fine_tune_window_classifier,
     fit_classifier,
     fit_predictor,
     fit_window_classifier,
@@ -230,7 +232,8 @@ def train_classifier(
         warm_epochs: When warm-starting, train at most this many epochs (patience 1) instead of ``config``'s: the
             UI's Retrain is a short fine-tune, since the previous models already fit all but the newest labels. It
             trains on the labels added or changed since the active version and as many older ones replayed, at
-            ``RETRAIN.warm_lr_scale`` of the learning rate.
+            ``RETRAIN.warm_lr_scale`` of the learning rate. Default family: any value asks for its quick phase
+            (``RETRAIN.window_steps`` steps per fold model, see :func:`_fine_tune_window`).
         progress: Called after every optimiser step (paper) or fold (default).
         cancel: Polled after every step (paper) or fit (default).
     """
@@ -238,7 +241,12 @@ def train_classifier(
     if family not in MODEL_FAMILIES:
         raise WorkbenchError(f"unknown model family {family!r}; choose one of {', '.join(MODEL_FAMILIES)}")
     if family == "default":
-        return _train_window(session, window or RETRAIN.window, progress=progress, cancel=cancel)
+        settings = window or RETRAIN.window
+        if warm_start and warm_epochs is not None:
+            quick = _fine_tune_window(session, settings, progress=progress, cancel=cancel)
+            if quick is not None:
+                return quick
+        return _train_window(session, settings, progress=progress, cancel=cancel)
     config = config or TrainConfig()
     p_version, bundle = active_predictor(session)
     logs = model_logs(session, bundle.channels)
@@ -334,6 +342,70 @@ def _train_window(
     return version
 
 
+def _fine_tune_window(
+    session: Session, settings: WindowFitConfig, *, progress: ProgressFn | None, cancel: CancelFn
+) -> ModelVersion | None:
+    """The default family's quick phase: the active fold models fine-tuned on the labels added or changed since;
+    a new, active version. ``None`` (fit from scratch) unless the active classifier is a default-family ensemble of
+    two or more fold models over the same predictor and terrains that recorded its segments' folds."""
+    previous = session.active_model("classifier")
+    if previous is None or previous.config.get("model") != "default":
+        return None
+    p_version, bundle = active_predictor(session)
+    seen = previous.config.get("labels") or {}
+    if previous.config.get("predictor") != p_version.id or "folds" not in seen:
+        return None
+    old = load_bundle(session.path / previous.path)
+    logs = model_logs(session, bundle.channels)
+    classes, used, segments = _labelled(session, logs)
+    if old.classes != classes or old.spectral is None or len(old.classifiers) < 2:
+        return None
+    known = dict(zip(seen["ids"], seen["folds"], strict=True))
+    folds = assign_folds([s[3] for s in segments], [known.get(s.id, -1) for s in used], len(old.classifiers))
+    new = _new_labels(used, seen) or []
+    # only labelled logs' frames are read: a fine-tune never looks at the rest (thousands of trials at QCAT scale)
+    needed = sorted({s[0] for s in segments})
+    at = {i: j for j, i in enumerate(needed)}
+    features = spectral_features(session, p_version.id, bundle, [logs[i] for i in needed], old.spectral)
+    params = {"model": "default", "quick": True, "steps": RETRAIN.window_steps, "segments": len(segments)}
+    with _recorded_run(session, "classifier", params) as result:
+        fit = fine_tune_window_classifier(
+            features,
+            [(at[i], a, b, c) for i, a, b, c in segments],
+            classes,
+            old.classifiers,
+            folds=folds,
+            new=new,
+            steps=RETRAIN.window_steps,
+            lr_scale=RETRAIN.window_lr_scale,
+            config=settings,
+            progress=progress,
+            cancel=cancel,
+        )
+        version = _save_classifier(
+            session,
+            bundle,
+            fit,
+            logs,
+            used,
+            segments,
+            {"classes": classes, "feature_mode": "spectral", "spectral": old.spectral},
+            {
+                "model": "default",
+                "window": to_dict(settings),
+                "feature_mode": "spectral",
+                "predictor": p_version.id,
+                "warm_start": True,
+                "fine_tuned_from": previous.id,
+                "steps": RETRAIN.window_steps,
+                "lr_scale": RETRAIN.window_lr_scale,
+                "new_labels": len(new),
+            },
+        )
+        result["version"] = version.id
+    return version
+
+
 def _save_classifier(
     session: Session,
     bundle: ModelBundle,
@@ -360,7 +432,15 @@ def _save_classifier(
         info={**bundle.info, "predictor_version": recipe["predictor"], "history": fit.history},
         **stage2,
     )
-    seen = {"ids": [s.id for s in used], "as_of": max((s.updated_at for s in used), default="")}
+    fold_of = [-1] * len(used)
+    for f, val in enumerate(fit.folds):
+        for i in val:
+            fold_of[i] = f
+    seen = {
+        "ids": [s.id for s in used],
+        "as_of": max((s.updated_at for s in used), default=""),
+        "folds": fold_of,  # the fold model that never trained on each: a fine-tune keeps them out-of-fold
+    }
     return _save_version(session, "classifier", full, {**recipe, "labels": seen})
 
 

@@ -25,7 +25,12 @@ class RetrainSettings:
             new labels and replayed old ones pulled the warm models off what they knew (QCAT-scale bench: 75.9 % on
             unlabelled trials at 0.005, 81.2 % at 0.001).
         refine: After the quick fine-tune, train stage 2 from scratch in the background and replace it.
-        window: The default family's stage 2 (a Retrain fits it from scratch: seconds, so there is no quick phase).
+        window: The default family's stage 2 from scratch (the refine phase, a new terrain, a new predictor).
+        window_steps: The default family's quick phase: AdamW steps per fold model on the labels added or changed
+            since, with as many older rows replayed (``training.fine_tune_window_classifier``). Its from-scratch fit
+            is minutes on a big session (QCAT scale: 269 s), the quick phase seconds (``benchmarks/bench_retrain.py``).
+        window_lr_scale: The quick phase's learning rate as a share of ``window.lr``. Neither it nor
+            ``window_steps`` was tuned on a benchmark: a fine-tune is a smaller step than a fit.
     """
 
     hidden: int = 200
@@ -35,6 +40,8 @@ class RetrainSettings:
     warm_lr_scale: float = 0.2
     refine: bool = True
     window: WindowFitConfig = field(default_factory=WindowFitConfig)
+    window_steps: int = 150
+    window_lr_scale: float = 0.3
 
 
 RETRAIN = RetrainSettings()

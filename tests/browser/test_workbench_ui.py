@@ -124,8 +124,9 @@ def test_label_with_hotkeys_retrain_suggest_and_download(session_path: Path, ser
     assert added == [(1, round(100 * t), round(100 * t) + 200, "grass", "manual")]
     save_screenshot(page, "workbench-main")
 
-    # Retrain from the Train tab: the default family fits stage 2 afresh in seconds (no quick phase to refine), and
-    # its version appears in the page as the active one
+    # Retrain from the Train tab: the label is of a terrain the active models never saw, so the default family fits
+    # stage 2 from scratch (no quick phase to refine: tests/workbench/test_default_family.py has that one), and its
+    # version appears in the page as the active one
     open_tab(page, "Train")
     versions_before = len(Session.open(session_path).model_versions())
     page.get_by_role("button", name="Retrain (R)").click()
@@ -133,6 +134,7 @@ def test_label_with_hotkeys_retrain_suggest_and_download(session_path: Path, ser
     page.get_by_text("done in").first.wait_for(timeout=60_000)
     active = Session.open(session_path).active_model("classifier")
     assert active.id == versions_before + 1 and active.config["model"] == "default"
+    assert active.config["warm_start"] is False
     save_screenshot(page, "workbench-train")
 
     # take a suggestion with its hotkeys: N shows it, A labels it with the model's guess

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+import torch
 
 from sessions import Session
 from training import StreamingClassifier, load_bundle
@@ -91,3 +92,79 @@ def test_self_training_stretches_hold_no_label_and_no_change_point(session: Sess
         assert 160 <= b - a <= 5 * log.rate_hz
         assert not any(s.log_id == log.id and s.start < b and a < s.stop for s in segments)
         assert not ((cps[log.id] > a) & (cps[log.id] < b)).any()
+
+
+def _free_second(session: Session, log) -> int:
+    """The start of a labelled-free second of ``log``."""
+    taken = [(s.start, s.stop) for s in session.segments() if s.log_id == log.id]
+    step = int(log.rate_hz)
+    return next(a for a in range(0, log.n_samples - step, step) if not any(s < a + step and a < e for s, e in taken))
+
+
+def test_a_retrain_after_more_labels_fine_tunes_the_default_models_and_keeps_their_folds(session: Session) -> None:
+    base = cycle.train_classifier(session, model="default")  # from scratch: its segments' folds recorded
+    seen = base.config["labels"]
+    assert len(seen["folds"]) == len(seen["ids"]) and set(seen["folds"]) <= set(range(5))
+    old_bundle = load_bundle(session.path / base.path)
+    log = session.logs()[1]
+    a = _free_second(session, log)
+    added = session.add_segment(log.id, a, a + int(log.rate_hz), old_bundle.classes[0], author="test")
+
+    quick = cycle.train_classifier(session, warm_epochs=2)  # what the UI's Retrain asks for
+    assert quick.config["warm_start"] is True and quick.config["fine_tuned_from"] == base.id
+    assert quick.config["new_labels"] == 1
+    folds = dict(zip(quick.config["labels"]["ids"], quick.config["labels"]["folds"], strict=True))
+    assert all(folds[i] == f for i, f in zip(seen["ids"], seen["folds"], strict=True))  # old segments keep theirs
+    assert 0 <= folds[added.id] < 5
+    assert quick.metrics["out_of_fold"] and "held_out_logs" not in quick.metrics
+    assert quick.metrics["n"] == sum(s.length for s in session.segments())
+    bundle = load_bundle(session.path / quick.path)
+    assert bundle.spectral == old_bundle.spectral and bundle.classes == old_bundle.classes
+    changed = [
+        not all(torch.equal(p, q) for p, q in zip(m.parameters(), o.parameters(), strict=True))
+        for m, o in zip(bundle.classifiers, old_bundle.classifiers, strict=True)
+    ]
+    assert changed.count(False) == 1 and not changed[folds[added.id]]  # the fold holding it never saw it
+    # the refining phase and `workbench train`: from scratch
+    assert cycle.train_classifier(session, warm_start=False, warm_epochs=2).config["warm_start"] is False
+
+    # a terrain the active models do not know: a quick fine-tune cannot add a class, so the fit is from scratch
+    session.add_terrain("ice")
+    b = _free_second(session, log)
+    ice = session.add_segment(log.id, b, b + int(log.rate_hz), "ice", author="test")
+    try:
+        assert cycle.train_classifier(session, warm_epochs=2).config["warm_start"] is False
+    finally:
+        session.delete_segment(ice.id, author="test")
+        session.delete_segment(added.id, author="test")
+        session.remove_terrain("ice")
+        cycle.train_classifier(session, model="default")
+
+
+def test_the_ui_retrain_shows_the_quick_models_then_replaces_them_with_the_fit_from_scratch(session: Session) -> None:
+    from workbench.ui.jobs import TrainJob
+    from workbench.ui.state import SharedState
+
+    from .ui.test_ui_state import wait_for
+
+    if session.active_model("classifier").config["model"] != "default":
+        cycle.train_classifier(session, model="default")
+    state = SharedState(session, on_error=lambda msg: pytest.fail(msg))
+    try:
+        wait_for(lambda: state.scored and not state.busy)
+        log = session.logs()[0]
+        a = _free_second(session, log)
+        known = load_bundle(session.path / session.active_model("classifier").path).classes[-1]
+        added = session.add_segment(log.id, a, a + int(log.rate_hz), known, author="test")
+        before = [v.id for v in session.model_versions("classifier")]
+        job = TrainJob(state)
+        job.start()
+        wait_for(lambda: not job.running, timeout=300)
+        assert job.status.state == "done", job.status.message
+        quick, full = [v for v in session.model_versions("classifier") if v.id not in before]
+        assert quick.config["warm_start"] is True and full.config["warm_start"] is False
+        assert f"replaced the quick v{quick.id}" in job.status.message
+        wait_for(lambda: state.scores.classifier == full.id, timeout=120)
+    finally:
+        state.stop()
+    session.delete_segment(added.id, author="test")

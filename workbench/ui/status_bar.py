@@ -23,9 +23,11 @@ def status_html(host: PanelHost) -> str:
     if classifier is not None:
         m = classifier.metrics
         held = m.get("held_out_logs") or {}
-        acc = held.get("accuracy")
+        acc, where = held.get("accuracy"), "on held-out logs"
+        if acc is None and m.get("out_of_fold"):  # a quick fine-tune measures no held-out logs; its refit will
+            acc, where = m.get("accuracy"), "out of fold"
         model = f"<b>{html.escape(str(classifier.config.get('model', 'paper')))} v{classifier.id}</b>" + (
-            f" · {100 * acc:.0f} % on held-out logs" if acc is not None else ""
+            f" · {100 * acc:.0f} % {where}" if acc is not None else ""
         )
     elif predictor is not None:
         model = f"<b>stage 1 v{predictor.id}</b> · no classifier yet"
