@@ -12,6 +12,7 @@ as the offline pass (:class:`SpectralStream`). Arrays in, arrays out; no torch.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -122,23 +123,58 @@ def frame_features(x: np.ndarray, config: SpectralConfig) -> np.ndarray:
     x = np.asarray(x, np.float32)
     ends = frame_ends(len(x), config)
     out = np.empty((len(ends), config.width), np.float32)
-    window = np.hamming(config.frame).astype(np.float32)  # (L,)
-    fast, slow = list(config.fast), list(config.slow)
-    n_fast = config.bins * len(fast)
     for a in range(0, len(ends), CHUNK_FRAMES):
         e = ends[a : a + CHUNK_FRAMES]
         idx = e[:, None] - config.frame + 1 + np.arange(config.frame)[None, :]  # (n, L) sample indices
-        if fast:
-            seg = x[idx][:, :, fast]  # (n, L, Cf)
-            if config.detrend:
-                seg = seg - seg.mean(axis=1, keepdims=True)  # the spectrum of the vibration, not of the level
-            power = np.abs(np.fft.rfft(seg * window[None, :, None], axis=1)) ** 2  # (n, bins, Cf)
-            out[a : a + len(e), :n_fast] = np.log(power + config.eps).transpose(0, 2, 1).reshape(len(e), -1)
-        if slow:
-            seg = x[idx][:, :, slow]  # (n, L, Cs)
-            stats = np.stack([seg.mean(1), seg.std(1), seg.min(1), seg.max(1)], axis=2)  # (n, Cs, 4)
-            out[a : a + len(e), n_fast:] = stats.reshape(len(e), -1)
+        segment_features(x[idx], config, out=out[a : a + len(e)])
     return out
+
+
+@functools.lru_cache(maxsize=8)
+def _spectrum_matrix(frame: int) -> np.ndarray:
+    """``(L, 2·bins)`` float32: a frame's samples -> real and imaginary parts of its Hamming-windowed spectrum. One
+    product instead of a window product and an FFT: on one frame (the streaming step) each NumPy call's overhead
+    costs more than its arithmetic."""
+    spectrum = np.fft.rfft(np.diag(np.hamming(frame)), axis=1)  # (L, bins) row j: the spectrum of sample j alone
+    return np.concatenate([spectrum.real, spectrum.imag], axis=1).astype(np.float32)
+
+
+def segment_features(segments: np.ndarray, config: SpectralConfig, *, out: np.ndarray | None = None) -> np.ndarray:
+    """Features of frames already cut: ``(n, L, C)`` samples -> ``(n, F)`` (written into ``out`` when given).
+
+    The offline pass and the streaming step share this function, so they compute the same numbers. Means are sums
+    divided (``np.mean`` and ``np.std`` cost several calls each, and the streaming step runs this on one frame).
+    """
+    n, length = len(segments), np.float32(segments.shape[1])
+    out = np.empty((n, config.width), np.float32) if out is None else out
+    n_fast = config.bins * len(config.fast)
+    fast, slow = _channel_index(config)
+    if len(fast):
+        seg = segments[:, :, fast].transpose(0, 2, 1)  # (n, Cf, L)
+        if config.detrend:  # before the product: folded into it, the level's rounding would swamp small spectra
+            seg = seg - seg.sum(axis=2, keepdims=True) / length  # the spectrum of the vibration, not of the level
+        parts = seg @ _spectrum_matrix(config.frame)  # (n, Cf, 2·bins)
+        parts *= parts
+        power = parts[:, :, : config.bins] + parts[:, :, config.bins :]  # (n, Cf, bins) re² + im²
+        power += np.float32(config.eps)
+        out[:, :n_fast] = np.log(power, out=power).reshape(n, -1)
+    if len(slow):
+        seg = segments[:, :, slow]  # (n, L, Cs)
+        stats = np.empty((n, len(slow), 4), np.float32)
+        mean = np.divide(seg.sum(axis=1), length, out=stats[:, :, 0])  # (n, Cs)
+        dev = seg - mean[:, None, :]
+        dev *= dev
+        np.sqrt(dev.sum(axis=1) / length, out=stats[:, :, 1])
+        np.min(seg, axis=1, out=stats[:, :, 2])
+        np.max(seg, axis=1, out=stats[:, :, 3])
+        out[:, n_fast:] = stats.reshape(n, -1)
+    return out
+
+
+@functools.lru_cache(maxsize=8)
+def _channel_index(config: SpectralConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The fast and the slow channels' indices as arrays (a tuple would be turned into one at every call)."""
+    return np.asarray(config.fast, np.int64), np.asarray(config.slow, np.int64)
 
 
 def per_step(frames: np.ndarray, n_samples: int, config: SpectralConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -164,6 +200,7 @@ class SpectralStream:
 
     def __init__(self, config: SpectralConfig, n_channels: int, *, streams: int = 1) -> None:
         self.config = config
+        self.order = np.arange(config.frame)  # (L,) ring positions from the oldest sample, shifted per stream
         self.ring = np.zeros((streams, config.frame, n_channels), np.float32)  # (B, L, C)
         self.count = np.zeros(streams, np.int64)  # samples seen per stream
         self.last = np.zeros((streams, config.width), np.float32)  # (B, F)
@@ -186,11 +223,13 @@ class SpectralStream:
         self.count += 1
         done = (self.count >= cfg.frame) & ((self.count - cfg.frame) % cfg.hop == 0)
         self.completed = done
-        for b in np.flatnonzero(done):
-            start = self.count[b] % cfg.frame  # the ring's oldest sample
-            frame = np.roll(self.ring[b], -start, axis=0)  # (L, C) oldest first
-            self.last[b] = frame_features(frame, cfg)[0]
-            self.known[b] = True
+        which = np.flatnonzero(done)
+        if len(which):  # every stream that completed a frame at once: one FFT call, not one per robot
+            oldest = (self.count[which] % cfg.frame)[:, None]  # (d, 1) the ring's oldest sample
+            pos = (oldest + self.order[None, :]) % cfg.frame  # (d, L) oldest first
+            frames = self.ring[which[:, None], pos]  # (d, L, C)
+            self.last[which] = segment_features(frames, cfg)
+            self.known[which] = True
         return self.last.copy(), self.known.copy()
 
 

@@ -126,16 +126,15 @@ def _dropout(x: torch.Tensor, p: float, training: bool) -> torch.Tensor:
 
 
 def gelu_tanh(x: np.ndarray) -> np.ndarray:
-    """PyTorch's ``gelu(x, approximate="tanh")`` in NumPy."""
-    return 0.5 * x * (1.0 + np.tanh(np.float32(0.7978845608028654) * (x + np.float32(0.044715) * x * x * x)))
-
-
-def window_logits(w: dict[str, np.ndarray], frames: np.ndarray) -> np.ndarray:
-    """The network of :meth:`WindowClassifier.arrays` on ``frames (B, W, F)`` raw (unstandardised) -> ``(B, K)``."""
-    h = gelu_tanh(frames @ w["mix"] + w["mix_b"])  # (B, W, H)
-    pad = np.pad(h, ((0, 0), (1, 1), (0, 0)))  # (B, W + 2, H): the convolution's zero padding
-    n = h.shape[1]
-    c = pad[:, 0:n] @ w["conv"][0] + pad[:, 1 : n + 1] @ w["conv"][1] + pad[:, 2 : n + 2] @ w["conv"][2]
-    h = gelu_tanh(c + w["conv_b"])  # (B, W, H)
-    pooled = np.concatenate([h.mean(axis=1), np.sqrt(h.var(axis=1) + SPREAD_EPS)], axis=1)  # (B, 2H)
-    return pooled @ w["head"] + w["head_b"]  # (B, K)
+    """PyTorch's ``gelu(x, approximate="tanh")`` in NumPy, float32, in one scratch array (the streaming step calls it
+    on small arrays, where each temporary costs as much as the arithmetic)."""
+    out = x * x
+    out *= x
+    out *= np.float32(0.044715)
+    out += x
+    out *= np.float32(0.7978845608028654)
+    np.tanh(out, out=out)
+    out += np.float32(1.0)
+    out *= x
+    out *= np.float32(0.5)
+    return out

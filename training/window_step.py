@@ -21,7 +21,7 @@ from torch import nn
 from .bundle import ModelBundle
 from .spectral import SpectralConfig, SpectralStream
 from .training_errors import BundleError
-from .window_classifier import window_logits
+from .window_classifier import SPREAD_EPS, gelu_tanh
 
 
 def _front_end(bundle: ModelBundle) -> SpectralConfig:
@@ -31,44 +31,109 @@ def _front_end(bundle: ModelBundle) -> SpectralConfig:
 
 
 class WindowStep:
-    """The default family's step for ``streams`` streams: ``(B, C)`` raw samples in, ``(B, K)`` probabilities out."""
+    """The default family's step for ``streams`` streams: ``(B, C)`` raw samples in, ``(B, K)`` probabilities out.
+
+    A frame's step is the one that costs (every ``hop`` samples; the p99 of a stream's latency), so it computes only
+    what the new frame changes. The members' weights are stacked: a few NumPy calls for the whole ensemble, not a
+    few per member. Each frame is mixed (the 1x1 convolution) and multiplied by the 3-frame convolution's three
+    taps once, when it arrives; those products are kept while the frame stays in the window. When the window moves
+    by a frame, the convolution's outputs inside it keep their inputs, so only the first position (its left
+    neighbour is now padding) and the last two (the new frame) are summed again (``benchmarks/bench_streaming.py``).
+    """
 
     def __init__(self, bundle: ModelBundle, *, streams: int = 1) -> None:
         self.config = cfg = _front_end(bundle)
-        self.mean, self.inv_std = bundle.normalizer.mean, 1.0 / bundle.normalizer.std
-        self.members = [m.arrays() for m in bundle.classifiers]
+        self.normalizer = bundle.normalizer
+        ws = [m.arrays() for m in bundle.classifiers]
+        self.m, self.h = len(ws), ws[0]["mix_b"].shape[0]
         self.k = len(bundle.classes)
+        self.mix = np.concatenate([w["mix"] for w in ws], axis=1)  # (F, M·H)
+        self.mix_b = np.concatenate([w["mix_b"] for w in ws])  # (M·H,)
+        self.taps = np.stack([np.concatenate(list(w["conv"]), axis=1) for w in ws])  # (M, H, 3H) (in, tap·out)
+        self.conv_b = np.stack([w["conv_b"] for w in ws])[:, None, None, :]  # (M, 1, 1, H)
+        self.head = np.stack([w["head"] for w in ws])  # (M, 2H, K)
+        self.head_b = np.stack([w["head_b"] for w in ws])[:, None, :]  # (M, 1, K)
         self.front = SpectralStream(cfg, len(bundle.channels), streams=streams)
-        self.frames = np.zeros((streams, cfg.window, cfg.width), np.float32)  # (B, W, F) the last frames, oldest first
-        self.n_frames = np.zeros(streams, np.int64)
+        w = cfg.window
+        # each stream's last `window` frames, mixed, times each tap of the convolution, with zero rows at both ends
+        # (the convolution's padding); and the convolution's outputs after its GELU at each position of the window
+        self.prods = np.zeros((self.m, streams, w + 2, 3, self.h), np.float32)  # (M, B, W + 2, taps, H)
+        self.conved = np.zeros((self.m, streams, w, self.h), np.float32)  # (M, B, W, H)
+        self.n_frames = 0  # frames seen by every stream
         self.probs = np.empty((streams, self.k), np.float32)
         self.reset()
 
     def reset(self) -> None:
         """Forget every stream's past."""
         self.front.reset()
-        self.frames[:] = 0.0
-        self.n_frames[:] = 0
-        self.probs[:] = self._probs(self.frames)
+        self.n_frames = 0
+        zero = self._products(np.zeros((1, self.mix.shape[0]), np.float32))  # (M, 1, 3, H) an all-zero frame
+        self.prods[:] = 0.0
+        self.prods[:, :, 1:-1] = zero[:, :, None]
+        self._convolve(0, self.config.window)
+        self.probs[:] = self._probs()
 
-    def _probs(self, frames: np.ndarray) -> np.ndarray:
-        """``(B, W, F)`` -> ``(B, K)``: the members' softmax, averaged."""
-        out = np.zeros((len(frames), self.k), np.float32)
-        for w in self.members:
-            logits = window_logits(w, frames)  # (B, K)
-            e = np.exp(logits - logits.max(axis=1, keepdims=True))
-            out += e / e.sum(axis=1, keepdims=True)
-        return out / len(self.members)
+    def _products(self, feats: np.ndarray) -> np.ndarray:
+        """New frames ``(d, F)`` mixed and multiplied by each tap: ``(M, d, 3, H)``."""
+        mixed = gelu_tanh(feats @ self.mix + self.mix_b)  # (d, M·H)
+        mixed = mixed.reshape(len(feats), self.m, self.h).transpose(1, 0, 2)  # (M, d, H)
+        return np.matmul(mixed, self.taps).reshape(self.m, len(feats), 3, self.h)
+
+    def _convolve(self, lo: int, hi: int) -> None:
+        """The convolution and its GELU at positions ``[lo, hi)`` of every window, kept in ``conved``. Position j
+        reads padded rows j, j + 1 and j + 2 through taps 0, 1 and 2: slices, no gathers."""
+        p = self.prods  # (M, B, W + 2, 3, H)
+        c = p[:, :, lo:hi, 0] + p[:, :, lo + 1 : hi + 1, 1]  # (M, B, hi - lo, H)
+        c += p[:, :, lo + 2 : hi + 2, 2]
+        c += self.conv_b
+        self.conved[:, :, lo:hi] = gelu_tanh(c)
+
+    def _moved(self) -> None:
+        """After the windows moved by a frame: the convolution at position 0 (its left neighbour is padding now)
+        and at the last two (the new frame), in one pass (a GELU is nine NumPy calls)."""
+        w, p = self.config.window, self.prods  # (M, B, W + 2, 3, H)
+        if w < 3:
+            self._convolve(0, w)
+            return
+        c = np.empty((self.m, p.shape[1], 3, self.h), np.float32)  # positions 0, W - 2, W - 1
+        np.add(p[:, :, 1, 1], p[:, :, 2, 2], out=c[:, :, 0])  # padded row 0 is zeros
+        np.add(p[:, :, w - 2 : w, 0], p[:, :, w - 1 : w + 1, 1], out=c[:, :, 1:])
+        c[:, :, 1:] += p[:, :, w : w + 2, 2]
+        c += self.conv_b
+        g = gelu_tanh(c)
+        self.conved[:, :, 0] = g[:, :, 0]
+        self.conved[:, :, w - 2 :] = g[:, :, 1:]
+
+    def _probs(self) -> np.ndarray:
+        """The ensemble's mean probabilities from the convolved windows: ``(B, K)``."""
+        h = self.conved  # (M, B, W, H)
+        w = np.float32(h.shape[2])
+        # divided, as torch's mean is: a small spread amplifies the last bit of the mean (a product by 1/W differs)
+        mean = h.sum(axis=2) / w  # (M, B, H)
+        dev = h - mean[:, :, None, :]
+        # the spread from deviations, as the module: E[h²] - E[h]² cancels to noise at a stream's start
+        spread = np.sqrt(np.einsum("mbwh,mbwh->mbh", dev, dev) / w + SPREAD_EPS)
+        logits = np.matmul(np.concatenate([mean, spread], axis=2), self.head)  # (M, B, K)
+        logits += self.head_b
+        e = np.exp(logits - logits.max(axis=2, keepdims=True))
+        return (e / e.sum(axis=2, keepdims=True)).mean(axis=0)  # (B, K)
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
-        feats, _ = self.front.step((x - self.mean) * self.inv_std)  # (B, F) last complete frame
-        done = np.flatnonzero(self.front.completed)
-        if len(done):
-            first = done[self.n_frames[done] == 0]
-            self.frames[first] = feats[first, None, :]  # a stream's first frame fills its window
-            self.frames[done] = np.concatenate([self.frames[done, 1:], feats[done, None, :]], axis=1)
-            self.n_frames[done] += 1
-            self.probs[done] = self._probs(self.frames[done])
+        # the offline pass's normalisation to the bit: a frame's small spectra amplify an input's last bit
+        feats, _ = self.front.step(self.normalizer(x))  # (B, F) last complete frame
+        # streams move in step (a call gives each a sample; reset() resets all), so they complete frames together
+        if self.front.completed[0]:
+            new = self._products(feats)  # (M, B, 3, H)
+            if self.n_frames == 0:  # the first frame fills the window: every position anew
+                self.prods[:, :, 1:-1] = new[:, :, None]
+                self._convolve(0, self.config.window)
+            else:
+                self.prods[:, :, 1:-2] = self.prods[:, :, 2:-1]
+                self.prods[:, :, -2] = new
+                self.conved[:, :, 1:-2] = self.conved[:, :, 2:-1]  # same inputs, one position earlier
+                self._moved()
+            self.n_frames += 1
+            self.probs[:] = self._probs()
         return self.probs
 
 
