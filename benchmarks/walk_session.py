@@ -1,0 +1,43 @@
+"""Sessions of demo walks for the Retrain benches: labels placed as a person answering suggestions would, and the
+accuracy on every sample nobody labelled, against the walks' reference terrains."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sessions import Session
+
+
+def label_stretches(session: Session, rng: np.random.Generator, n: int) -> None:
+    """Label ``n`` one-second stretches at random places inside reference patches, as a person answering
+    suggestions does; the terrains take turns so every one is labelled."""
+    patches = [(x.id, a, b, t) for x in session.logs() for a, b, t in session.reference(x.id) if b - a >= 200]
+    terrains = sorted({p[3] for p in patches})
+    taken = {(s.log_id, s.start) for s in session.segments()}
+    for i in range(n):
+        mine = [p for p in patches if p[3] == terrains[i % len(terrains)]]
+        while True:
+            log_id, a, b, terrain = mine[rng.integers(len(mine))]
+            start = int(rng.integers(a, b - 100)) // 100 * 100
+            if (log_id, start) not in taken and start + 100 <= b:
+                break
+        taken.add((log_id, start))
+        session.add_segment(log_id, start, start + 100, terrain, author="bench", source="manual")
+
+
+def unlabelled_accuracy(session: Session, scores) -> float:
+    """Per-timestep accuracy of the argmax on every sample nobody labelled, against the reference terrain."""
+    hits = total = 0
+    segments = session.segments()  # read once, not once per log
+    for x in session.logs():
+        truth = np.full(x.n_samples, "", dtype=object)
+        for a, b, t in session.reference(x.id):
+            truth[a:b] = t
+        for s in segments:
+            if s.log_id == x.id:
+                truth[s.start : s.stop] = ""
+        pred = np.asarray(scores.classes, dtype=object)[scores.scores[x.id].probs.argmax(axis=1)]
+        keep = truth != ""
+        hits += int((pred[keep] == truth[keep]).sum())
+        total += int(keep.sum())
+    return hits / max(total, 1)
