@@ -30,12 +30,11 @@ from pathlib import Path
 import numpy as np
 import torch
 from common import Row, fmt_s, hosted_like_the_server, parse_args, record
-from walk_session import label_stretches, unlabelled_accuracy
+from walk_session import label_stretches, unlabelled_accuracy, walk_session
 
 from sessions import Session
 from training import TrainConfig
 from workbench import cycle
-from workbench.demo import generate_demo_logs
 from workbench.retrain import RETRAIN
 from workbench.scores import compute_scores
 from workbench.ui import SharedState, TrainJob
@@ -82,18 +81,8 @@ def main() -> None:
     rng = np.random.default_rng(0)
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        t = time.perf_counter()
-        files = generate_demo_logs(folder / "logs", n_logs=n_logs, minutes=minutes, seed=0)
-        session = Session.create(folder / "session")
-        logs = session.ingest(files)
-        for name in {t for x in logs for _, _, t in session.reference(x.id)} - {t.name for t in session.terrains()}:
-            session.add_terrain(name)
+        session, logs = walk_session(folder, n_logs=n_logs, minutes=minutes)
         total = sum(x.n_samples for x in logs)
-        print(
-            f"{len(logs)} walks, {total:,} steps ({total / logs[0].rate_hz / 60:.0f} min), setup "
-            f"{time.perf_counter() - t:.0f} s",
-            flush=True,
-        )
         label_stretches(session, rng, SETUP_LABELS)
         t = time.perf_counter()
         cycle.train_predictor(session, config=STAGE1, hidden=HIDDEN)

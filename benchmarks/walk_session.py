@@ -3,9 +3,30 @@ accuracy on every sample nobody labelled, against the walks' reference terrains.
 
 from __future__ import annotations
 
+import time
+from pathlib import Path
+
 import numpy as np
 
-from sessions import Session
+from sessions import LogInfo, Session
+from workbench.demo import generate_demo_logs
+
+
+def walk_session(folder: Path, *, n_logs: int, minutes: float) -> tuple[Session, list[LogInfo]]:
+    """A session in ``folder`` of ``n_logs`` demo walks of ``minutes`` each, their reference terrains known."""
+    t = time.perf_counter()
+    files = generate_demo_logs(folder / "logs", n_logs=n_logs, minutes=minutes, seed=0)
+    session = Session.create(folder / "session")
+    logs = session.ingest(files)
+    for name in {t for x in logs for _, _, t in session.reference(x.id)} - {t.name for t in session.terrains()}:
+        session.add_terrain(name)
+    total = sum(x.n_samples for x in logs)
+    print(
+        f"{len(logs)} walks, {total:,} steps ({total / logs[0].rate_hz / 60:.0f} min), setup "
+        f"{time.perf_counter() - t:.0f} s",
+        flush=True,
+    )
+    return session, logs
 
 
 def label_stretches(session: Session, rng: np.random.Generator, n: int) -> None:
