@@ -22,8 +22,14 @@ def main(device: str = "cpu") -> int:
         meta = data.get("meta", meta)
     head = f"# Benchmarks on {device} ({meta.get('cpus', '?')} CPUs), {time.strftime('%Y-%m-%d')}\n\n"
     text = head + table(rows) + "\n"
-    (RESULTS / f"bench-{device}.md").write_text(text)
+    out = RESULTS / f"bench-{device}.md"
     print(text)
+    if out.exists():  # the sections written by hand below the table (what each session measured, and why) stay
+        old = out.read_text()
+        at = old.find("\n## ")
+        if at >= 0:
+            text += old[at:]
+    out.write_text(text)
     missed = [r.figure for r in rows if r.met is False]
     if missed:
         print("targets missed:\n" + "\n".join(f"- {m}" for m in missed))
