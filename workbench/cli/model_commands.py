@@ -102,8 +102,8 @@ def train(
     Args:
         session: The session folder (on storage every process can read, for several machines).
         stage: Which stage; "all" trains stage 1, then stage 2 if there are labels of two terrains or more.
-        model: Stage 2's family: "default" (a linear classifier on short-time spectra of the signals, fitted in
-            seconds, with self-training on the unlabelled logs) or "paper" (the paper's LSTM on stage-1 features;
+        model: Stage 2's family: "default" (a small convolutional network over the last few short-time spectra of
+            the signals, with self-training on the unlabelled logs) or "paper" (the paper's LSTM on stage-1 features;
             the options below are its settings). Unset: the active classifier's family, "default" for the first.
         device: Where to train.
         max_epochs: Upper bound on epochs (early stopping on validation loss usually ends sooner).
