@@ -353,14 +353,17 @@ def _fine_tune_window(
         return None
     p_version, bundle = active_predictor(session)
     seen = previous.config.get("labels") or {}
-    if previous.config.get("predictor") != p_version.id or "folds" not in seen:
+    folds_seen, ids_seen = seen.get("folds"), seen.get("ids")
+    if previous.config.get("predictor") != p_version.id or not isinstance(folds_seen, list) or not ids_seen:
+        return None
+    if len(folds_seen) != len(ids_seen):  # a record that does not add up: trust none of it
         return None
     old = load_bundle(session.path / previous.path)
     logs = model_logs(session, bundle.channels)
     classes, used, segments = _labelled(session, logs)
     if old.classes != classes or old.spectral is None or len(old.classifiers) < 2:
         return None
-    known = dict(zip(seen["ids"], seen["folds"], strict=True))
+    known = dict(zip(ids_seen, folds_seen, strict=True))
     folds = assign_folds([s[3] for s in segments], [known.get(s.id, -1) for s in used], len(old.classifiers))
     new = _new_labels(used, seen) or []
     # only labelled logs' frames are read: a fine-tune never looks at the rest (thousands of trials at QCAT scale)

@@ -168,3 +168,14 @@ def test_the_ui_retrain_shows_the_quick_models_then_replaces_them_with_the_fit_f
     finally:
         state.stop()
     session.delete_segment(added.id, author="test")
+
+
+def test_a_version_whose_fold_record_does_not_add_up_is_followed_by_a_fit_from_scratch(session: Session) -> None:
+    import json
+
+    base = cycle.train_classifier(session, model="default")
+    labels = base.config["labels"]
+    cut = {**base.config, "labels": {**labels, "folds": labels["folds"][:-1]}}  # a record edited by hand, say
+    with session._write() as conn:
+        conn.execute("UPDATE model_versions SET config = ? WHERE id = ?", (json.dumps(cut), base.id))
+    assert cycle.train_classifier(session, warm_epochs=2).config["warm_start"] is False
