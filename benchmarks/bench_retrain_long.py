@@ -23,16 +23,10 @@ from pathlib import Path
 import numpy as np
 import torch
 from common import Row, fmt_s, hosted_like_the_server, parse_args, record
-from walk_session import label_stretches, unlabelled_accuracy, walk_session
+from walk_session import HIDDEN, labelled_after_training, unlabelled_accuracy, walk_session
 
 from sessions import Session
-from training import TrainConfig
-from workbench import cycle
 from workbench.ui import SharedState, TrainJob
-
-HIDDEN = 200
-STAGE1 = TrainConfig(max_epochs=1, patience=1)  # stage 1 of the setup: one epoch, as in bench_retrain
-SETUP_LABELS, NEW_LABELS = 40, 10  # one-second stretches
 
 
 def retrain(session: Session, shown: int) -> dict[str, float]:
@@ -87,12 +81,7 @@ def main() -> None:
         folder = Path(tmp)
         session, logs = walk_session(folder, n_logs=n_logs, minutes=minutes)
         total = sum(x.n_samples for x in logs)
-        label_stretches(session, rng, SETUP_LABELS)
-        t = time.perf_counter()
-        cycle.train_predictor(session, config=STAGE1, hidden=HIDDEN)
-        cycle.train_classifier(session, model="default")
-        print(f"setup models {time.perf_counter() - t:.0f} s", flush=True)
-        label_stretches(session, rng, NEW_LABELS)
+        labelled_after_training(session, rng, model="default")
         labelled = sum(s.length for s in session.segments())
         r = hosted_like_the_server(lambda: retrain(session, logs[-1].id))
     where = f"{len(logs)} walks, {total / logs[0].rate_hz / 60:.0f} min, {labelled / logs[0].rate_hz:.0f} s labelled"

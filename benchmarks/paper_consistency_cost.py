@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import torch
 from common import Row, fmt_s, hosted_like_the_server, parse_args, record
-from walk_session import label_stretches, unlabelled_accuracy, walk_session
+from walk_session import HIDDEN, labelled_after_training, unlabelled_accuracy, walk_session
 
 from sessions import Session
 from training import TrainConfig
@@ -39,9 +39,6 @@ from workbench.retrain import RETRAIN
 from workbench.scores import compute_scores
 from workbench.ui import SharedState, TrainJob
 
-HIDDEN = 200
-STAGE1 = TrainConfig(max_epochs=1, patience=1)  # stage 1 of the setup: one epoch, as in bench_retrain
-SETUP_LABELS, NEW_LABELS = 40, 10  # one-second stretches
 WEIGHT = 3.0  # the weight the BorealTC simulation measured (the default is 0: labels only)
 
 
@@ -83,13 +80,8 @@ def main() -> None:
         folder = Path(tmp)
         session, logs = walk_session(folder, n_logs=n_logs, minutes=minutes)
         total = sum(x.n_samples for x in logs)
-        label_stretches(session, rng, SETUP_LABELS)
-        t = time.perf_counter()
-        cycle.train_predictor(session, config=STAGE1, hidden=HIDDEN)
         # the term is the paper family's: its classifier, which every Retrain after keeps
-        setup = cycle.train_classifier(session, model="paper", config=RETRAIN.classifier, hidden=HIDDEN)
-        print(f"setup models {time.perf_counter() - t:.0f} s", flush=True)
-        label_stretches(session, rng, NEW_LABELS)
+        setup = labelled_after_training(session, rng, model="paper", config=RETRAIN.classifier)
         labelled = sum(s.length for s in session.segments())
         shown = logs[-1].id
         runs = {}

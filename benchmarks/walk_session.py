@@ -8,8 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from sessions import LogInfo, Session
+from sessions import LogInfo, ModelVersion, Session
+from training import TrainConfig
+from workbench import cycle
 from workbench.demo import generate_demo_logs
+
+HIDDEN = 200  # both stages: the paper's width
+STAGE1 = TrainConfig(max_epochs=1, patience=1)  # stage 1 of the setup: one epoch, as in bench_retrain
+SETUP_LABELS, NEW_LABELS = 40, 10  # one-second stretches: labelled before the setup's training, then after it
 
 
 def walk_session(folder: Path, *, n_logs: int, minutes: float) -> tuple[Session, list[LogInfo]]:
@@ -62,3 +68,17 @@ def unlabelled_accuracy(session: Session, scores) -> float:
         hits += int((pred[keep] == truth[keep]).sum())
         total += int(keep.sum())
     return hits / max(total, 1)
+
+
+def labelled_after_training(
+    session: Session, rng: np.random.Generator, *, model: str, config: TrainConfig | None = None
+) -> ModelVersion:
+    """What a person did before pressing Retrain: ``SETUP_LABELS`` labels, both stages trained (stage 2 of family
+    ``model``), then ``NEW_LABELS`` more labels. Returns the setup's classifier version."""
+    label_stretches(session, rng, SETUP_LABELS)
+    t = time.perf_counter()
+    cycle.train_predictor(session, config=STAGE1, hidden=HIDDEN)
+    setup = cycle.train_classifier(session, model=model, config=config, hidden=HIDDEN)
+    print(f"setup models {time.perf_counter() - t:.0f} s", flush=True)
+    label_stretches(session, rng, NEW_LABELS)
+    return setup

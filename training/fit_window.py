@@ -36,7 +36,7 @@ PREDICT_CHUNK = 4096  # steps per call when scoring segments: bounds the stacked
 Stretch = tuple[int, int, int]  # (log index, start, stop): unlabelled, no change point inside
 
 
-def _rows(features: SpectralSteps, start: int, stop: int) -> np.ndarray:
+def frame_rows(features: SpectralSteps, start: int, stop: int) -> np.ndarray:
     """The distinct inputs of steps ``[start, stop)``: one per completed frame (the last step when none)."""
     steps = features.frame_rows(start, stop)
     if len(steps) == 0 and stop - 1 >= features.config.frame - 1:
@@ -61,7 +61,7 @@ def _moments(features: Sequence[SpectralSteps]) -> tuple[np.ndarray, np.ndarray]
     return np.asarray(mean, np.float32), np.asarray(std, np.float32)
 
 
-def _train(
+def train_rows(
     model: WindowClassifier,
     x: np.ndarray,
     y: np.ndarray,
@@ -93,6 +93,16 @@ def _train(
         if not torch.isfinite(loss):
             raise ValueError("the window classifier's training diverged (a non-finite loss)")
     return model.eval()
+
+
+@torch.inference_mode()
+def predict_steps(model: WindowClassifier, features: SpectralSteps, start: int, stop: int) -> np.ndarray:
+    """Classes of steps ``[start, stop)`` of one log, as the offline passes score them (a chunk at a time)."""
+    out = []
+    for c in range(start, stop, PREDICT_CHUNK):
+        chunk = torch.from_numpy(features[c : min(c + PREDICT_CHUNK, stop)])[None]  # (1, L, D)
+        out.append(model(chunk)[0][0].argmax(1).numpy())
+    return np.concatenate(out) if out else np.zeros(0, np.int64)
 
 
 @torch.inference_mode()
@@ -175,12 +185,12 @@ def fit_window_classifier(
     mean, std = _moments(features)
     window = features[0].config.window
     model_config = WindowClassifierConfig(features[0].shape[1], k, window=window, hidden=config.hidden)
-    seg_rows = [_rows(features[i], a, b) for i, a, b, _ in segments]
+    seg_rows = [frame_rows(features[i], a, b) for i, a, b, _ in segments]
     seg_y = [np.full(len(r), s[3]) for r, s in zip(seg_rows, segments, strict=True)]
     use_stretches = config.self_training and len(stretches) > 0
     # consecutive frames' windows share all but one frame: every PSEUDO_STRIDE-th row of a stretch carries nearly
     # all it holds, and the refits (most of a fit's time) read a third of the rows
-    stretch_rows = [_rows(features[i], a, b)[::PSEUDO_STRIDE] for i, a, b in stretches] if use_stretches else []
+    stretch_rows = [frame_rows(features[i], a, b)[::PSEUDO_STRIDE] for i, a, b in stretches] if use_stretches else []
 
     def fit_on(train_idx: np.ndarray, skip_logs: set[int], seed: int) -> tuple[WindowClassifier, int]:
         """A fold's network on its segments, trained again with the stretches of logs outside ``skip_logs``."""
@@ -193,24 +203,18 @@ def fit_window_classifier(
 
         x = np.concatenate([seg_rows[i] for i in train_idx])
         y = np.concatenate([seg_y[i] for i in train_idx])
-        model = _train(fresh(), x, y, config.epochs, config, seed, cancel)
+        model = train_rows(fresh(), x, y, config.epochs, config, seed, cancel)
         rows = [r for r, s in zip(stretch_rows, stretches, strict=False) if s[0] not in skip_logs]
         px, py = _pseudo_labels(model, rows, config.agree) if use_stretches else ([], [])
         if px:
             x, y = np.concatenate([x, *px]), np.concatenate([y, *py])
-            model = _train(fresh(), x, y, config.refit_epochs, config, seed, cancel)
+            model = train_rows(fresh(), x, y, config.refit_epochs, config, seed, cancel)
         return model, len(px)
 
-    @torch.inference_mode()
     def predict(val_idx: np.ndarray, model: WindowClassifier) -> tuple[np.ndarray, np.ndarray]:
         """Truth and prediction at every step of the segments ``val_idx``, as the passes score them."""
-        true, pred = [], []
-        for i in val_idx:
-            seq, a, stop, label = segments[i]
-            true.append(np.full(stop - a, label))
-            for c in range(a, stop, PREDICT_CHUNK):
-                chunk = torch.from_numpy(features[seq][c : min(c + PREDICT_CHUNK, stop)])[None]  # (1, L, D)
-                pred.append(model(chunk)[0][0].argmax(1).numpy())
+        true = [np.full(segments[i][2] - segments[i][1], segments[i][3]) for i in val_idx]
+        pred = [predict_steps(model, features[segments[i][0]], segments[i][1], segments[i][2]) for i in val_idx]
         return np.concatenate(true), np.concatenate(pred)
 
     folds = fold_indices([s[3] for s in segments], config.k_folds, config.seed)

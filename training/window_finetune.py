@@ -23,7 +23,7 @@ import torch
 
 from .classifier_fit import ClassifierFit, Segment
 from .config import WindowFitConfig
-from .fit_window import PREDICT_CHUNK, _rows, _train
+from .fit_window import frame_rows, predict_steps, train_rows
 from .metrics import classification_metrics
 from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
 from .spectral import SpectralSteps
@@ -54,15 +54,6 @@ def assign_folds(labels: Sequence[int], known: Sequence[int], k: int) -> list[in
             counts[f] += 1
             size[f] += 1
     return folds
-
-
-@torch.inference_mode()
-def _predict_steps(model: WindowClassifier, features: SpectralSteps, start: int, stop: int) -> np.ndarray:
-    out = []
-    for c in range(start, stop, PREDICT_CHUNK):
-        chunk = torch.from_numpy(features[c : min(c + PREDICT_CHUNK, stop)])[None]  # (1, L, D)
-        out.append(model(chunk)[0][0].argmax(1).numpy())
-    return np.concatenate(out) if out else np.zeros(0, np.int64)
 
 
 def fine_tune_window_classifier(
@@ -108,7 +99,7 @@ def fine_tune_window_classifier(
     fold_of = np.asarray(folds)
     is_new = np.zeros(len(segments), bool)
     is_new[list(new)] = True
-    rows = [_rows(features[i], a, b) for i, a, b, _ in segments]  # (n_i, W·F) one per completed frame
+    rows = [frame_rows(features[i], a, b) for i, a, b, _ in segments]  # (n_i, W·F) one per completed frame
     rng = np.random.default_rng(config.seed)
     tune = replace(config, lr=config.lr * lr_scale, max_steps=steps)
     models = []
@@ -128,14 +119,14 @@ def fine_tune_window_classifier(
                 x_new, y_new = np.concatenate([x_new, x_old[take]]), np.concatenate([y_new, y_old[take]])
             if len(x_new):
                 torch.manual_seed(config.seed + m + 1)
-                model = _train(model, x_new, y_new, steps, tune, config.seed + m + 1, cancel)
+                model = train_rows(model, x_new, y_new, steps, tune, config.seed + m + 1, cancel)
         models.append(model)
         if progress:
             progress(Progress("classifier", m + 1, k, 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
     true, pred = [], []
     for i, (seq, a, b, label) in enumerate(segments):
         true.append(np.full(b - a, label))
-        pred.append(_predict_steps(models[fold_of[i]], features[seq], a, b))
+        pred.append(predict_steps(models[fold_of[i]], features[seq], a, b))
     metrics = classification_metrics(np.concatenate(true), np.concatenate(pred), classes)
     metrics["out_of_fold"] = k > 1
     metrics["n_segments"] = len(segments)
