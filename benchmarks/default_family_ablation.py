@@ -29,8 +29,8 @@ def main() -> None:
         print(f"skipped: {DATA} is absent (BorealTC is not shipped with the project)")
         return
     sys.path.insert(0, str(ROOT))
-    from training import WindowFitConfig, borealtc_window_protocol
-    from workbench.evaluation import load_runs
+    from training import WindowFitConfig
+    from workbench.evaluation import borealtc_window_protocol, load_runs
 
     runs, terrains, _ = load_runs(DATA)
     classes = sorted(set(terrains))

@@ -33,17 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from default_family_screen import fit_variant
 
-from training import (
-    Normalizer,
-    SpectralConfig,
-    frame_features,
-    labelled_subset,
-    log_frames,
-    outer_folds,
-    partitions,
-    summary_windows,
-)
-from workbench.evaluation import load_runs
+from training import Normalizer, SpectralConfig, frame_features, log_frames, summary_windows
+from workbench.evaluation import labelled_subset, load_runs, outer_folds, partitions
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "borealtc"
 AGREE = 0.9

@@ -26,17 +26,8 @@ from sklearn.semi_supervised import LabelSpreading
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from training import (
-    Normalizer,
-    SpectralConfig,
-    frame_features,
-    labelled_subset,
-    log_summaries,
-    outer_folds,
-    partitions,
-    summary_windows,
-)
-from workbench.evaluation import load_runs
+from training import Normalizer, SpectralConfig, frame_features, log_summaries, summary_windows
+from workbench.evaluation import labelled_subset, load_runs, outer_folds, partitions
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "borealtc"
 C_GRID = (0.01, 0.1, 1.0, 10.0)

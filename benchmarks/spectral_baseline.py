@@ -1,5 +1,5 @@
 """How far the spectral front end alone carries on BorealTC: a logistic regression on window summaries of
-``training.spectral`` frames, under both protocols, with its one setting chosen on inner folds only.
+``training.spectral_cnn`` frames, under both protocols, with its one setting chosen on inner folds only.
 
 The first measurement of the classifier issue's default family: no stage 1, no semi-supervision, the simplest
 learner on the front end, so later parts can be measured against it by leaving them out.
@@ -34,8 +34,8 @@ from sklearn.preprocessing import StandardScaler
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from training import SpectralConfig, classification_metrics, frame_features, partitions, split_channels
-from workbench.evaluation import load_runs
+from training import SpectralConfig, classification_metrics, frame_features, split_channels
+from workbench.evaluation import load_runs, partitions
 
 RATE = 100.0
 PARTITION, WINDOW, STRIDE, TRAIN_STRIDE = 500, 170, 10, 50  # samples: 5 s, 1.7 s, 0.1 s, 0.5 s

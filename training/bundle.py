@@ -12,13 +12,13 @@ from pathlib import Path
 import torch
 from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
+from torch import nn
 
-from .config import ClassifierConfig, FeatureMode, PredictorConfig
-from .data import Normalizer
-from .models import Classifier, Predictor
-from .spectral import SpectralConfig
+from .normalizer import Normalizer
+from .paper_lstm import FeatureMode, Predictor, PredictorConfig
+from .registry import Family, family_of_kind
+from .spectral_cnn import SpectralConfig
 from .training_errors import BundleError
-from .window_classifier import OLD_WINDOW_KINDS, WINDOW_KIND, WindowClassifier, WindowClassifierConfig
 
 BUNDLE_SCHEMA = 1
 CONFIG_FILE = "model.json"
@@ -31,11 +31,11 @@ class ModelBundle:
     """Stage 1 (always) and the stage-2 ensemble (once trained), with what is needed to use them.
 
     Attributes:
-        predictor: The frozen stage-1 model.
+        predictor: The frozen stage-1 model (today every family's is the paper family's LSTM predictor).
         normalizer: Input normalisation of stage 1.
         channels: Names of the input channels, in order.
         rate_hz: Sample rate the model was trained at.
-        classifiers: The k fold models (empty for a predictor-only bundle).
+        classifiers: The k fold models of the family's stage 2 (empty for a predictor-only bundle).
         classes: Terrain names, in the order of the classifier outputs.
         feature_mode: What stage 1 hands stage 2.
         metrics: Out-of-fold metrics of the classifier.
@@ -47,7 +47,7 @@ class ModelBundle:
     normalizer: Normalizer
     channels: tuple[str, ...]
     rate_hz: float
-    classifiers: list[Classifier] = field(default_factory=list)
+    classifiers: list[nn.Module] = field(default_factory=list)
     classes: tuple[str, ...] = ()
     feature_mode: FeatureMode = "hidden"
     metrics: dict = field(default_factory=dict)
@@ -56,8 +56,15 @@ class ModelBundle:
 
     @property
     def family(self) -> str:
-        """``"default"`` (spectral front end, window classifier) or ``"paper"`` (stage-1 features, LSTM)."""
-        return "default" if self.feature_mode == "spectral" else "paper"
+        """The name of the model family whose classifier this is (``"paper"`` for a predictor-only bundle: its
+        stage 1 is the paper family's predictor)."""
+        return self.stage2_family().name if self.classifiers else "paper"
+
+    def stage2_family(self) -> Family:
+        """The registry's entry for the family of the classifier (found by its config's ``kind``)."""
+        if not self.classifiers:
+            raise BundleError("the bundle has no classifier: train stage 2 first")
+        return family_of_kind(_kind(asdict(self.classifiers[0].config)))
 
     def config(self) -> dict:
         """Everything but the weights, as JSON-able data."""
@@ -77,11 +84,14 @@ class ModelBundle:
         }
 
 
-def _classifier(cfg: dict) -> Classifier | WindowClassifier:
-    """An untrained stage-2 module of the kind and sizes ``cfg`` (a bundle's ``classifier`` entry) names."""
-    if cfg.get("kind") == WINDOW_KIND:
-        return WindowClassifier(WindowClassifierConfig(**cfg))
-    return Classifier(ClassifierConfig(**cfg))
+def _kind(cfg: dict) -> str:
+    """The family ``kind`` a classifier config names: bundles saved before the paper family named its own lack it."""
+    return str(cfg.get("kind", "lstm"))
+
+
+def _classifier(cfg: dict, directory: Path) -> nn.Module:
+    """An untrained stage-2 module of the family and sizes ``cfg`` (a bundle's ``classifier`` entry) names."""
+    return family_of_kind(_kind(cfg), where=str(directory)).new_classifier(cfg)
 
 
 def save_bundle(bundle: ModelBundle, directory: str | Path) -> Path:
@@ -128,11 +138,8 @@ def load_bundle(directory: str | Path) -> ModelBundle:
         raise BundleError(f"{directory}: not a model bundle ({exc})") from None
     if int(cfg.get("schema", 0)) > BUNDLE_SCHEMA:
         raise BundleError(f"{directory}: bundle schema {cfg['schema']} is newer than this workbench ({BUNDLE_SCHEMA})")
-    if (cfg.get("classifier") or {}).get("kind") in OLD_WINDOW_KINDS:
-        raise BundleError(
-            f"{directory}: a default-family classifier from an older workbench (a linear model on window summaries); "
-            "train it again (workbench train SESSION): labels are kept"
-        )
+    if cfg.get("classifier"):
+        family_of_kind(_kind(cfg["classifier"]), where=str(directory))  # an unknown or retired kind: refused here
     try:
         _check_shapes(directory, cfg)  # before any module is built: model.json's sizes allocate memory
         spectral = _spectral(directory, cfg)
@@ -142,7 +149,7 @@ def load_bundle(directory: str | Path) -> ModelBundle:
         if cfg.get("classifier"):
             weights = load_file(directory / CLASSIFIER_FILE)
             for i in range(int(cfg["n_folds"])):
-                model = _classifier(cfg["classifier"])
+                model = _classifier(cfg["classifier"], directory)
                 prefix = f"fold{i}."
                 state = {k[len(prefix) :]: v for k, v in weights.items() if k.startswith(prefix)}
                 for key, value in model.state_dict().items():
@@ -219,7 +226,7 @@ def _check_shapes(directory: Path, cfg: dict) -> None:
                 raise BundleError(
                     f"{directory}: model.json names {cfg['n_folds']} ensemble members, the weights hold {len(folds)}"
                 )
-            fold = _classifier(cfg["classifier"]).state_dict()
+            fold = _classifier(cfg["classifier"], directory).state_dict()
             for i in range(len(folds)):
                 compare(fold, header, f"fold{i}.")
 

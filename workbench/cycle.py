@@ -18,6 +18,7 @@ from training import (
     CancelFn,
     Cancelled,
     ClassifierFit,
+    Family,
     FeatureMode,
     ModelBundle,
     ProgressFn,
@@ -25,10 +26,10 @@ from training import (
     WindowFitConfig,
     assign_folds,
     distributed,
-    fine_tune_window_classifier,
+    family,
+    family_names,
     fit_classifier,
     fit_predictor,
-    fit_window_classifier,
     load_bundle,
     never,
     save_bundle,
@@ -39,7 +40,7 @@ from .front_end import choose_front_end, spectral_features, unlabelled_stretches
 from .retrain import RETRAIN
 from .stage_inputs import consistency_pairs, signal_change_points, stage2_features
 
-MODEL_FAMILIES = ("default", "paper")  # `--model`: the spectral window classifier, or the paper's LSTMs
+MODEL_FAMILIES = family_names()  # `--model`: the registry's names (training.registry), the default first
 PAPER_FEATURES: FeatureMode = "hidden+surprise"  # what the paper family's stage 2 reads of stage 1
 
 
@@ -237,16 +238,17 @@ def train_classifier(
         progress: Called after every optimiser step (paper) or fold (default).
         cancel: Polled after every step (paper) or fit (default).
     """
-    family = model or classifier_family(session)
-    if family not in MODEL_FAMILIES:
-        raise WorkbenchError(f"unknown model family {family!r}; choose one of {', '.join(MODEL_FAMILIES)}")
-    if family == "default":
+    try:
+        fam = family(model or classifier_family(session))
+    except KeyError as exc:
+        raise WorkbenchError(str(exc.args[0])) from None
+    if fam.stage2_inputs == "frames":
         settings = window or RETRAIN.window
-        if warm_start and warm_epochs is not None:
-            quick = _fine_tune_window(session, settings, progress=progress, cancel=cancel)
+        if warm_start and warm_epochs is not None and fam.fine_tune is not None:
+            quick = _fine_tune_window(session, fam, settings, progress=progress, cancel=cancel)
             if quick is not None:
                 return quick
-        return _train_window(session, settings, progress=progress, cancel=cancel)
+        return _train_window(session, fam, settings, progress=progress, cancel=cancel)
     config = config or TrainConfig()
     p_version, bundle = active_predictor(session)
     logs = model_logs(session, bundle.channels)
@@ -268,7 +270,7 @@ def train_classifier(
         cps = [signal_change_points(session, x) if x.n_samples >= fits else np.zeros(0, np.int64) for x in logs]
         pairs = consistency_pairs([x.n_samples for x in logs], cps, config)
     with _recorded_run(session, "classifier", {"config": to_dict(config), "segments": len(segments)}) as result:
-        fit = fit_classifier(
+        fit = fit_classifier(  # the paper family's fit: its warm start, replayed labels and consistency pairs
             features,
             segments,
             classes,
@@ -289,7 +291,7 @@ def train_classifier(
             segments,
             {"classes": classes, "feature_mode": feature_mode},
             {
-                "model": "paper",
+                "model": fam.name,
                 "train": to_dict(config),
                 "hidden": hidden,
                 "feature_mode": feature_mode,
@@ -304,10 +306,10 @@ def train_classifier(
 
 
 def _train_window(
-    session: Session, settings: WindowFitConfig, *, progress: ProgressFn | None, cancel: CancelFn
+    session: Session, fam: Family, settings: WindowFitConfig, *, progress: ProgressFn | None, cancel: CancelFn
 ) -> ModelVersion:
-    """The default family's stage 2: the window network on the front end's frames, with self-training over
-    the unlabelled stretches of every log; a new, active version (the predictor's bundle with it)."""
+    """Stage 2 of a family on the front end's frames (the default family's window network), with self-training
+    over the unlabelled stretches of every log; a new, active version (the predictor's bundle with it)."""
     p_version, bundle = active_predictor(session)
     logs = model_logs(session, bundle.channels)
     classes, used, segments = _labelled(session, logs)
@@ -316,9 +318,9 @@ def _train_window(
     stretches = []
     if settings.self_training:
         stretches = unlabelled_stretches(logs, used, lambda x: signal_change_points(session, x), shortest=front.span)
-    params = {"model": "default", "window": to_dict(settings), "segments": len(segments)}
+    params = {"model": fam.name, "window": to_dict(settings), "segments": len(segments)}
     with _recorded_run(session, "classifier", params) as result:
-        fit = fit_window_classifier(
+        fit = fam.fit(
             features, segments, classes, config=settings, stretches=stretches, progress=progress, cancel=cancel
         )
         version = _save_classifier(
@@ -330,7 +332,7 @@ def _train_window(
             segments,
             {"classes": classes, "feature_mode": "spectral", "spectral": front},
             {
-                "model": "default",
+                "model": fam.name,
                 "window": to_dict(settings),
                 "feature_mode": "spectral",
                 "predictor": p_version.id,
@@ -343,13 +345,14 @@ def _train_window(
 
 
 def _fine_tune_window(
-    session: Session, settings: WindowFitConfig, *, progress: ProgressFn | None, cancel: CancelFn
+    session: Session, fam: Family, settings: WindowFitConfig, *, progress: ProgressFn | None, cancel: CancelFn
 ) -> ModelVersion | None:
-    """The default family's quick phase: the active fold models fine-tuned on the labels added or changed since;
-    a new, active version. ``None`` (fit from scratch) unless the active classifier is a default-family ensemble of
-    two or more fold models over the same predictor and terrains that recorded its segments' folds."""
+    """A frames family's quick phase (the default family's): the active fold models fine-tuned on the labels added
+    or changed since; a new, active version. ``None`` (fit from scratch) unless the active classifier is an ensemble
+    of this family of two or more fold models over the same predictor and terrains that recorded its segments'
+    folds."""
     previous = session.active_model("classifier")
-    if previous is None or previous.config.get("model") != "default":
+    if previous is None or previous.config.get("model") != fam.name or fam.fine_tune is None:
         return None
     p_version, bundle = active_predictor(session)
     seen = previous.config.get("labels") or {}
@@ -370,9 +373,9 @@ def _fine_tune_window(
     needed = sorted({s[0] for s in segments})
     at = {i: j for j, i in enumerate(needed)}
     features = spectral_features(session, p_version.id, bundle, [logs[i] for i in needed], old.spectral)
-    params = {"model": "default", "quick": True, "steps": RETRAIN.window_steps, "segments": len(segments)}
+    params = {"model": fam.name, "quick": True, "steps": RETRAIN.window_steps, "segments": len(segments)}
     with _recorded_run(session, "classifier", params) as result:
-        fit = fine_tune_window_classifier(
+        fit = fam.fine_tune(
             features,
             [(at[i], a, b, c) for i, a, b, c in segments],
             classes,
@@ -394,7 +397,7 @@ def _fine_tune_window(
             segments,
             {"classes": classes, "feature_mode": "spectral", "spectral": old.spectral},
             {
-                "model": "default",
+                "model": fam.name,
                 "window": to_dict(settings),
                 "feature_mode": "spectral",
                 "predictor": p_version.id,

@@ -45,28 +45,6 @@ def prediction_frame(log: str, probs: np.ndarray, classes: Sequence[str], rate_h
     return frame
 
 
-def _architecture(bundle: ModelBundle) -> str:
-    """What the bundle's models are, in a sentence or two."""
-    stage1 = (
-        f"A predictor (stage 1, an LSTM of {bundle.predictor.config.hidden} units) trained without labels on all "
-        "logs, then frozen"
-    )
-    c, members = bundle.classifiers[0].config, len(bundle.classifiers)
-    if bundle.spectral is not None:
-        f = bundle.spectral
-        return (
-            f"Default family. {stage1}; it draws the surprise highlights. The classifier (stage 2) is a linear "
-            f"softmax on the mean and spread of the last {f.window} short-time frames ({f.frame} samples every "
-            f"{f.hop}): log power spectra of {len(f.fast)} fast channels and the level and range of "
-            f"{len(f.slow)} slow ones, {c.n_features} inputs. Fitted on the labelled segments and, by "
-            f"self-training, on unlabelled stretches whose frames agree; an ensemble of {members} fold models."
-        )
-    return (
-        f"Paper family: two stacked LSTMs. {stage1}; a classifier (stage 2, {c.hidden} units, dropout "
-        f"{c.dropout:.0%}) on `{bundle.feature_mode}` features of stage 1, as an ensemble of {members} fold models."
-    )
-
-
 def _held_out_section(m: dict) -> list[str]:
     """The honest figure, when the fit measured it: accuracy on logs whose labels and signals trained nothing."""
     held = m.get("held_out_logs")
@@ -88,27 +66,13 @@ def _held_out_section(m: dict) -> list[str]:
     ]
 
 
-def _onnx_usage(bundle: ModelBundle) -> str:
-    if bundle.family == "default":
-        return (
-            "`classifier_stream.onnx` is the same step: inputs `x (B, C)`, `ring (B, L, C)`, `count (B, 1)`, "
-            "`frames (B, W, F)`, `n_frames (B, 1)` (all zeros at a stream's start); outputs `probs (B, K)` and the "
-            "new `ring, count, frames, n_frames`, fed back at the next sample."
-        )
-    return (
-        "`classifier_stream.onnx` is the same step: inputs `x (B, C)`, `h1, c1 (B, H1)`, `h2, c2 (M, B, H2)`, "
-        "`prev (B, C)`, `started (B, 1)` (zeros at a stream's start, then ones); outputs `probs (B, K)` and the new "
-        "states."
-    )
-
-
 def model_card(bundle: ModelBundle, *, version: int, session: str) -> str:
     """A Markdown description of a bundle: what it is, what it was trained on, how well it does."""
-    m = bundle.metrics
+    m, family = bundle.metrics, bundle.stage2_family()
     lines = [
         f"# Terrain classifier v{version}",
         "",
-        f"From session `{session}`. {_architecture(bundle)} {parameter_count(bundle):,} parameters.",
+        f"From session `{session}`. {family.describe(bundle)} {parameter_count(bundle):,} parameters.",
         "",
         "## Inputs",
         "",
@@ -149,13 +113,12 @@ def model_card(bundle: ModelBundle, *, version: int, session: str) -> str:
         "## Use",
         "",
         "```python",
-        "from training.bundle import load_bundle",
-        "from training.stream import StreamingClassifier",
+        "from training import StreamingClassifier, load_bundle",
         "clf = StreamingClassifier(load_bundle('bundle'))",
         "probs = clf.step(sample)   # one raw sample (channels above) -> probabilities of " + ", ".join(bundle.classes),
         "```",
         "",
-        _onnx_usage(bundle),
+        family.onnx_usage(bundle),
     ]
     return "\n".join(lines) + "\n"
 
@@ -264,7 +227,7 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
         from .scores import score_logs
 
         outs = run_predictor(bundle.predictor, bundle.normalizer, arrays)
-        if bundle.spectral is not None:
+        if bundle.stage2_family().stage2_inputs == "frames":
             features = in_memory_features(arrays, bundle, bundle.spectral)
         else:
             features = [o.lazy(bundle.feature_mode) for o in outs]

@@ -99,7 +99,7 @@ def _score_session_logs(
     outs = stage1_outputs(session, predictor, bundle, logs)  # memory-mapped
     if classifier is None:
         return logs, outs, score_logs((), (), [outs[x.id].surprise() for x in logs])
-    if classifier.spectral is not None:  # the default family: the front end's summaries, cached per log
+    if classifier.stage2_family().stage2_inputs == "frames":  # the front end's frames, cached per log
         features = spectral_features(session, predictor.id, bundle, logs, classifier.spectral)
     else:
         features = [outs[x.id].lazy(classifier.feature_mode) for x in logs]

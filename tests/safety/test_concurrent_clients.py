@@ -118,7 +118,7 @@ def trained(tmp_path: Path) -> Path:
 def run_people(path: Path, people: int, ops: int) -> tuple[int, list[float], list[float]]:
     """Returns the number of labels checked, Save -> acknowledgement times seen by the clients, and the server's
     click -> committed times (the Save handler's ``add_label``: the figure the issue's 50 ms p99 is about)."""
-    from training.config import TrainConfig
+    from training import TrainConfig
     from workbench.ui import WorkbenchApp
 
     session = Session.open(path)

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from sessions import Session
+from training import TrainConfig
 from training.bundle import load_bundle
-from training.config import TrainConfig
 from workbench import cycle
 from workbench.scores import score_session
 
@@ -24,7 +24,7 @@ CHILD = textwrap.dedent(
     """
     import os, signal, sys
     from sessions import Session
-    from training.config import TrainConfig
+    from training import TrainConfig
     from workbench import cycle
     import training.bundle as bundle
 

@@ -10,11 +10,16 @@ import numpy as np
 import pytest
 import torch
 
+from training import (
+    Classifier,
+    ClassifierConfig,
+    Normalizer,
+    Predictor,
+    PredictorConfig,
+    run_classifiers,
+    run_predictor,
+)
 from training.bundle import BundleError, ModelBundle, load_bundle, save_bundle
-from training.config import ClassifierConfig, PredictorConfig
-from training.data import Normalizer
-from training.inference import run_classifiers, run_predictor
-from training.models import Classifier, Predictor
 from training.stream import StreamingClassifier
 
 

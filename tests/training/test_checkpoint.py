@@ -9,9 +9,8 @@ import numpy as np
 import pytest
 import torch
 
+from training import TrainConfig, fit_predictor
 from training.checkpoint import Checkpoint, fingerprint, load_checkpoint, save_checkpoint
-from training.config import TrainConfig
-from training.predictor_fit import fit_predictor
 from training.progress import Cancelled
 
 from .test_models import sine_logs

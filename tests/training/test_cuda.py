@@ -6,8 +6,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from training.config import TrainConfig
-from training.predictor_fit import fit_predictor
+from training import TrainConfig, fit_predictor
 
 from .test_checkpoint import SMALL
 from .test_models import sine_logs

@@ -9,16 +9,9 @@ import pytest
 import torch
 from torch import nn
 
-from training.config import ElasticNet
-from training.losses import (
-    classifier_loss,
-    consistency_loss,
-    elastic_net,
-    lstm_parameters,
-    masked_cross_entropy,
-    masked_mse,
-    predictor_loss,
-)
+from training import ElasticNet, classifier_loss, elastic_net, predictor_loss
+from training.paper_lstm import consistency_loss, masked_mse
+from training.paper_lstm.lstm_losses import lstm_parameters, masked_cross_entropy
 
 
 def test_elastic_net_by_hand() -> None:
@@ -66,7 +59,7 @@ def test_full_losses_add_the_penalty() -> None:
 
 
 def test_class_weights_make_each_class_count_by_its_weight() -> None:
-    from training.classifier_fit import balanced_weights
+    from training.paper_lstm import balanced_weights
 
     # 3 steps of class 0 (p = 0.7 each), 1 step of class 2 (p = 0.1)
     logits = torch.log(torch.tensor([[[0.7, 0.2, 0.1]] * 3 + [[0.2, 0.7, 0.1]]]))  # (1, 4, 3)

@@ -6,12 +6,23 @@ import numpy as np
 import pytest
 import torch
 
-from training.classifier_fit import fit_classifier, fold_indices
-from training.config import ClassifierConfig, PredictorConfig, TrainConfig
-from training.data import Normalizer, Piece, cut_pieces, neighbour_pairs, stage1_batch
-from training.inference import run_classifiers, run_predictor
-from training.models import Classifier, Predictor
-from training.predictor_fit import fit_predictor
+from training import (
+    Classifier,
+    ClassifierConfig,
+    Normalizer,
+    Piece,
+    Predictor,
+    PredictorConfig,
+    TrainConfig,
+    cut_pieces,
+    fit_classifier,
+    fit_predictor,
+    fold_indices,
+    neighbour_pairs,
+    run_classifiers,
+    run_predictor,
+    stage1_batch,
+)
 from training.progress import Cancelled
 
 TINY = TrainConfig(max_epochs=3, patience=2, chunk=16, piece=64, batch_size=8, label_piece=32, context=8, k_folds=3)
@@ -130,7 +141,7 @@ def test_classifier_separates_two_easy_classes_from_sparse_labels() -> None:
 
 
 def test_length_batches_cover_every_piece_once_in_batches_of_like_length() -> None:
-    from training.classifier_fit import length_batches
+    from training.paper_lstm.classifier_fit import length_batches
 
     lengths = np.random.default_rng(0).integers(100, 661, 130).astype(np.float64)
     batches = length_batches(lengths, 32, np.random.default_rng(1))
@@ -144,7 +155,7 @@ def test_length_batches_cover_every_piece_once_in_batches_of_like_length() -> No
 
 
 def test_a_fine_tune_trains_on_new_segments_with_as_many_old_ones_replayed() -> None:
-    from training.classifier_fit import _epoch_pieces
+    from training.paper_lstm.classifier_fit import _epoch_pieces
 
     cfg = TrainConfig(**{**TINY.__dict__, "label_piece": 50, "context": 0})
     new = [(0, 0, 100, 1)]  # 2 crops

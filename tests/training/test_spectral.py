@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from training.spectral import (
+from training import (
     SpectralConfig,
     SpectralStream,
     frame_ends,

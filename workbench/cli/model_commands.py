@@ -11,11 +11,12 @@ from typing import Literal
 import tyro
 
 from sessions import IngestOptions, Session, WorkbenchError
-from training import FeatureMode, TrainConfig
+from training import FeatureMode, TrainConfig, family_names
 
 Pos = tyro.conf.Positional
 
 
+ModelName = Literal[family_names()]  # type: ignore[valid-type]  # --model: the registry's families, by name
 PROGRESS_EVERY_S = 10.0  # a progress line this often when the output is not a terminal (a log file, CI)
 
 
@@ -84,7 +85,7 @@ def check_device(device: str) -> None:
 def train(
     session: Pos[Path],
     stage: Literal["predictor", "classifier", "all"] = "all",
-    model: Literal["default", "paper"] | None = None,
+    model: ModelName | None = None,
     device: Literal["cpu", "cuda"] = "cpu",
     max_epochs: int = 300,
     patience: int = 20,

@@ -1,6 +1,20 @@
-"""Research runs over datasets: the BorealTC, QCAT and demo protocols, and the label-efficiency simulation with its
-report and plot."""
+"""Research runs over datasets, all the protocols in one place: the folds and fits on arrays (``evaluate_windows`` and
+``evaluate_spectral``: BorealTC's partitions and runs, per family; ``evaluate_sequences``: QCAT and held-out logs),
+the datasets they read (``protocols``), a user's own session (``session_eval``), and the label-efficiency simulation
+with its report and plot."""
 
+from .evaluate_sequences import held_out_logs_protocol, qcat_protocol
+from .evaluate_spectral import borealtc_window_protocol, window_inputs
+from .evaluate_windows import (
+    FoldResult,
+    Split,
+    WindowProtocol,
+    borealtc_protocol,
+    labelled_subset,
+    outer_folds,
+    partitions,
+    windows,
+)
 from .label_efficiency import SimSettings, report, simulate_logs, simulate_partitions
 from .protocols import (
     BOREALTC_PUBLISHED,
@@ -16,16 +30,28 @@ from .session_eval import evaluate_session
 
 __all__ = [
     "BOREALTC_PUBLISHED",
+    "FoldResult",
     "SimSettings",
+    "Split",
+    "WindowProtocol",
+    "borealtc_protocol",
+    "borealtc_window_protocol",
     "evaluate_borealtc",
     "evaluate_demo",
     "evaluate_qcat",
     "evaluate_session",
+    "held_out_logs_protocol",
+    "labelled_subset",
     "load_recordings",
     "load_runs",
+    "outer_folds",
+    "partitions",
+    "qcat_protocol",
     "report",
     "simulate",
     "simulate_logs",
     "simulate_partitions",
     "truth_arrays",
+    "window_inputs",
+    "windows",
 ]

@@ -25,11 +25,8 @@ from training import (
     fit_classifier,
     fit_predictor,
     log_frames,
-    partitions,
     run_classifiers,
     run_predictor,
-    window_inputs,
-    windows,
 )
 
 from ..front_end import STRETCH_S
@@ -38,6 +35,8 @@ from ..scores import score_logs
 from ..stage_inputs import consistency_pairs
 from ..suggestions import SUGGESTION_S, suggestion_lengths
 from .curves_plot import plot_curves
+from .evaluate_spectral import window_inputs
+from .evaluate_windows import partitions, windows
 from .window_learner import WindowLearner
 
 
@@ -331,7 +330,7 @@ def simulate_partitions(
     window_cache: dict[tuple[int, int, int], list[np.ndarray]] = {}
 
     def window_features(u: int, a: int, b: int) -> list[np.ndarray]:
-        # zero-state windows of the labelled stretch, as the test windows are classified (training.evaluate_windows); a
+        # zero-state windows of the labelled stretch, as the test windows are classified (evaluate_windows); a
         # stretch shorter than a window is one window
         if (u, a, b) not in window_cache:
             i, start, _ = units[u]

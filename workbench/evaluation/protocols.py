@@ -11,7 +11,9 @@ from typing import Literal
 import numpy as np
 
 from sessions import IngestError, IngestOptions, WorkbenchError, align, plan_sources, read_source
-from training import FEATURE_MODES, FeatureMode, FoldResult, TrainConfig, borealtc_protocol
+from training import FEATURE_MODES, FeatureMode, TrainConfig
+
+from .evaluate_windows import FoldResult, borealtc_protocol
 
 BOREALTC_PUBLISHED = {"CNN (spectrograms)": 93.96, "Mamba": 93.51, "LSTM": 82.47, "SVM": 78.04}
 
@@ -110,7 +112,9 @@ def evaluate_borealtc(
         out: Also write per-fold details as JSON here.
         device: Paper family: where the LSTMs train.
     """
-    from training import WindowFitConfig, borealtc_window_protocol
+    from training import WindowFitConfig
+
+    from .evaluate_spectral import borealtc_window_protocol
 
     runs, terrains, notes = load_runs(folder)
     classes = sorted(set(terrains))
@@ -193,7 +197,7 @@ def evaluate_qcat(
     device: str = "cpu",
 ) -> str:
     """The paper's QCAT protocol, and a leak-free variant holding out whole trials."""
-    from training import qcat_protocol
+    from .evaluate_sequences import qcat_protocol
 
     recs, notes = load_recordings(folder)
     for n in notes:
@@ -245,7 +249,7 @@ def evaluate_demo(
     device: str = "cpu",
 ) -> str:
     """Leave-logs-out on demo logs against their sidecar truth, for each way stage 1 can feed stage 2."""
-    from training import held_out_logs_protocol
+    from .evaluate_sequences import held_out_logs_protocol
 
     recs, notes = load_recordings(folder)
     for n in notes:

@@ -1,6 +1,6 @@
 """The BorealTC protocols for the default family: the authors' partition folds, and folds holding out whole runs.
 
-As :func:`~training.evaluate_windows.borealtc_protocol` does for the paper family: 5 s partitions, 5 stratified
+As :func:`.evaluate_windows.borealtc_protocol` does for the paper family: 5 s partitions, 5 stratified
 folds, a labelled share of each fold's training partitions, test windows of 1.7 s every 0.1 s classified on their
 own. The default family's unsupervised part (the input normalisation and the front end's channel split) is fitted on
 the training partitions of each fold only, and self-training reads the fold's unlabelled training partitions: the
@@ -15,13 +15,21 @@ from dataclasses import replace
 
 import numpy as np
 
-from .config import WindowFitConfig
-from .data import Normalizer
+from training import (
+    Normalizer,
+    SpectralConfig,
+    SpectralSteps,
+    WindowFitConfig,
+    classification_metrics,
+    expected_calibration_error,
+    fit_window_classifier,
+    frame_features,
+    log_frames,
+    run_classifiers,
+    stacked_frames,
+)
+
 from .evaluate_windows import FoldResult, Split, WindowProtocol, labelled_subset, outer_folds, partitions
-from .fit_window import fit_window_classifier
-from .inference import run_classifiers
-from .metrics import classification_metrics, expected_calibration_error
-from .spectral import SpectralConfig, SpectralSteps, frame_features, log_frames, stacked_frames
 
 
 def window_inputs(

@@ -1,9 +1,9 @@
 """The default family one sample at a time: the same numbers as the offline pass (front end, the last frames, the
 window network), for the robot.
 
-:class:`WindowStep` is the NumPy runtime :class:`~training.stream.StreamingClassifier` runs: a frame completes every
+:class:`WindowStep` is the NumPy runtime :class:`~training.StreamingClassifier` runs: a frame completes every
 ``hop`` samples and only then do the spectra and the ensemble's networks run; between frames a step returns the last
-probabilities. A stream's first frame fills its whole window, as ``spectral.stacked_frames`` pads a log's start.
+probabilities. A stream's first frame fills its whole window, as ``spectra.stacked_frames`` pads a log's start.
 
 :class:`WindowStepModel` is the same step in PyTorch for the ONNX export, with its
 state explicit (the last ``frame`` samples and the last ``window`` frames of each stream) and the spectra as products
@@ -13,15 +13,21 @@ with fixed cosine and sine tables, so the ONNX graph needs no FFT operator.
 from __future__ import annotations
 
 import copy
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 from torch import nn
 
-from .bundle import ModelBundle
-from .spectral import SpectralConfig, SpectralStream
-from .training_errors import BundleError
+from ..training_errors import BundleError
+from .spectra import SpectralConfig, SpectralStream
 from .window_classifier import SPREAD_EPS, gelu_tanh
+
+if TYPE_CHECKING:
+    from ..bundle import ModelBundle
+
+INPUTS = ("x", "ring", "count", "frames", "n_frames")
+OUTPUTS = ("probs", "ring_out", "count_out", "frames_out", "n_frames_out")
 
 
 def _front_end(bundle: ModelBundle) -> SpectralConfig:
@@ -162,7 +168,7 @@ class WindowStepModel(nn.Module):
         self.members = nn.ModuleList(copy.deepcopy(m).eval() for m in bundle.classifiers)
 
     def _frame(self, ring: torch.Tensor) -> torch.Tensor:
-        """``(B, L, C)`` -> ``(B, F)``, as ``spectral.frame_features``."""
+        """``(B, L, C)`` -> ``(B, F)``, as ``spectra.frame_features``."""
         cfg, parts = self.config, []
         if cfg.fast:
             seg = ring.index_select(2, self.fast)  # (B, L, Cf)
@@ -195,7 +201,7 @@ class WindowStepModel(nn.Module):
         return probs, ring, count, frames, n_frames
 
 
-def window_zero_state(bundle: ModelBundle, streams: int = 1) -> dict[str, np.ndarray]:
+def zero_state(bundle: ModelBundle, streams: int = 1) -> dict[str, np.ndarray]:
     """The inputs of a stream's first step, apart from ``x``."""
     cfg = _front_end(bundle)
     z = np.zeros

@@ -19,11 +19,14 @@ Fusions, each exact up to rounding:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .bundle import ModelBundle
-from .training_errors import BundleError
+from ..training_errors import BundleError
+
+if TYPE_CHECKING:
+    from ..bundle import ModelBundle
 
 
 def _np(t) -> np.ndarray:

@@ -19,13 +19,15 @@ import numpy as np
 import torch
 from torch.nn.parallel import DistributedDataParallel
 
-from . import distributed
-from .checkpoint import Checkpoint, fingerprint, keyed_path, load_checkpoint, other_checkpoints, save_checkpoint
-from .config import PredictorConfig, TrainConfig, to_dict
-from .data import Normalizer, Piece, Rows, cut_pieces, stage1_batch
-from .losses import masked_mse, predictor_loss
-from .models import Predictor
-from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from .. import distributed
+from ..checkpoint import Checkpoint, fingerprint, keyed_path, load_checkpoint, other_checkpoints, save_checkpoint
+from ..fitting import to_dict
+from ..normalizer import Normalizer, Rows
+from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from .lstm_config import PredictorConfig, TrainConfig
+from .lstm_losses import masked_mse, predictor_loss
+from .lstm_models import Predictor
+from .pieces import Piece, cut_pieces, stage1_batch
 
 
 @dataclass

@@ -16,11 +16,15 @@ from typing import Literal
 import numpy as np
 from sklearn.model_selection import StratifiedGroupKFold, StratifiedKFold, train_test_split
 
-from .classifier_fit import fit_classifier
-from .config import FeatureMode, TrainConfig
-from .inference import run_classifiers, run_predictor
-from .metrics import classification_metrics
-from .predictor_fit import fit_predictor
+from training import (
+    FeatureMode,
+    TrainConfig,
+    classification_metrics,
+    fit_classifier,
+    fit_predictor,
+    run_classifiers,
+    run_predictor,
+)
 
 
 @dataclass(frozen=True)

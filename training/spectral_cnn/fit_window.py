@@ -1,7 +1,7 @@
 """Stage 2 of the default family: the window classifier from labelled segments and, by self-training, from
 unlabelled stretches too; a k-fold ensemble with out-of-fold metrics, as the paper family's stage 2.
 
-Each fold is a small network (:class:`~training.window_classifier.WindowClassifier`) trained with AdamW on the frame
+Each fold is a small network (:class:`.window_classifier.WindowClassifier`) trained with AdamW on the frame
 rows of its segments: a step's input changes only when a frame completes, so one row per frame is the whole training
 set, with no repeats. Weight decay, dropout and input noise regularise it; the settings were chosen on BorealTC's
 inner folds (``benchmarks/default_family_cnn.py``), never on its test folds.
@@ -24,12 +24,12 @@ import torch
 from sklearn.model_selection import GroupKFold, StratifiedGroupKFold
 from torch.nn import functional as F
 
-from .classifier_fit import ClassifierFit, Segment, fold_indices
-from .config import WindowFitConfig
-from .metrics import classification_metrics
-from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
-from .spectral import SpectralSteps
+from ..fitting import ClassifierFit, Segment, fold_indices
+from ..metrics import classification_metrics
+from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from .spectra import SpectralSteps
 from .window_classifier import WindowClassifier, WindowClassifierConfig
+from .window_config import WindowFitConfig
 
 PSEUDO_STRIDE = 3  # rows of a stretch self-training reads: every third frame
 PREDICT_CHUNK = 4096  # steps per call when scoring segments: bounds the stacked frames in memory

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from training.config import TrainConfig
-from training.evaluate_sequences import _split_groups, held_out_logs_protocol, qcat_protocol
-from training.evaluate_windows import WindowProtocol, borealtc_protocol, partitions, windows
+from training import TrainConfig
+from workbench.evaluation.evaluate_sequences import _split_groups, held_out_logs_protocol, qcat_protocol
+from workbench.evaluation.evaluate_windows import WindowProtocol, borealtc_protocol, partitions, windows
 
 S1 = TrainConfig(max_epochs=3, patience=2, chunk=32, batch_size=64)
 S2 = TrainConfig(max_epochs=40, patience=8, batch_size=64, k_folds=2)
@@ -127,7 +127,7 @@ def test_held_out_logs_protocol_reports_each_mode() -> None:
 
 
 def test_runs_split_never_puts_a_run_on_both_sides() -> None:
-    from training import outer_folds
+    from workbench.evaluation.evaluate_windows import outer_folds
 
     runs, labels = noisy_runs(10, 500)
     _, y, run_of = partitions(runs, labels, 100)
@@ -138,7 +138,8 @@ def test_runs_split_never_puts_a_run_on_both_sides() -> None:
 
 
 def test_the_default_family_protocol_learns_easy_terrains_on_unseen_runs() -> None:
-    from training import WindowFitConfig, borealtc_window_protocol
+    from training import WindowFitConfig
+    from workbench.evaluation.evaluate_spectral import borealtc_window_protocol
 
     runs, labels = noisy_runs(10, 1500)
     proto = WindowProtocol(partition_s=5.0, window_s=1.7, stride_s=0.5, folds=2)

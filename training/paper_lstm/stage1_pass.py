@@ -1,4 +1,5 @@
-"""Offline passes over whole logs: stage-1 outputs (what the feature cache holds) and ensemble probabilities.
+"""The paper family's stage 1 over whole logs: the LSTM predictor's hidden states, errors and estimates (what the
+session's feature cache holds), and stage-2 features computed from them for the rows asked for.
 
 Logs of different lengths are batched together and run in chunks of time with the LSTM state carried, so the
 result equals one pass over each whole log while memory holds one chunk of each log in the batch, not the logs:
@@ -7,30 +8,16 @@ the outputs are written chunk by chunk into arrays the caller gives, which may b
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 import torch
 
-from .config import FeatureMode
-from .data import Normalizer
-from .models import Classifier, Predictor, feature_width, stage1_features
-
-STEPS_PER_CALL = 1 << 17  # batch × chunk of one LSTM call: bounds its activations whatever the batch
-FEATURE_FLOATS_PER_CALL = 1 << 25  # batch × chunk × width of one call's features: 128 MB
-
-
-class Rows(Protocol):
-    """What the passes read a log from: a ``(T, F)`` array or anything sliced like one along its first axis
-    (a memory-mapped array, ``LazyFeatures``)."""
-
-    shape: tuple[int, ...]
-
-    def __len__(self) -> int: ...
-
-    def __getitem__(self, key: slice) -> np.ndarray: ...
+from ..normalizer import Normalizer, Rows
+from ..passes import chunk_for, padded_groups
+from .lstm_config import FeatureMode
+from .lstm_models import Predictor, feature_width, stage1_features
 
 
 @dataclass(frozen=True)
@@ -87,21 +74,6 @@ class LazyFeatures:
         return self.outputs.features(self.mode, start, max(start, stop))
 
 
-def padded_groups(lengths: Sequence[int], batch: int) -> list[list[int]]:
-    """Indices of sequences of ``lengths`` in groups of at most ``batch``, longest first, as the passes batch them."""
-    order = np.argsort(lengths)[::-1]  # similar lengths together: less padding
-    return [order[i : i + batch].tolist() for i in range(0, len(order), batch)]
-
-
-def _chunk_for(batch: int, chunk: int, width: int = 0) -> int:
-    """Steps per call for ``batch`` logs: bounds the LSTM's activations, and the features' block when a step's
-    input is wide (the default family's stacked frames are thousands of floats per step)."""
-    steps = min(chunk, max(256, STEPS_PER_CALL // max(batch, 1)))
-    if width:
-        steps = min(steps, max(16, FEATURE_FLOATS_PER_CALL // (max(batch, 1) * width)))
-    return steps
-
-
 @torch.inference_mode()
 def predictor_pass(
     predictor: Predictor,
@@ -128,7 +100,7 @@ def predictor_pass(
     for group in padded_groups([len(a) for a in arrays], batch):
         lengths = [len(arrays[i]) for i in group]
         n, c = max(lengths), arrays[group[0]].shape[1]
-        step = _chunk_for(len(group), chunk)
+        step = chunk_for(len(group), chunk)
         state, last = None, np.zeros((len(group), c), np.float32)  # last: estimate made at the previous step
         for c0 in range(0, n, step):
             size = min(step, n - c0)
@@ -169,74 +141,3 @@ def run_predictor(
     ]
     predictor_pass(predictor, normalizer, arrays, outs, chunk=chunk, batch=batch, device=device)
     return outs
-
-
-ChunkSink = Callable[[int, int, int, np.ndarray], None]
-
-
-@torch.inference_mode()
-def ensemble_pass(
-    models: Sequence[Classifier],
-    features: Sequence[Rows],
-    sink: ChunkSink,
-    *,
-    chunk: int = 4096,
-    batch: int = 64,
-    device: str = "cpu",
-) -> None:
-    """Every ensemble member over whole logs' features, handing each chunk's probabilities to ``sink``.
-
-    Args:
-        models: The ``M`` members.
-        features: Per log, ``(T, F)`` features (or a ``LazyFeatures``: only one chunk is computed at a time).
-        sink: Called as ``sink(log, start, stop, probs)`` with ``probs`` ``(M, stop − start, K)`` float32, in
-            order of ``start`` within each log.
-        chunk: Steps per LSTM call.
-        batch: Logs per call.
-        device: Torch device.
-    """
-    for model in models:
-        model.to(device).eval()
-    for group in padded_groups([len(f) for f in features], batch):
-        lengths = [len(features[i]) for i in group]
-        n, width = max(lengths), features[group[0]].shape[1]
-        step = _chunk_for(len(group), chunk, width)
-        states: list = [None] * len(models)
-        for c0 in range(0, n, step):
-            size = min(step, n - c0)
-            f = np.zeros((len(group), size, width), np.float32)  # (B, L, F)
-            for j, i in enumerate(group):
-                if c0 < lengths[j]:
-                    f[j, : min(size, lengths[j] - c0)] = features[i][c0 : c0 + size]
-            ft = torch.from_numpy(f).to(device)
-            probs = np.empty((len(models), len(group), size, models[0].config.n_classes), np.float32)
-            for m, model in enumerate(models):
-                logits, states[m] = model(ft, states[m])  # (B, L, K)
-                probs[m] = torch.softmax(logits, -1).cpu().numpy()
-            for j, i in enumerate(group):
-                k = min(size, lengths[j] - c0)
-                if k > 0:
-                    sink(i, c0, c0 + k, probs[:, j, :k])
-
-
-def run_classifiers(
-    models: Sequence[Classifier],
-    features: Sequence[Rows],
-    *,
-    chunk: int = 4096,
-    batch: int = 64,
-    device: str = "cpu",
-) -> list[np.ndarray]:
-    """Every ensemble member over whole logs' features.
-
-    Returns:
-        Per log, ``(M, T, K)`` float32 class probabilities of the ``M`` members.
-    """
-    k = models[0].config.n_classes
-    out = [np.empty((len(models), len(f), k), np.float32) for f in features]
-
-    def keep(i: int, a: int, b: int, probs: np.ndarray) -> None:
-        out[i][:, a:b] = probs
-
-    ensemble_pass(models, features, keep, chunk=chunk, batch=batch, device=device)
-    return out

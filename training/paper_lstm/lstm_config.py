@@ -8,7 +8,7 @@ no values for the elastic net's λ and γ; ours are documented where they are se
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Literal
 
 FeatureMode = Literal["hidden", "estimate", "error", "hidden+error", "surprise", "hidden+surprise"]
@@ -43,6 +43,7 @@ class ClassifierConfig:
     n_classes: int
     hidden: int = 200
     dropout: float = 0.2
+    kind: str = "lstm"  # names this family's module in a bundle's config (older bundles lack it: the same)
 
 
 @dataclass(frozen=True)
@@ -99,43 +100,3 @@ class TrainConfig:
     seed: int = 0
     device: str = "cpu"
     bf16: bool = True
-
-
-def to_dict(config: object) -> dict:
-    """A config as plain JSON-able data."""
-    return asdict(config)  # type: ignore[arg-type]
-
-
-@dataclass(frozen=True)
-class WindowFitConfig:
-    """How the window classifier is fitted.
-
-    Attributes:
-        k_folds: Folds over segments; the fold models form the ensemble.
-        hidden: Channels of the network's convolutions.
-        epochs: Passes over the labelled rows.
-        refit_epochs: Passes over labelled and pseudo-labelled rows when self-training refits.
-        max_steps: Most optimiser steps of one fit, whatever the data's size (bounds a Retrain on a big session).
-        batch: Rows per optimiser step.
-        lr: AdamW learning rate.
-        weight_decay: AdamW's decoupled L2 penalty.
-        noise: Standard deviation of Gaussian noise on the standardised frames while training.
-        self_training: Refit each fold with pseudo-labelled stretches.
-        agree: Share of a stretch's frames that must agree before it is pseudo-labelled.
-        held_out: Also measure accuracy on held-out logs (folds over logs: as many fits again).
-        seed: Seed of the folds, initial weights and batches.
-    """
-
-    k_folds: int = 5
-    hidden: int = 64
-    epochs: int = 60
-    refit_epochs: int = 30
-    max_steps: int = 2000
-    batch: int = 128
-    lr: float = 3e-3
-    weight_decay: float = 1e-2
-    noise: float = 0.05
-    self_training: bool = True
-    agree: float = 0.9
-    held_out: bool = True
-    seed: int = 0

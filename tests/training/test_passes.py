@@ -8,11 +8,21 @@ import numpy as np
 import pytest
 import torch
 
-from training import inference
-from training.config import FEATURE_MODES, ClassifierConfig, PredictorConfig
-from training.data import Normalizer
-from training.inference import Stage1Outputs, ensemble_pass, predictor_pass, run_classifiers, run_predictor
-from training.models import Classifier, Predictor, feature_moments
+from training import (
+    FEATURE_MODES,
+    Classifier,
+    ClassifierConfig,
+    Normalizer,
+    Predictor,
+    PredictorConfig,
+    Stage1Outputs,
+    ensemble_pass,
+    passes,
+    predictor_pass,
+    run_classifiers,
+    run_predictor,
+)
+from training.paper_lstm import feature_moments
 
 
 @pytest.fixture
@@ -37,7 +47,7 @@ def whole(pred: Predictor, norm: Normalizer, log: np.ndarray) -> Stage1Outputs:
 
 def test_predictor_pass_in_small_chunks_into_any_sink_equals_one_whole_pass(models, monkeypatch) -> None:
     pred, _, logs, norm = models
-    monkeypatch.setattr(inference, "STEPS_PER_CALL", 2)  # the batch-wide cap on chunk length bottoms out at 256
+    monkeypatch.setattr(passes, "STEPS_PER_CALL", 2)  # the batch-wide cap on chunk length bottoms out at 256
     outs = run_predictor(pred, norm, logs, chunk=4096, batch=2)
     small = run_predictor(pred, norm, logs, chunk=50, batch=3)
     for log, a, b in zip(logs, outs, small, strict=True):

@@ -1,6 +1,6 @@
 """The default family's quick Retrain: the active fold models fine-tuned on the labels added since, in seconds.
 
-A from-scratch fit (:func:`~training.fit_window.fit_window_classifier`) trains every fold model twice (labels, then
+A from-scratch fit (:func:`.fit_window.fit_window_classifier`) trains every fold model twice (labels, then
 pseudo-labels) and as many again on folds over logs: minutes on a big session. After a few more labels the active
 models already fit every older one, so each fold model takes a short run of AdamW steps on the new labels it may
 see and as many older rows replayed (so it does not drift off what it knew); the from-scratch fit follows in the
@@ -21,13 +21,13 @@ from dataclasses import replace
 import numpy as np
 import torch
 
-from .classifier_fit import ClassifierFit, Segment
-from .config import WindowFitConfig
+from ..fitting import ClassifierFit, Segment
+from ..metrics import classification_metrics
+from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
 from .fit_window import frame_rows, predict_steps, train_rows
-from .metrics import classification_metrics
-from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
-from .spectral import SpectralSteps
+from .spectra import SpectralSteps
 from .window_classifier import WindowClassifier
+from .window_config import WindowFitConfig
 
 
 def assign_folds(labels: Sequence[int], known: Sequence[int], k: int) -> list[int]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from .config import ElasticNet
+from .lstm_config import ElasticNet
 
 
 def lstm_parameters(lstm: nn.LSTM) -> list[torch.Tensor]:
@@ -64,7 +64,7 @@ def predictor_loss(
     """Eq. (1): MSE of the next-sample estimate plus the elastic net on the predictor's LSTM.
 
     ``data_scale`` multiplies the MSE alone: a process of a data-parallel group weighs its share of the batch so
-    that the group's averaged gradient is the one-process gradient (``training.predictor_fit``).
+    that the group's averaged gradient is the one-process gradient (``paper_lstm.predictor_fit``).
     """
     return masked_mse(estimate, target, mask) * data_scale + elastic_net(lstm_parameters(lstm), penalty)
 

@@ -4,51 +4,18 @@ from __future__ import annotations
 
 import copy
 import time
-import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 import torch
-from sklearn.model_selection import KFold, StratifiedKFold
 
-from .config import ClassifierConfig, TrainConfig
-from .data import Piece, labelled_pieces, stage2_batch
-from .losses import classifier_loss, consistency_loss, masked_cross_entropy
-from .metrics import classification_metrics
-from .models import Classifier, feature_moments
-from .progress import CancelFn, Cancelled, Progress, ProgressFn, never
-
-Segment = tuple[int, int, int, int]  # (log index, start, stop, class index)
-
-
-@dataclass
-class ClassifierFit:
-    """The fold models (the ensemble), out-of-fold metrics and per-fold training curves."""
-
-    models: list[Classifier]
-    metrics: dict
-    history: list[list[dict[str, float]]] = field(default_factory=list)
-    folds: list[list[int]] = field(default_factory=list)  # validation segment indices of each fold
-
-
-def fold_indices(labels: Sequence[int], k: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """k folds over segments, stratified by terrain where every class has enough segments.
-
-    Each segment is wholly in one fold. With fewer than two segments there is one "fold" training on everything.
-    """
-    n = len(labels)
-    idx = np.arange(n)
-    if n < 2:
-        return [(idx, idx)]
-    k = min(k, n)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # "least populated class has only N members"
-        try:
-            return list(StratifiedKFold(k, shuffle=True, random_state=seed).split(idx, labels))
-        except ValueError:
-            return list(KFold(k, shuffle=True, random_state=seed).split(idx))
-
+from ..fitting import ClassifierFit, Segment, fold_indices
+from ..metrics import classification_metrics
+from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from .lstm_config import ClassifierConfig, TrainConfig
+from .lstm_losses import classifier_loss, consistency_loss, masked_cross_entropy
+from .lstm_models import Classifier, feature_moments
+from .pieces import Piece, labelled_pieces, stage2_batch
 
 MIN_BATCH = 32
 MAX_STEPS = 4
@@ -148,7 +115,7 @@ def _predict_whole_logs(
     model: Classifier, features: Sequence[np.ndarray], segments: Sequence[Segment], dev: str
 ) -> tuple[np.ndarray, np.ndarray]:
     """Labels and predictions at ``segments``' steps from one pass over each whole log, as the model is used."""
-    from .inference import run_classifiers
+    from ..passes import run_classifiers
 
     logs = sorted({s[0] for s in segments})
     probs = run_classifiers([model], [features[i] for i in logs], device=dev)

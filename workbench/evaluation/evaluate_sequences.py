@@ -8,11 +8,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from .classifier_fit import fit_classifier
-from .config import FeatureMode, TrainConfig
-from .inference import run_classifiers, run_predictor
-from .metrics import classification_metrics
-from .predictor_fit import fit_predictor
+from training import (
+    FeatureMode,
+    TrainConfig,
+    classification_metrics,
+    fit_classifier,
+    fit_predictor,
+    run_classifiers,
+    run_predictor,
+)
 
 
 def _split_groups(groups: np.ndarray, fractions: Sequence[float], rng: np.random.Generator) -> list[np.ndarray]:

@@ -8,7 +8,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .config import ClassifierConfig, FeatureMode, PredictorConfig
+from .lstm_config import ClassifierConfig, FeatureMode, PredictorConfig
 
 State = tuple[torch.Tensor, torch.Tensor]  # (h, c), each (1, B, H)
 

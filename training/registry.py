@@ -1,0 +1,113 @@
+"""Model families by name: each family is a room of ``training`` (a sub-package), and this table maps a name to it.
+
+``workbench train --model NAME``, a saved bundle (its stage-2 config's ``kind``), the streaming runtime, the ONNX
+export and the model card find a family here. A third family is a new room whose ``__init__`` exports a
+:class:`Family` as ``FAMILY``, and one line in :data:`ROOMS`. Nothing here imports PyTorch: ``workbench --help``
+lists the names without loading a room.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Literal
+
+from .training_errors import BundleError
+
+if TYPE_CHECKING:
+    import numpy as np
+    from torch import nn
+
+    from .bundle import ModelBundle
+
+ROOMS: dict[str, str] = {
+    "default": "spectral_cnn",  # short-time log spectra and a small convolutional network, with self-training
+    "paper": "paper_lstm",  # the paper's method: two stacked LSTMs (a predictor, then a classifier on its states)
+}
+DEFAULT_FAMILY = "default"
+
+
+@dataclass(frozen=True)
+class Family:
+    """What a family's room gives the shared machinery (bundle, passes, stream, ONNX export, model card).
+
+    Attributes:
+        name: Its ``--model`` name (a key of :data:`ROOMS`).
+        summary: What it is, in a sentence (``workbench train --help``, the model card).
+        kind: The ``kind`` its stage-2 config carries in a bundle's ``model.json``.
+        stage2_inputs: What the workbench computes for its stage 2 from a log: ``"frames"`` (the spectral front
+            end's frames, cached per log) or ``"stage1"`` (the LSTM predictor's outputs, cached per log).
+        new_classifier: An untrained stage-2 module from a bundle's classifier config (a dict of its fields).
+        stream_step: ``(bundle, streams=, precision=)`` -> the NumPy runtime's step: called with ``(B, C)`` raw
+            samples it returns ``(B, K)`` probabilities; ``reset()`` forgets every stream's past.
+        precisions: What ``stream_step`` runs, the default first.
+        step_module: The same step as an ``nn.Module`` whose state is explicit inputs and outputs: what the ONNX
+            export traces.
+        onnx_inputs: The step's inputs: ``x`` first, then its state.
+        onnx_outputs: Its outputs: ``probs`` first, then the new state, in the order of the state inputs they feed.
+        stream_axes: Per input, the axis that counts streams (dynamic in the ONNX graph).
+        zero_state: ``(bundle, streams)`` -> the state inputs of a stream's first step.
+        after_first: State inputs with no output that are set to ones after a stream's first step.
+        describe: ``bundle`` -> the model card's sentences on what the bundle's models are.
+        onnx_usage: ``bundle`` -> the model card's sentence on the exported step's inputs and outputs.
+        fit: A ``"frames"`` family's stage 2 from scratch: ``(features, segments, classes, *, config, stretches,
+            progress, cancel)`` -> ``ClassifierFit``, where ``features`` are ``SpectralSteps``, ``config`` a
+            ``WindowFitConfig`` and ``stretches`` unlabelled ``(log, start, stop)`` for self-training. ``None`` for
+            the paper family, whose fit (``fit_classifier``: warm start, replayed labels, consistency pairs) the
+            cycle calls itself.
+        fine_tune: The quick Retrain: ``(features, segments, classes, models, *, folds, new, steps, lr_scale,
+            config, progress, cancel)`` -> ``ClassifierFit`` of the fold models fine-tuned on new labels; ``None``
+            where the family has none (the paper family warm-starts inside ``fit``).
+        retired_kinds: Kinds an older workbench saved for this family that no longer load, and what to do.
+    """
+
+    name: str
+    summary: str
+    kind: str
+    stage2_inputs: Literal["frames", "stage1"]
+    new_classifier: Callable[[dict], nn.Module]
+    stream_step: Callable[..., Any]
+    precisions: tuple[str, ...]
+    step_module: Callable[[ModelBundle], nn.Module]
+    onnx_inputs: tuple[str, ...]
+    onnx_outputs: tuple[str, ...]
+    stream_axes: tuple[int, ...]
+    zero_state: Callable[[ModelBundle, int], dict[str, np.ndarray]]
+    describe: Callable[[ModelBundle], str]
+    onnx_usage: Callable[[ModelBundle], str]
+    fit: Callable[..., Any] | None = None
+    fine_tune: Callable[..., Any] | None = None
+    after_first: tuple[str, ...] = ()
+    retired_kinds: Mapping[str, str] = field(default_factory=dict)
+
+
+def family_names() -> tuple[str, ...]:
+    """Every family's ``--model`` name, the default first."""
+    return (DEFAULT_FAMILY, *sorted(n for n in ROOMS if n != DEFAULT_FAMILY))
+
+
+def family(name: str) -> Family:
+    """The family called ``name`` (its room is imported on first use).
+
+    Raises:
+        KeyError: No family has that name.
+    """
+    if name not in ROOMS:
+        raise KeyError(f"unknown model family {name!r}; choose one of {', '.join(family_names())}")
+    return importlib.import_module(f".{ROOMS[name]}", __package__).FAMILY
+
+
+def family_of_kind(kind: str, *, where: str = "the bundle") -> Family:
+    """The family whose stage-2 modules a bundle's config names by ``kind``.
+
+    Raises:
+        BundleError: A kind no family knows, or one an older workbench saved that is retired (with what to do).
+    """
+    for name in ROOMS:
+        fam = family(name)
+        if fam.kind == kind:
+            return fam
+        if kind in fam.retired_kinds:
+            raise BundleError(f"{where}: {fam.retired_kinds[kind]}")
+    raise BundleError(f"{where}: a classifier of kind {kind!r}, which no model family of this workbench knows")

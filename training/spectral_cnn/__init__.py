@@ -1,0 +1,43 @@
+"""The default family: short-time spectra of the signals and a small convolutional network over them.
+
+A causal front end (:mod:`.spectra`) turns each log into frames: log power spectra of 0.4 s windows of the fast
+channels and the level and range of the slow ones, one frame every 0.2 s. Stage 2 (:mod:`.window_classifier`) reads
+a step's last 7 frames (1.6 s): a 1x1 convolution, a 3-frame convolution, their mean and spread, a linear layer;
+k fold models form the ensemble. It is fitted on the labelled segments and, by self-training, on unlabelled
+stretches whose frames agree (:mod:`.fit_window`); the UI's quick Retrain fine-tunes the fold models on new labels
+(:mod:`.window_finetune`). :mod:`.window_step` runs it one sample at a time (NumPy for the robot, PyTorch for ONNX).
+Its stage 1 (the surprise highlight, the suggestions' embeddings) is still the paper family's LSTM predictor.
+
+Modules: ``spectra`` (the front end), ``window_config`` (fit settings), ``window_classifier`` (the network),
+``fit_window`` / ``window_finetune`` (the fits), ``window_step`` (one sample at a time), ``cnn_family`` (what the
+registry reads).
+"""
+
+from ..lazy_names import lazy_exports
+
+__all__, __getattr__, __dir__ = lazy_exports(
+    __name__,
+    {
+        "spectra": (
+            "SpectralConfig",
+            "SpectralSteps",
+            "SpectralStream",
+            "frame_ends",
+            "frame_features",
+            "log_frames",
+            "log_summaries",
+            "per_step",
+            "segment_features",
+            "split_channels",
+            "stacked_frames",
+            "summary_windows",
+        ),
+        "window_config": ("WindowFitConfig",),
+        "window_classifier": ("WindowClassifier", "WindowClassifierConfig"),
+        "fit_window": ("Stretch", "fit_window_classifier", "frame_rows", "predict_steps", "train_rows"),
+        "window_finetune": ("assign_folds", "fine_tune_window_classifier"),
+        "window_step": ("WindowStep", "WindowStepModel"),
+        "cnn_family": ("FAMILY",),
+    },
+    globals(),
+)
