@@ -7,7 +7,7 @@ PIP := $(PY) -m pip
 STAMP := $(VENV)/.installed
 PORT ?= 8080
 
-.PHONY: install demo test lint format browser stress bench paper clean
+.PHONY: install demo test lint format browser stress bench paper screenshot clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -54,6 +54,10 @@ bench: install
 # paper-scale evaluation runs (about an hour each on 2 cores); reports in benchmarks/results/
 paper: install
 	$(PY) benchmarks/paper_borealtc.py all
+
+# the README's picture (docs/workbench.png), taken by the first-screen browser test
+screenshot: install browser
+	WORKBENCH_DOCS_SCREENSHOT=1 $(PY) -m pytest -q tests/browser/test_first_screen.py -k test_the_first_screen_is_drawn
 
 clean:
 	rm -rf $(VENV) demo-session test-artifacts .pytest_cache .ruff_cache

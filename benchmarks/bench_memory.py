@@ -68,7 +68,7 @@ def run_child(step: str, folder: Path, hours: float) -> None:
             cycle.train_classifier(s, model="default", hidden=HIDDEN)
             extra = {}
     elif step == "score-default":
-        from workbench.scores import compute_scores
+        from workbench.cycle import compute_scores
 
         with Session.open(session_dir) as s:
             (log,) = s.logs()
@@ -86,7 +86,7 @@ def run_child(step: str, folder: Path, hours: float) -> None:
             PredictorConfig,
             save_bundle,
         )
-        from workbench.scores import compute_scores
+        from workbench.cycle import compute_scores
 
         torch.manual_seed(0)
         with Session.open(session_dir) as s:

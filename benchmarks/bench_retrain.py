@@ -35,8 +35,8 @@ from common import Row, fmt_s, hosted_like_the_server, parse_args, record
 from sessions import Session
 from training import TrainConfig
 from workbench import cycle
+from workbench.cycle import compute_scores
 from workbench.demo import TERRAINS, generate_walk
-from workbench.scores import compute_scores
 from workbench.ui import SharedState, TrainJob
 
 HIDDEN = 200

@@ -48,7 +48,7 @@ def _lstm_timer():
 
 def child_lstm(mode: str) -> float:
     """Seconds of the LSTM forward in one process, hosted as ``mode`` says."""
-    from workbench.torch_lane import LANE
+    from workbench.ui import LANE
 
     once = _lstm_timer()
     if mode == "main":
@@ -78,8 +78,7 @@ def child_retrain(mode: str, root: Path) -> float:
     from training import TrainConfig
     from workbench import cycle
     from workbench.demo import generate_demo_logs, seed_labels
-    from workbench.torch_lane import LANE
-    from workbench.ui import SharedState, TrainJob
+    from workbench.ui import LANE, SharedState, TrainJob
 
     logs = generate_demo_logs(root / "logs", n_logs=4, minutes=3.0, seed=2)
     s = Session.create(root / "s")

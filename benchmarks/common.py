@@ -116,7 +116,7 @@ def hosted_like_the_server(fn: Callable[[], T]) -> T:
     hosts the UI: the Retrain's and the scoring's torch work then runs here. Returns what ``fn`` returned."""
     import threading
 
-    from workbench.torch_lane import LANE
+    from workbench.ui import LANE
 
     out: list[T] = []
     errors: list[BaseException] = []

@@ -35,8 +35,8 @@ from walk_session import HIDDEN, labelled_after_training, unlabelled_accuracy, w
 from sessions import Session
 from training import TrainConfig
 from workbench import cycle
+from workbench.cycle import compute_scores
 from workbench.retrain import RETRAIN
-from workbench.scores import compute_scores
 from workbench.ui import SharedState, TrainJob
 
 WEIGHT = 3.0  # the weight the BorealTC simulation measured (the default is 0: labels only)

@@ -56,7 +56,7 @@ def test_no_file_grows_past_500_lines() -> None:
 
 
 PACKAGES = (*INDEPENDENT, "workbench")
-ROOMS = ("cli", "demo", "evaluation", "ui")  # workbench's rooms, each used through its __init__ from outside
+ROOMS = ("cli", "cycle", "demo", "evaluation", "ui")  # workbench's rooms, each used through its __init__ from outside
 
 
 def _imports(path):
@@ -180,3 +180,128 @@ def test_help_and_settings_never_load_torch() -> None:
     code = "import sys, workbench.cli, training; training.TrainConfig; print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, check=True)
     assert out.stdout.strip() == "False", out.stderr[-2000:]
+
+
+# --- rooms: one per model family, the workbench's top level small, no circles -------------------------------------
+
+FAMILY_ROOMS = ("paper_lstm", "spectral_cnn")
+
+
+def _module_name(path) -> str:
+    rel = path.relative_to(REPO).with_suffix("")
+    return ".".join(p for p in rel.parts if p != "__init__")
+
+
+def _resolved_imports(path):
+    """Modules a file imports, relative imports resolved, ``if TYPE_CHECKING:`` blocks skipped (hints only); imports
+    inside functions count (a lazy import is still a dependency). ``from pkg import name`` is ``pkg.name`` when that
+    is a module, else ``pkg``."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    here = _module_name(path).split(".")
+    package = here if path.name == "__init__.py" else here[:-1]
+    hints = {
+        id(n)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
+        for n in ast.walk(node)
+    }
+    for node in ast.walk(tree):
+        if id(node) in hints:
+            continue
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield alias.name
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module.split(".") if node.module else []
+            if node.level:
+                base = package[: len(package) - node.level + 1] + base
+            for alias in node.names:
+                as_module = REPO.joinpath(*base, alias.name)
+                if as_module.with_suffix(".py").exists() or (as_module / "__init__.py").exists():
+                    yield ".".join([*base, alias.name])
+                else:
+                    yield ".".join(base)
+
+
+def test_each_family_lives_in_its_room_and_the_registry_finds_it_there() -> None:
+    """Every registered family is a room whose modules define its parts, and every ``nn.Module`` of ``training``
+    belongs to a room: the shared machinery at the top defines no model."""
+    from training import FAMILY_ROOMS as registered
+    from training import family, family_names
+
+    assert sorted(registered.values()) == sorted(FAMILY_ROOMS)
+    for name in family_names():
+        fam, room = family(name), f"training.{registered[name]}"
+        assert fam.name == name
+        parts = [fam.new_classifier, fam.stream_step, fam.step_module, fam.zero_state, fam.describe, fam.fit]
+        for part in filter(None, parts):
+            assert part.__module__.startswith(room + "."), f"{name}: {part.__module__} is outside {room}"
+    strays = []
+    for path in (REPO / "training").glob("*.py"):
+        tree = ast.parse(path.read_text())
+        for node in tree.body:
+            if isinstance(node, ast.ClassDef) and any("Module" in ast.unparse(b) for b in node.bases):
+                strays.append(f"{path.name}: {node.name}")
+    assert not strays, f"models at the top of training/, outside a family's room: {strays}"
+
+
+def test_nothing_outside_a_family_room_imports_its_private_modules() -> None:
+    """A room is used through its ``__init__`` (``training.spectral_cnn``), as a package is. Its own tests
+    (``tests/training/``) may reach into it, as tests of a package may."""
+    bad = []
+    for folder in ("training", "workbench", "benchmarks", "tests"):
+        for path in (REPO / folder).rglob("*.py"):
+            rel = path.relative_to(REPO)
+            if rel.parts[:2] == ("tests", "training") or rel.parts[:2] == ("tests", "safety"):
+                continue
+            for module in _resolved_imports(path):
+                parts = module.split(".")
+                private = len(parts) > 2 and parts[0] == "training" and parts[1] in FAMILY_ROOMS
+                if private and rel.parts[:2] != ("training", parts[1]):
+                    bad.append(f"{rel} imports {module}")
+    assert not bad, "\n".join(bad)
+
+
+def test_workbench_top_level_holds_at_most_five_modules() -> None:
+    top = sorted(p.name for p in (REPO / "workbench").glob("*.py") if p.name != "__init__.py")
+    assert len(top) <= 5, top
+
+
+def test_no_import_circle_between_modules() -> None:
+    """Modules of the four packages never import each other in a circle (a lazy import counts; a type hint does
+    not)."""
+    graph: dict[str, set[str]] = {}
+    for package in PACKAGES:
+        for path in (REPO / package).rglob("*.py"):
+            name = _module_name(path)
+            graph[name] = {m for m in _resolved_imports(path) if m.split(".")[0] in PACKAGES and m != name}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    circles: list[list[str]] = []
+
+    def visit(v: str) -> None:  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph.get(v, ()):
+            if w not in graph:
+                continue
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                circles.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    assert not circles, circles

@@ -22,7 +22,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
     __name__,
     {
         # the shared machinery
-        "registry": ("DEFAULT_FAMILY", "Family", "family", "family_names"),
+        "registry": ("DEFAULT_FAMILY", "FAMILY_ROOMS", "Family", "family", "family_names"),
         "bundle": ("ModelBundle", "load_bundle", "parameter_count", "save_bundle"),
         "checkpoint": ("Checkpoint", "load_checkpoint", "save_checkpoint"),
         "fitting": ("ClassifierFit", "Segment", "fold_indices", "to_dict"),

@@ -2,7 +2,7 @@
 
 ``workbench train --model NAME``, a saved bundle (its stage-2 config's ``kind``), the streaming runtime, the ONNX
 export and the model card find a family here. A third family is a new room whose ``__init__`` exports a
-:class:`Family` as ``FAMILY``, and one line in :data:`ROOMS`. Nothing here imports PyTorch: ``workbench --help``
+:class:`Family` as ``FAMILY``, and one line in :data:`FAMILY_ROOMS`. Nothing here imports PyTorch: ``workbench --help``
 lists the names without loading a room.
 """
 
@@ -19,9 +19,11 @@ if TYPE_CHECKING:
     import numpy as np
     from torch import nn
 
-    from .bundle import ModelBundle
+# What a family's callables take as ``bundle`` is a ``training.ModelBundle``; it is not imported here because the
+# bundle finds its family through this module (the hints say ``Any`` rather than make the two modules a circle).
+Bundle = Any
 
-ROOMS: dict[str, str] = {
+FAMILY_ROOMS: dict[str, str] = {
     "default": "spectral_cnn",  # short-time log spectra and a small convolutional network, with self-training
     "paper": "paper_lstm",  # the paper's method: two stacked LSTMs (a predictor, then a classifier on its states)
 }
@@ -33,7 +35,7 @@ class Family:
     """What a family's room gives the shared machinery (bundle, passes, stream, ONNX export, model card).
 
     Attributes:
-        name: Its ``--model`` name (a key of :data:`ROOMS`).
+        name: Its ``--model`` name (a key of :data:`FAMILY_ROOMS`).
         summary: What it is, in a sentence (``workbench train --help``, the model card).
         kind: The ``kind`` its stage-2 config carries in a bundle's ``model.json``.
         stage2_inputs: What the workbench computes for its stage 2 from a log: ``"frames"`` (the spectral front
@@ -69,13 +71,13 @@ class Family:
     new_classifier: Callable[[dict], nn.Module]
     stream_step: Callable[..., Any]
     precisions: tuple[str, ...]
-    step_module: Callable[[ModelBundle], nn.Module]
+    step_module: Callable[[Bundle], nn.Module]
     onnx_inputs: tuple[str, ...]
     onnx_outputs: tuple[str, ...]
     stream_axes: tuple[int, ...]
-    zero_state: Callable[[ModelBundle, int], dict[str, np.ndarray]]
-    describe: Callable[[ModelBundle], str]
-    onnx_usage: Callable[[ModelBundle], str]
+    zero_state: Callable[[Bundle, int], dict[str, np.ndarray]]
+    describe: Callable[[Bundle], str]
+    onnx_usage: Callable[[Bundle], str]
     fit: Callable[..., Any] | None = None
     fine_tune: Callable[..., Any] | None = None
     after_first: tuple[str, ...] = ()
@@ -84,7 +86,7 @@ class Family:
 
 def family_names() -> tuple[str, ...]:
     """Every family's ``--model`` name, the default first."""
-    return (DEFAULT_FAMILY, *sorted(n for n in ROOMS if n != DEFAULT_FAMILY))
+    return (DEFAULT_FAMILY, *sorted(n for n in FAMILY_ROOMS if n != DEFAULT_FAMILY))
 
 
 def family(name: str) -> Family:
@@ -93,9 +95,9 @@ def family(name: str) -> Family:
     Raises:
         KeyError: No family has that name.
     """
-    if name not in ROOMS:
+    if name not in FAMILY_ROOMS:
         raise KeyError(f"unknown model family {name!r}; choose one of {', '.join(family_names())}")
-    return importlib.import_module(f".{ROOMS[name]}", __package__).FAMILY
+    return importlib.import_module(f".{FAMILY_ROOMS[name]}", __package__).FAMILY
 
 
 def family_of_kind(kind: str, *, where: str = "the bundle") -> Family:
@@ -104,7 +106,7 @@ def family_of_kind(kind: str, *, where: str = "the bundle") -> Family:
     Raises:
         BundleError: A kind no family knows, or one an older workbench saved that is retired (with what to do).
     """
-    for name in ROOMS:
+    for name in FAMILY_ROOMS:
         fam = family(name)
         if fam.kind == kind:
             return fam

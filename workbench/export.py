@@ -154,8 +154,7 @@ def _write_export(
 ) -> list[tuple[Path, str]]:
     from training import check_onnx, export_onnx
 
-    from .cycle import model_logs
-    from .scores import score_session
+    from .cycle import model_logs, score_session
 
     written: list[tuple[Path, str]] = []
     shutil.copytree(session.path / version.path, out / "bundle")
@@ -223,8 +222,7 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
             names.append(name)
             arrays.append(item)
     if arrays:
-        from .front_end import in_memory_features
-        from .scores import score_logs
+        from .cycle import in_memory_features, score_logs
 
         outs = run_predictor(bundle.predictor, bundle.normalizer, arrays)
         if bundle.stage2_family().stage2_inputs == "frames":

@@ -101,7 +101,7 @@ def option(client: ViserClient, seg: int) -> str:
 
 @pytest.fixture
 def trained(tmp_path: Path) -> Path:
-    from tests.workbench.test_cycle import TINY
+    from tests.workbench.cycle.test_cycle import TINY
     from workbench import cycle
     from workbench.demo import generate_walk, write_walk
 

@@ -16,7 +16,7 @@ from sessions import Session
 from training import TrainConfig
 from training.bundle import load_bundle
 from workbench import cycle
-from workbench.scores import score_session
+from workbench.cycle import score_session
 
 # A training run in its own process, killed by SIGKILL from inside at a chosen point: after N optimiser steps
 # (mid-epoch), while a weights file is half written (mid-save), or with the files in place but not yet registered.
@@ -90,7 +90,7 @@ def check_after_kill(path: Path, before: tuple) -> None:
 
 @pytest.fixture(scope="module")
 def trained_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from tests.workbench.test_cycle import build_trained
+    from tests.workbench.cycle.test_cycle import build_trained
     from workbench.demo import generate_demo_logs
 
     root = tmp_path_factory.mktemp("killtrain")
@@ -117,7 +117,7 @@ def test_a_training_killed_anywhere_leaves_the_previous_models_working(
 
 
 def test_a_predictor_killed_while_saving_is_saved_by_the_next_run_without_training_again(tmp_path: Path) -> None:
-    from tests.workbench.test_cycle import build_trained
+    from tests.workbench.cycle.test_cycle import build_trained
     from workbench.demo import generate_demo_logs
 
     path = tmp_path / "s"

@@ -230,7 +230,7 @@ def test_terrain_colours_must_be_hex(session: Session) -> None:
 @pytest.fixture
 def trained_copy(tmp_path: Path) -> Path:
     """A small trained session (two demo walks, tiny models), built once per test."""
-    from tests.workbench.test_cycle import build_trained
+    from tests.workbench.cycle.test_cycle import build_trained
     from workbench.demo import generate_demo_logs
 
     logs = generate_demo_logs(tmp_path / "logs", n_logs=2, minutes=0.5, seed=5)

@@ -212,7 +212,7 @@ def serve(
             "change the session, over plain HTTP; prefer an SSH tunnel to a loopback server, see README",
             file=sys.stderr,
         )
-    from ..torch_lane import LANE
+    from ..ui import LANE
 
     LANE.expect()  # serve_forever gives this thread to the torch work: the scoring worker must not start its own
     try:

@@ -4,7 +4,8 @@ session's reference truth."""
 from .ros2_cdr import COMPRESSED_IMAGE_SCHEMA, IMU_SCHEMA, WRENCH_STAMPED_SCHEMA
 from .ros2_cdr import encode as encode_stamped_floats
 from .seed_labels import seed_labels
-from .walks import FOOT_HZ, IMU_HZ, TERRAINS, Walk, generate_demo_logs, generate_walk, write_walk
+from .walk_files import generate_demo_logs, write_walk
+from .walks import FOOT_HZ, IMU_HZ, TERRAINS, Walk, generate_walk
 
 __all__ = [
     "COMPRESSED_IMAGE_SCHEMA",

@@ -29,11 +29,8 @@ from training import (
     run_predictor,
 )
 
-from ..front_end import STRETCH_S
+from ..cycle import STRETCH_S, SUGGESTION_S, consistency_pairs, score_logs, suggestion_lengths
 from ..retrain import RETRAIN
-from ..scores import score_logs
-from ..stage_inputs import consistency_pairs
-from ..suggestions import SUGGESTION_S, suggestion_lengths
 from .curves_plot import plot_curves
 from .evaluate_spectral import window_inputs
 from .evaluate_windows import partitions, windows

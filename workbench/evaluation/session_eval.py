@@ -20,11 +20,20 @@ from sklearn.model_selection import KFold
 from sessions import Session, WorkbenchError
 from training import TrainConfig, classification_metrics, fit_classifier, fit_window_classifier
 
-from ..cycle import PAPER_FEATURES, active_predictor, classifier_family, model_logs
-from ..front_end import choose_front_end, spectral_features, unlabelled_stretches
+from ..cycle import (
+    PAPER_FEATURES,
+    active_predictor,
+    choose_front_end,
+    classifier_family,
+    model_logs,
+    score_logs,
+    signal_change_points,
+    spectral_features,
+    stage1_outputs,
+    stage2_features,
+    unlabelled_stretches,
+)
 from ..retrain import RETRAIN
-from ..scores import score_logs
-from ..stage_inputs import signal_change_points, stage1_outputs, stage2_features
 
 
 def evaluate_session(

@@ -11,8 +11,7 @@ import numpy as np
 import labeling
 from training import SpectralSteps, WindowFitConfig, classification_metrics, fit_window_classifier
 
-from ..front_end import free_stretches
-from ..scores import score_logs
+from ..cycle import free_stretches, score_logs
 
 
 class WindowLearner:

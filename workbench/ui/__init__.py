@@ -3,15 +3,18 @@
 from .app import WorkbenchApp
 from .jobs import JobStatus, TrainJob
 from .state import Queued, SharedState, score_and_keep
+from .torch_lane import LANE, TorchLane
 from .uploads import MAX_UPLOAD_MB, safe_name
 from .view import ClientView
 
 __all__ = [
+    "LANE",
     "MAX_UPLOAD_MB",
     "ClientView",
     "JobStatus",
     "Queued",
     "SharedState",
+    "TorchLane",
     "TrainJob",
     "WorkbenchApp",
     "safe_name",

@@ -10,7 +10,7 @@ from pathlib import Path
 from sessions import Session
 
 from ..retrain import RETRAIN
-from ..torch_lane import LANE
+from .torch_lane import LANE
 from .uploads import MAX_UPLOAD_MB, limit_uploads, safe_name
 
 

@@ -19,9 +19,9 @@ from training import Cancelled, Progress, TrainConfig
 
 from ..cycle import train_classifier, train_predictor
 from ..retrain import RETRAIN
-from ..torch_lane import LANE
 from ..user_errors import USER_ERRORS, one_line
 from .state import SharedState
+from .torch_lane import LANE
 
 
 @dataclass(frozen=True)

@@ -121,7 +121,7 @@ class DataPanel:
 
     def download_bundle(self) -> None:
         from ..export import export_all
-        from ..torch_lane import LANE
+        from .torch_lane import LANE
 
         session = self.host.state.session
         self.host.notify("Exporting", "building the bundle and checking ONNX against PyTorch", color="blue")

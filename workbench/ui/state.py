@@ -15,12 +15,19 @@ import numpy as np
 import labeling
 from sessions import LogInfo, Segment, Session, Terrain, WorkbenchError
 
-from ..score_store import queue_key, store_queue, store_scores, stored_queue, stored_scores
-from ..scores import SessionScores, compute_scores
-from ..stage_inputs import log_change_points
-from ..suggestions import suggest_for_session
-from ..torch_lane import LANE
+from ..cycle import (
+    SessionScores,
+    compute_scores,
+    log_change_points,
+    queue_key,
+    store_queue,
+    store_scores,
+    stored_queue,
+    stored_scores,
+    suggest_for_session,
+)
 from ..user_errors import USER_ERRORS, one_line
+from .torch_lane import LANE
 
 Event = str  # "labels" | "scores" | "suggestions" | "job" | "models" | "logs"
 Listener = Callable[[Event], None]

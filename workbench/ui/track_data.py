@@ -10,7 +10,7 @@ import numpy as np
 import labeling
 from sessions import LogInfo, Segment
 
-from ..scores import SessionScores
+from ..cycle import SessionScores
 from .charts import TrackInputs, per_sample_labels
 
 

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from sessions import Session
-from tests.workbench.test_cycle import TINY
+from tests.workbench.cycle.test_cycle import TINY
 from workbench import cycle
 from workbench.cli import main
 from workbench.demo import generate_demo_logs, seed_labels

@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 
 from sessions import Session, WorkbenchError
-from tests.workbench.test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
+from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
+from workbench.cycle import SUGGESTION_S
 from workbench.demo import seed_labels
-from workbench.suggestions import SUGGESTION_S
 from workbench.ui.jobs import JobStatus, TrainJob, needs_predictor
 from workbench.ui.state import SharedState
 

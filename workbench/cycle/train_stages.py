@@ -36,8 +36,8 @@ from training import (
     to_dict,
 )
 
+from ..retrain import RETRAIN
 from .front_end import choose_front_end, spectral_features, unlabelled_stretches
-from .retrain import RETRAIN
 from .stage_inputs import consistency_pairs, signal_change_points, stage2_features
 
 MODEL_FAMILIES = family_names()  # `--model`: the registry's names (training.registry), the default first

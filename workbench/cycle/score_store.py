@@ -104,8 +104,8 @@ def stored_scores(session: Session) -> StoredScores | None:
     """
     from training import load_bundle
 
-    from .cycle import model_logs
     from .stage_inputs import stage1_cached, stage1_outputs
+    from .train_stages import model_logs
 
     versions = _active_versions(session)
     if versions is None:

@@ -13,10 +13,10 @@ import torch
 
 from sessions import LabelError, Session, WorkbenchError
 from training import TrainConfig, load_bundle
-from workbench import cycle, stage_inputs
 from workbench.cli import main
+from workbench.cycle import score_session, stage_inputs
+from workbench.cycle import train_stages as cycle
 from workbench.demo import seed_labels
-from workbench.scores import score_session
 
 TINY = TrainConfig(max_epochs=2, patience=1, chunk=32, piece=256, batch_size=16, label_piece=64, context=32, k_folds=3)
 

@@ -12,11 +12,9 @@ import torch
 from sessions import Session
 from training import StreamingClassifier, load_bundle
 from workbench import cycle
+from workbench.cycle import score_session, signal_change_points, unlabelled_stretches
 from workbench.demo import seed_labels
 from workbench.export import classify_files, export_all
-from workbench.front_end import unlabelled_stretches
-from workbench.scores import score_session
-from workbench.stage_inputs import signal_change_points
 
 from .test_cycle import TINY
 
@@ -145,7 +143,7 @@ def test_the_ui_retrain_shows_the_quick_models_then_replaces_them_with_the_fit_f
     from workbench.ui.jobs import TrainJob
     from workbench.ui.state import SharedState
 
-    from .ui.test_ui_state import wait_for
+    from ..ui.test_ui_state import wait_for
 
     if session.active_model("classifier").config["model"] != "default":
         cycle.train_classifier(session, model="default")
@@ -179,3 +177,28 @@ def test_a_version_whose_fold_record_does_not_add_up_is_followed_by_a_fit_from_s
     with session._write() as conn:
         conn.execute("UPDATE model_versions SET config = ? WHERE id = ?", (json.dumps(cut), base.id))
     assert cycle.train_classifier(session, warm_epochs=2).config["warm_start"] is False
+
+
+def test_a_third_family_trains_scores_and_exports_in_a_session_with_no_workbench_change(
+    session: Session, tmp_path: Path
+) -> None:
+    """docs/architecture.md's example, a logistic regression on the frames, registered as a room and one line: the
+    cycle fits it on the cached frames, scores it and writes its card with nothing in workbench/ changed."""
+    from tests.training.third_family import registered
+
+    with registered():
+        version = cycle.train_classifier(session, model="logreg")
+        assert version.config["model"] == "logreg" and version.config["feature_mode"] == "spectral"
+        _, bundle = cycle.active_bundle(session)
+        assert bundle.family == "logreg" and session.active_model("classifier").id == version.id
+        again = cycle.train_classifier(session)  # a Retrain keeps the family; no fine-tune: it fits from scratch
+        assert again.config["model"] == "logreg" and again.config["warm_start"] is False
+        log = session.logs()[0]
+        scored = score_session(session, [log.id])[log.id]
+        streamed = StreamingClassifier(load_bundle(session.path / again.path)).run(np.asarray(session.array(log.id)))
+        # its stream is the ONNX module stepped (spectra as cosine and sine products): 1e-4 of the offline FFT
+        np.testing.assert_allclose(streamed, scored.probs, atol=5e-4)
+        written = dict((p.name, what) for p, what in export_all(session, tmp_path / "export"))
+        assert "checked with onnxruntime" in written["classifier_stream.onnx"]
+        assert "Logreg family" in (tmp_path / "export" / "bundle" / "MODEL_CARD.md").read_text()
+    cycle.train_classifier(session, model="default")  # the session's other tests expect the default active

@@ -9,7 +9,7 @@ import time
 import pytest
 
 from sessions import WorkbenchError
-from workbench.torch_lane import TorchLane
+from workbench.ui import TorchLane
 
 
 def test_calls_run_where_they_are_made_when_nothing_serves() -> None:

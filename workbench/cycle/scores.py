@@ -16,9 +16,9 @@ import labeling
 from sessions import LogInfo, ModelVersion, Session, WorkbenchError
 from training import Classifier, LazyFeatures, ModelBundle, SpectralSteps, WindowClassifier, ensemble_pass, load_bundle
 
-from .cycle import active_bundle, model_logs
 from .front_end import spectral_features
 from .stage_inputs import stage1_outputs
+from .train_stages import active_bundle, model_logs
 
 EMBEDDING_MODE = "hidden+surprise"  # the suggestions' embeddings: what the label-efficiency simulation used
 

@@ -10,11 +10,10 @@ import numpy as np
 import pytest
 
 from sessions import Session
-from tests.workbench.test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
+from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
 from workbench import cycle
+from workbench.cycle import compute_scores, queue_key, store_queue, store_scores, stored_queue, stored_scores
 from workbench.demo import generate_demo_logs
-from workbench.score_store import queue_key, store_queue, store_scores, stored_queue, stored_scores
-from workbench.scores import compute_scores
 from workbench.ui import state as state_module
 from workbench.ui.state import SharedState, score_and_keep
 

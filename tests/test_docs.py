@@ -1,0 +1,46 @@
+"""The documentation as a reader meets it: a README that fits a screen or two with its picture, links that lead
+somewhere, and an architecture page whose paths are the code's."""
+
+from __future__ import annotations
+
+import re
+
+from tests.conftest import REPO
+
+PAGES = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+LINK = re.compile(r"\]\(([^)\s]+)\)")
+
+
+def test_the_readme_is_a_front_door_with_its_screenshot() -> None:
+    readme = REPO / "README.md"
+    assert readme.stat().st_size <= 15 * 1024, f"README.md is {readme.stat().st_size} bytes: move detail to docs/"
+    picture = REPO / "docs" / "workbench.png"
+    assert "](docs/workbench.png)" in readme.read_text()
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and picture.stat().st_size > 10_000
+
+
+def test_every_relative_link_resolves() -> None:
+    broken = []
+    for page in PAGES:
+        for target in LINK.findall(page.read_text()):
+            if target.startswith(("http://", "https://", "mailto:", "#")):
+                continue
+            path = (page.parent / target.split("#")[0]).resolve()
+            if not path.exists():
+                broken.append(f"{page.relative_to(REPO)} -> {target}")
+    assert not broken, broken
+
+
+def test_the_architecture_page_is_short_and_names_files_that_exist() -> None:
+    """Every repository path the page names exists, except the files its worked example tells a newcomer to create
+    (the third family's room and its test)."""
+    page = REPO / "docs" / "architecture.md"
+    text = page.read_text()
+    assert len(text.splitlines()) <= 250
+    named = set(re.findall(r"`((?:sessions|training|labeling|workbench|tests|benchmarks)/[\w/.<>-]*)`", text))
+    to_create = ("training/spectral_logreg", "tests/training/test_logreg_family.py")
+    missing = [
+        p for p in sorted(named) if "<" not in p and not p.startswith(to_create) and not (REPO / p.rstrip("/")).exists()
+    ]
+    assert not missing, missing
+    assert len(named) > 20  # the page names the code it describes

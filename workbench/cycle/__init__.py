@@ -1,0 +1,79 @@
+"""The human-in-the-loop cycle without a UI: train the stages and save versions, cache what stage 2 reads, score
+every log along one path, keep the last scoring, rank what to label next. The UI, the CLI, the export and the
+evaluation call it; it composes ``sessions`` (data, labels, versions), ``training`` (models, arrays only) and
+``labeling`` (suggestions).
+
+Modules: ``train_stages`` (stage 1 and stage 2 of any family, versions, the active models), ``stage_inputs`` (stage
+1's cache per predictor version, the paper family's stage-2 features, change points), ``front_end`` (the spectral
+frames per log, the unlabelled stretches self-training reads), ``scores`` (the one scoring path), ``score_store``
+(the last scoring kept in the session), ``suggestions`` (the queue).
+"""
+
+from .front_end import (
+    STRETCH_S,
+    choose_front_end,
+    free_stretches,
+    in_memory_features,
+    spectral_features,
+    unlabelled_stretches,
+)
+from .score_store import StoredScores, queue_key, store_queue, store_scores, stored_queue, stored_scores
+from .scores import EMBEDDING_MODE, SessionScores, compute_scores, score_logs, score_session
+from .stage_inputs import (
+    consistency_pairs,
+    log_change_points,
+    signal_change_points,
+    stage1_cached,
+    stage1_outputs,
+    stage2_features,
+)
+from .suggestions import SUGGESTION_S, suggest_for_session, suggestion_lengths
+from .train_stages import (
+    MODEL_FAMILIES,
+    PAPER_FEATURES,
+    active_bundle,
+    active_predictor,
+    classifier_family,
+    follow_predictor_training,
+    model_logs,
+    train_classifier,
+    train_predictor,
+)
+
+__all__ = [
+    "EMBEDDING_MODE",
+    "MODEL_FAMILIES",
+    "PAPER_FEATURES",
+    "STRETCH_S",
+    "SUGGESTION_S",
+    "SessionScores",
+    "StoredScores",
+    "active_bundle",
+    "active_predictor",
+    "choose_front_end",
+    "classifier_family",
+    "compute_scores",
+    "consistency_pairs",
+    "follow_predictor_training",
+    "free_stretches",
+    "in_memory_features",
+    "log_change_points",
+    "model_logs",
+    "queue_key",
+    "score_logs",
+    "score_session",
+    "signal_change_points",
+    "spectral_features",
+    "stage1_cached",
+    "stage1_outputs",
+    "stage2_features",
+    "store_queue",
+    "store_scores",
+    "stored_queue",
+    "stored_scores",
+    "suggest_for_session",
+    "suggestion_lengths",
+    "train_classifier",
+    "train_predictor",
+    "unlabelled_stretches",
+]
