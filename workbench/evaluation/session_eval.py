@@ -18,7 +18,7 @@ import numpy as np
 from sklearn.model_selection import KFold
 
 from sessions import Session, WorkbenchError
-from training import TrainConfig, classification_metrics, fit_classifier, fit_window_classifier
+from training import Family, TrainConfig, classification_metrics, family, fit_classifier
 
 from ..cycle import (
     PAPER_FEATURES,
@@ -72,12 +72,12 @@ def evaluate_session(
         )
     active = session.active_model("classifier")
     recipe = active.config if active is not None else {}
-    family = classifier_family(session)
+    fam = family(classifier_family(session))
     hidden = int(recipe.get("hidden", RETRAIN.hidden))
     feature_mode = recipe.get("feature_mode", PAPER_FEATURES)
     config = replace(config or RETRAIN.classifier, seed=seed)
     window = replace(RETRAIN.window, seed=seed)
-    front = choose_front_end(session, logs) if family == "default" else None
+    front = choose_front_end(session, logs) if fam.stage2_inputs == "frames" else None
     if front is not None:
         features = spectral_features(session, p_version.id, bundle, logs, front)
     else:
@@ -105,7 +105,7 @@ def evaluate_session(
                     kept, labels, lambda x: signal_change_points(session, x), shortest=front.span
                 )
             ]
-            fit = fit_window_classifier(features, train, classes, config=window, stretches=stretches)
+            fit = fam.fit(features, train, classes, config=window, stretches=stretches)
         else:
             fit = fit_classifier(features, train, classes, config=config, hidden=hidden)
         order = sorted(held_logs)
@@ -129,7 +129,7 @@ def evaluate_session(
     lines = [
         f"# Session {session.path.name}: leave-logs-out against reference labels",
         "",
-        f"Recipe: the active predictor v{p_version.id}; {_recipe(family, hidden, feature_mode)}, retrained "
+        f"Recipe: the active predictor v{p_version.id}; {_recipe(fam, hidden, feature_mode)}, retrained "
         f"per fold on the other logs' labels. {len(judged)} logs with reference, {k} folds, "
         f"{m['n'] / rate:.0f} s of reference time scored.",
         "",
@@ -152,10 +152,10 @@ def evaluate_session(
     return "\n".join(lines) + "\n"
 
 
-def _recipe(family: str, hidden: int, feature_mode: str) -> str:
-    if family == "default":
-        return "stage 2 of the default family (a small network on spectral frames, self-training)"
-    return f"stage 2 of the paper family (LSTM of {hidden} units on `{feature_mode}` features)"
+def _recipe(fam: Family, hidden: int, feature_mode: str) -> str:
+    if fam.stage2_inputs == "frames":
+        return f"stage 2 of the {fam.name} family ({fam.summary})"
+    return f"stage 2 of the {fam.name} family (LSTM of {hidden} units on `{feature_mode}` features)"
 
 
 def _names(logs, held: set[int]) -> str:
