@@ -132,7 +132,7 @@ def main() -> None:
         labelled = sum(s.length for s in session.segments())
 
         # ours: the UI's Retrain, the log on screen refreshed first; its torch work on this thread, as the server
-        # hosts it (workbench.torch_lane)
+        # hosts it (workbench.ui.torch_lane)
         def ours() -> tuple:
             state = SharedState(session)
             while not state.scored or state.busy:

@@ -1,4 +1,4 @@
-"""The UI's torch work on one thread (``workbench.torch_lane``) against the way it was hosted before: the Retrain in
+"""The UI's torch work on one thread (``workbench.ui.torch_lane``) against the way it was hosted before: the Retrain in
 its job thread and the scoring in the refresh worker, each running torch in its own thread.
 
 Two rows, each hosting measured in a fresh process (libgomp's thread pools live as long as the threads that made

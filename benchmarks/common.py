@@ -112,7 +112,7 @@ def table(rows: list[Row]) -> str:
 
 
 def hosted_like_the_server(fn: Callable[[], T]) -> T:
-    """Run ``fn`` in a second thread while this thread serves ``workbench.torch_lane.LANE``, as ``workbench serve``
+    """Run ``fn`` in a second thread while this thread serves ``workbench.ui.torch_lane.LANE``, as ``workbench serve``
     hosts the UI: the Retrain's and the scoring's torch work then runs here. Returns what ``fn`` returned."""
     import threading
 

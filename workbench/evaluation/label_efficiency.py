@@ -57,7 +57,7 @@ class SimSettings:
     consistency: float = TrainConfig.consistency  # weight of stage 2's term on unlabelled neighbours (0: labels only)
     feature_mode: FeatureMode = "hidden+surprise"  # what stage 1 hands stage 2 (and the suggestions' embeddings)
     warm_start: bool = False  # start each round from the previous round's models instead of from scratch
-    # Length of one suggestion, s; None: the UI's (workbench.suggestions.SUGGESTION_S) on demo logs, a whole 5 s
+    # Length of one suggestion, s; None: the UI's (workbench.cycle.SUGGESTION_S) on demo logs, a whole 5 s
     # partition on BorealTC (the protocol's unit; 5 / segment_s equal pieces of each when given).
     segment_s: float | None = None
     device: str = "cpu"  # where both stages train and run ("cuda": every fit and pass on the GPU)

@@ -121,7 +121,7 @@ class WorkbenchApp:
         self.server.stop()
 
     def serve_forever(self) -> None:
-        """Serve until Ctrl+C; this thread runs every PyTorch call of the server (``workbench.torch_lane``)."""
+        """Serve until Ctrl+C; this thread runs every PyTorch call of the server (``workbench.ui.torch_lane``)."""
         try:
             LANE.serve(stop=self._stop.is_set)
         except KeyboardInterrupt:

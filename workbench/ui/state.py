@@ -417,7 +417,7 @@ class SharedState:
 def score_and_keep(session: Session, *, timeout_s: float = 3600.0) -> bool:
     """Score every log and rank the suggestion queue once, kept in the session, so the page's first screen draws
     them at once (``workbench demo`` does this before serving). The calling thread runs the torch work (it may have
-    trained already: see ``workbench.torch_lane``). Returns False when it did not finish in time."""
+    trained already: see ``workbench.ui.torch_lane``). Returns False when it did not finish in time."""
     errors: list[str] = []
     finished: list[bool] = []
 
