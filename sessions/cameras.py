@@ -69,6 +69,8 @@ def stage_cameras(logs_dir: Path, cameras: tuple[CameraStream, ...], *, t0: floa
         staged[-1][2].update(
             {"topic": cam.topic, "frames": len(records), "width": cam.width, "height": cam.height, "camera": k}
         )
+        if cam.skipped[0]:  # frames that could not be read (damaged, over a limit): counted, with the first reason
+            staged[-1][2].update({"skipped": cam.skipped[0], "skipped_why": cam.skipped[1]})
     return staged
 
 

@@ -18,6 +18,7 @@ from typing import IO
 import numpy as np
 
 from .fields import get, stamp_seconds
+from .limits import MAX_FRAME_PIXELS
 
 CAMERA_TYPES = ("sensor_msgs/Image", "sensor_msgs/CompressedImage")
 MAX_SIDE = 640  # px: the longest side of a kept frame
@@ -74,6 +75,7 @@ def _raw_image(msg: object):
     if channels is None:
         raise ValueError(f"image encoding {encoding!r} is not supported (rgb8, bgr8, rgba8, bgra8, mono8, mono16 are)")
     height, width, step = (int(get(msg, (k,))) for k in ("height", "width", "step"))
+    _check_pixels(width, height)
     wide = encoding in ("mono16", "16uc1")
     raw = np.frombuffer(bytes(get(msg, ("data",))), np.uint8)
     if step < width * channels * (2 if wide else 1) or raw.size < step * height:
@@ -93,6 +95,15 @@ def _raw_image(msg: object):
     return Image.fromarray(np.ascontiguousarray(arr))
 
 
+def _check_pixels(width: int, height: int) -> None:
+    """Refuse a frame whose declared size is over ``MAX_FRAME_PIXELS``, before anything is decoded."""
+    if width * height > MAX_FRAME_PIXELS:
+        raise ValueError(
+            f"a frame of {width:,} x {height:,} pixels, over the limit of {MAX_FRAME_PIXELS:,} pixels "
+            "(sessions/ingest/limits.py)"
+        )
+
+
 def frame_jpeg(msg: object, schema: str) -> tuple[bytes, int, int]:
     """The JPEG of one image message and its ``(width, height)``.
 
@@ -107,12 +118,17 @@ def frame_jpeg(msg: object, schema: str) -> tuple[bytes, int, int]:
             raise ValueError("a compressed depth image")
         data = bytes(get(msg, ("data",)))
         try:
-            image = Image.open(io.BytesIO(data))
-            size = image.size
-            if image.format == "JPEG" and max(size) <= MAX_SIDE:
-                return data, *size  # as recorded
-            image.load()
+            image = Image.open(io.BytesIO(data))  # reads the header only: the size is known before decoding
+        except Image.DecompressionBombError as exc:  # Pillow's own guard, past ours: the frame, not the log
+            raise ValueError(f"a frame over the limit of {MAX_FRAME_PIXELS:,} pixels (Pillow: {exc})") from None
         except (UnidentifiedImageError, OSError, ValueError) as exc:
+            raise ValueError(f"image data is no picture ({fmt or 'no format'}: {exc})") from None
+        _check_pixels(*image.size)
+        if image.format == "JPEG" and max(image.size) <= MAX_SIDE:
+            return data, *image.size  # as recorded
+        try:
+            image.load()
+        except (OSError, ValueError) as exc:
             raise ValueError(f"image data is no picture ({fmt or 'no format'}: {exc})") from None
     else:
         image = _raw_image(msg)

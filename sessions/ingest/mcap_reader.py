@@ -16,6 +16,8 @@ from .base import ChannelSpec, IngestOptions, ParsedLog, Stream
 from .cdr_block import decode_block, float64_fields
 from .fields import FieldSpec, format_path, get, infer_fields, parse_path, stamp_seconds
 from .image_topics import CameraCollector, is_camera
+from .limits import MAX_IMAGE_MESSAGE_BYTES, MAX_SENSOR_MESSAGE_BYTES
+from .mcap_chunks import chunk_records, linear_messages
 from .spill import RowBuffer, reorder
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -108,8 +110,6 @@ def _read(
     on_bytes: Callable[[int], None] | None,
 ) -> None:
     """Feed every message to ``on_message``: indexed reader first, streaming reader where that fails."""
-    from mcap.reader import NonSeekingReader
-
     with open(path, "rb") as raw:
         if on_bytes is not None:
             inner, count = on_message, [0]
@@ -127,7 +127,7 @@ def _read(
             raise IngestError(path, "not an MCAP file (wrong magic bytes)", where="byte 0")
         raw.seek(0)
         try:
-            _indexed_messages(raw, on_message)
+            _indexed_messages(raw, path, on_message)
             return
         except IngestError:
             raise
@@ -135,8 +135,7 @@ def _read(
             reset()
         raw.seek(0)
         try:
-            for schema, channel, message in NonSeekingReader(raw, validate_crcs=True).iter_messages():
-                on_message(schema, channel, message)
+            linear_messages(raw, path, on_message)
         except IngestError:
             raise
         except Exception as exc:
@@ -146,27 +145,28 @@ def _read(
             on_bytes(raw.tell())
 
 
-def _indexed_messages(raw, on_message: Callable[[object, object, object], None]) -> None:
+def _indexed_messages(raw, path: Path, on_message: Callable[[object, object, object], None]) -> None:
     """Every message of an indexed MCAP, one chunk at a time in file order.
 
     The library's ``iter_messages`` either decodes every chunk before it yields anything (insert order: the whole
     file in memory) or orders messages through a heap (log-time order: a third of an hour-long ingest spent comparing
     messages). Stamps are sorted after reading anyway, so chunks are read in file order as its own loop does.
+    Every chunk is decoded with its size bounded (``mcap_chunks``).
     """
     from mcap.data_stream import ReadDataStream
     from mcap.reader import make_reader
     from mcap.records import Chunk, Message
-    from mcap.stream_reader import breakup_chunk
 
     reader = make_reader(raw, validate_crcs=True)
     summary = reader.get_summary()
-    if summary is None or not summary.chunk_indexes:  # not indexed: the library reads it linearly
-        for schema, channel, message in reader.iter_messages(log_time_order=False):
-            on_message(schema, channel, message)
+    if summary is None or not summary.chunk_indexes:  # not indexed: read front to back
+        raw.seek(0)
+        linear_messages(raw, path, on_message)
         return
     for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
         raw.seek(index.chunk_start_offset + 1 + 8)  # past the record's opcode and length
-        for record in breakup_chunk(Chunk.read(ReadDataStream(raw)), validate_crc=True):
+        chunk = Chunk.read(ReadDataStream(raw))
+        for record in chunk_records(chunk, path=path, where=f"chunk at byte {index.chunk_start_offset}"):
             if isinstance(record, Message):
                 channel = summary.channels[record.channel_id]
                 on_message(summary.schemas.get(channel.schema_id), channel, record)
@@ -272,8 +272,11 @@ def read_topics(
                     t.layout = block_layout(channel, schema)
         if t.unusable:
             return
+        size = len(message.data)
         if t.camera is not None:
-            if t.camera.wants(message.log_time):  # frames past the rate cap are never decoded
+            if size > MAX_IMAGE_MESSAGE_BYTES:  # one hostile frame costs the frame
+                t.camera.skip(f"a message of {size:,} bytes, over the limit of {MAX_IMAGE_MESSAGE_BYTES:,}")
+            elif t.camera.wants(message.log_time):  # frames past the rate cap are never decoded
                 try:
                     msg = t.decode(message.data)
                 except Exception as exc:
@@ -281,6 +284,13 @@ def read_topics(
                 else:
                     t.camera.add(msg, message.log_time)
             return
+        if size > MAX_SENSOR_MESSAGE_BYTES:
+            raise IngestError(
+                path,
+                f"a {t.schema or 'sensor'} message of {size:,} bytes, over the limit of {MAX_SENSOR_MESSAGE_BYTES:,} "
+                "for a topic read as sensor channels (sessions/ingest/limits.py)",
+                where=f"topic {t.topic}, log time {message.log_time}",
+            )
         if t.block is not None:
             t.pending.append((message.log_time, bytes(message.data)))
             if len(t.pending) >= BLOCK_MESSAGES:

@@ -94,6 +94,13 @@ def ingest(
         for log in added:
             gaps = f", {len(log.gaps)} gaps" if log.gaps else ""
             print(f"+ {log.name}: {log.duration_s:.1f} s at {log.rate_hz:g} Hz, {log.n_channels} channels{gaps}")
+            for cam in log.info.get("cameras", ()):  # type: ignore[union-attr]
+                if cam.get("skipped"):
+                    n = cam["skipped"]
+                    print(
+                        f"  warning: camera {cam['topic']}: skipped {n} camera frame{'s' * (n > 1)} "
+                        f"({cam['skipped_why']}); {cam['frames']} kept"
+                    )
         already = len(logs) - len(added)
         print(
             f"ingested {len(added)} log(s)"

@@ -1,0 +1,28 @@
+"""How much a reader decodes, stated once with the reasons: each reader checks before it allocates.
+
+A log's size on disk says little about what it decodes to (a 52 KB MCAP chunk can declare 1.6 GB of zeros), so every
+limit counts decoded bytes or declared pixels, and a refusal names the limit, the file and the place.
+"""
+
+from __future__ import annotations
+
+MiB = 1 << 20
+
+MAX_CHUNK_BYTES = 128 * MiB
+"""Decoded size of one MCAP chunk (declared, and what comes out). Writers use 1–4 MiB chunks (the mcap library's
+default is 1 MiB, rosbag2's 4 MiB); a chunk holds at least one whole message, and the largest message a camera topic
+may have is below. Bounded, a chunk costs at most its decoded bytes and the messages cut from them: under 1 GB of
+memory with the rest of an ingest."""
+
+MAX_SENSOR_MESSAGE_BYTES = 1 * MiB
+"""One message of a topic read as sensor channels. A ``sensor_msgs/Imu`` is about 330 bytes, a ``WrenchStamped``
+about 90, a custom state message with a hundred wrenches some 10 KB: a megabyte is thousands of times what such a
+schema holds, and decoding more would only spend memory on a frame id or an array no channel reads."""
+
+MAX_IMAGE_MESSAGE_BYTES = MAX_CHUNK_BYTES
+"""One camera message: an 8K frame of raw rgba8 (7680 x 4320 x 4) is 133 MB. A larger one skips that frame."""
+
+MAX_FRAME_PIXELS = 40_000_000
+"""Declared pixels of one camera frame, checked from its header before it is decoded (any format Pillow opens). An
+8K frame has 33.2 million; Pillow's own guard starts at 89 million and raises an error no reader expects. A frame over
+it is skipped and counted, never the log."""

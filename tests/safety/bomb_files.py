@@ -1,0 +1,121 @@
+"""Small files that decode to a lot: the bomb corpus of ``test_bombs``, written without ever holding what they
+decode to (zstd and lz4 compress 1 MB of zeros at a time)."""
+
+from __future__ import annotations
+
+import io
+import struct
+from pathlib import Path
+
+from mcap.data_stream import RecordBuilder
+from mcap.records import Channel, Chunk, DataEnd, Footer, Header, Schema
+from mcap_ros2.writer import Writer
+from PIL import Image
+
+from tests.sessions.mcap_fixtures import header, imu_msg
+from workbench.demo import COMPRESSED_IMAGE_SCHEMA, IMU_SCHEMA
+
+MAGIC = b"\x89MCAP0\r\n"
+MiB = 1 << 20
+
+
+def _message_prefix(length: int, sequence: int, log_time: int) -> bytes:
+    """A Message record's opcode, length and fixed fields, for ``length`` bytes of data on channel 1."""
+    return struct.pack("<BQHIQQ", 0x05, 2 + 4 + 8 + 8 + length, 1, sequence, log_time, log_time)
+
+
+def _zeros(total: int):
+    for start in range(0, total, MiB):
+        yield bytes(min(MiB, total - start))
+
+
+def _compressed_messages(compression: str, messages: int, size: int) -> tuple[bytes, int]:
+    """``messages`` Imu messages of ``size`` zero bytes each, compressed as one chunk's records; their decoded size."""
+    parts = []
+    for i in range(messages):
+        parts.append(_message_prefix(size, i, 1_000_000_000 + i))
+        parts.extend(_zeros(size))
+    decoded = messages * (len(_message_prefix(size, 0, 0)) + size)
+    if compression == "zstd":
+        import zstandard
+
+        out = io.BytesIO()
+        with zstandard.ZstdCompressor(level=3).stream_writer(out, size=decoded, closefd=False) as w:
+            for p in parts:
+                w.write(p)
+        return out.getvalue(), decoded
+    import lz4.frame
+
+    c = lz4.frame.LZ4FrameCompressor()
+    out = [c.begin()] + [c.compress(p) for p in parts] + [c.flush()]
+    return b"".join(out), decoded
+
+
+def chunk_bomb(path: Path, *, compression: str = "zstd", messages: int = 4, size: int = 400_000_000,
+               declared: int | None = None) -> Path:  # fmt: skip
+    """An MCAP whose one chunk decodes to ``messages × size`` bytes of ``sensor_msgs/Imu`` messages of zeros; the chunk
+    declares ``declared`` decoded bytes (default: the truth). No index: readers walk it front to back."""
+    data, decoded = _compressed_messages(compression, messages, size)
+    b = RecordBuilder()
+    Header(profile="ros2", library="bomb").write(b)
+    Schema(id=1, name="sensor_msgs/msg/Imu", encoding="ros2msg", data=IMU_SCHEMA.encode()).write(b)
+    Channel(id=1, schema_id=1, topic="/imu", message_encoding="cdr", metadata={}).write(b)
+    Chunk(
+        compression=compression,
+        data=data,
+        message_start_time=1_000_000_000,
+        message_end_time=1_000_000_000 + messages,
+        uncompressed_crc=0,
+        uncompressed_size=decoded if declared is None else declared,
+    ).write(b)
+    DataEnd(data_section_crc=0).write(b)
+    Footer(summary_start=0, summary_offset_start=0, summary_crc=0).write(b)
+    path.write_bytes(MAGIC + b.end() + MAGIC)
+    return path
+
+
+def png_bomb(width: int = 30_000, height: int = 30_000) -> bytes:
+    """A PNG whose header declares ``width × height`` pixels: a real header, rows of zeros compressed (~50 KB)."""
+    import zlib
+
+    small = io.BytesIO()
+    Image.new("L", (8, 8)).save(small, format="PNG")
+    png = bytearray(small.getvalue())
+    at = png.index(b"IHDR")
+    png[at + 4 : at + 12] = struct.pack(">II", width, height)
+    png[at + 17 : at + 21] = struct.pack(">I", zlib.crc32(bytes(png[at : at + 17])))  # the IHDR's CRC again
+    idat = zlib.compress(bytes(width + 1) * 50, 9)  # the first rows only: enough to look like a picture
+    end = png.index(b"IEND") - 4
+    chunk = struct.pack(">I", len(idat)) + b"IDAT" + idat + struct.pack(">I", zlib.crc32(b"IDAT" + idat))
+    return bytes(png[: png.index(b"IDAT") - 4]) + chunk + bytes(png[end:])
+
+
+def jpeg_bomb(width: int = 30_000, height: int = 30_000) -> bytes:
+    """A JPEG whose frame header (SOF0) declares ``width × height`` pixels."""
+    small = io.BytesIO()
+    Image.new("RGB", (16, 16), (90, 140, 60)).save(small, format="JPEG")
+    jpeg = bytearray(small.getvalue())
+    at = jpeg.index(b"\xff\xc0")
+    jpeg[at + 5 : at + 9] = struct.pack(">HH", height, width)
+    return bytes(jpeg)
+
+
+def camera_log(path: Path, hostile: bytes, *, fmt: str = "png", seconds: float = 3.0) -> Path:
+    """An IMU at 100 Hz and a camera at 5 Hz whose first frame is ``hostile``; the other frames are small JPEGs."""
+    good = io.BytesIO()
+    Image.new("RGB", (64, 48), (120, 110, 90)).save(good, format="JPEG")
+    with open(path, "wb") as f:
+        w = Writer(f)
+        imu = w.register_msgdef("sensor_msgs/msg/Imu", IMU_SCHEMA)
+        cam = w.register_msgdef("sensor_msgs/msg/CompressedImage", COMPRESSED_IMAGE_SCHEMA)
+        for i in range(int(seconds * 100)):
+            t = 100.0 + i / 100
+            ns = round(t * 1e9)
+            w.write_message("/imu", imu, imu_msg(t, i), log_time=ns, publish_time=ns)
+            if i % 20 == 0:
+                frame = i // 20
+                data, f_fmt = (hostile, fmt) if frame == 0 else (good.getvalue(), "jpeg")
+                m = {"header": header(t, "cam"), "format": f_fmt, "data": data}
+                w.write_message("/camera/compressed", cam, m, log_time=ns, publish_time=ns)
+        w.finish()
+    return path
