@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import io
+import json
 import math
 from dataclasses import dataclass
 from itertools import pairwise
@@ -11,6 +13,7 @@ import pandas as pd
 
 from .errors import LabelError
 from .labels import add_segment
+from .limits import MAX_LABEL_FILE_BYTES, MAX_LABEL_NESTING, MAX_LABEL_ROWS
 from .logs import LogInfo, Segment
 
 COLUMNS = (
@@ -100,16 +103,65 @@ def write_frame(frame: pd.DataFrame, path: Path) -> Path:
     return path
 
 
-def read_frame(path: Path) -> pd.DataFrame:
+def read_frame(path: Path, *, max_rows: int = MAX_LABEL_ROWS) -> pd.DataFrame:
+    """A label file as a table, its size checked before it is decoded (``sessions/limits.py``).
+
+    Raises:
+        LabelError: Unreadable, or over a limit: the file's bytes, a Parquet file's rows or decoded row groups, a
+            JSON file's nesting.
+    """
     fmt = file_format(path)
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise LabelError(f"{path}: cannot read label file ({exc.strerror or exc})") from None
+    if size > MAX_LABEL_FILE_BYTES:
+        raise LabelError(f"{path}: {size:,} bytes, over the limit of {MAX_LABEL_FILE_BYTES:,} for a label file")
     try:
         if fmt == "csv":
             return restore_formulas(pd.read_csv(path))
         if fmt == "parquet":
+            _check_parquet(path, max_rows)
             return pd.read_parquet(path)
-        return pd.read_json(path, orient="records")
+        text = path.read_text(encoding="utf-8")
+        _check_json(path, text)
+        return pd.read_json(io.StringIO(text), orient="records")
+    except LabelError:
+        raise
     except Exception as exc:
         raise LabelError(f"{path}: cannot read label file ({type(exc).__name__}: {exc})") from None
+
+
+def _check_parquet(path: Path, max_rows: int) -> None:
+    """Refuse a Parquet file whose metadata claims more rows or decoded bytes than a label file may hold."""
+    import pyarrow.parquet as pq
+
+    meta = pq.ParquetFile(path).metadata  # the footer only: no row is decoded
+    if meta.num_rows > max_rows:
+        raise LabelError(f"{path}: the file claims {meta.num_rows:,} rows, over the limit of {max_rows:,} for labels")
+    decoded = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
+    if decoded > MAX_LABEL_FILE_BYTES:
+        raise LabelError(
+            f"{path}: its row groups decode to {decoded:,} bytes, over the limit of {MAX_LABEL_FILE_BYTES:,}"
+        )
+
+
+def _check_json(path: Path, text: str) -> None:
+    """Refuse JSON that is not a list of flat records, before pandas reads it (deep nesting included)."""
+    try:
+        data = json.loads(text)
+    except RecursionError:
+        raise LabelError(
+            f"{path}: JSON nested deeper than the parser allows; a label file is a list of records"
+        ) from None
+    flat = isinstance(data, list) and all(
+        isinstance(r, dict) and not any(isinstance(v, dict | list) for v in r.values()) for r in data
+    )
+    if not flat:
+        raise LabelError(
+            f"{path}: JSON nested deeper than {MAX_LABEL_NESTING} levels; a label file is a list of records of plain "
+            'values ([{"log": ..., "terrain": ..., "start_s": ..., "end_s": ...}])'
+        )
 
 
 @dataclass(frozen=True)

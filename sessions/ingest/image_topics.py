@@ -17,8 +17,8 @@ from typing import IO
 
 import numpy as np
 
+from ..limits import MAX_FRAME_PIXELS
 from .fields import get, stamp_seconds
-from .limits import MAX_FRAME_PIXELS
 
 CAMERA_TYPES = ("sensor_msgs/Image", "sensor_msgs/CompressedImage")
 MAX_SIDE = 640  # px: the longest side of a kept frame
@@ -100,7 +100,7 @@ def _check_pixels(width: int, height: int) -> None:
     if width * height > MAX_FRAME_PIXELS:
         raise ValueError(
             f"a frame of {width:,} x {height:,} pixels, over the limit of {MAX_FRAME_PIXELS:,} pixels "
-            "(sessions/ingest/limits.py)"
+            "(sessions/limits.py)"
         )
 
 

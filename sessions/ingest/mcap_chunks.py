@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import IO
 
 from ..errors import IngestError
-from .limits import MAX_CHUNK_BYTES, MiB
+from ..limits import MAX_CHUNK_BYTES, MiB
 
 READ_BLOCK = 1 * MiB  # decompressed a block at a time, to stop as soon as a chunk passes what it declared
 
@@ -54,7 +54,7 @@ def chunk_records(chunk, *, path: Path, where: str, limit: int = MAX_CHUNK_BYTES
         raise IngestError(
             path,
             f"an MCAP chunk declares {declared:,} decoded bytes, over the limit of {limit:,} "
-            "(sessions/ingest/limits.py: MAX_CHUNK_BYTES)",
+            "(sessions/limits.py: MAX_CHUNK_BYTES)",
             where=where,
         )
     try:

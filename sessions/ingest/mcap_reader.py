@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import IngestError
+from ..limits import MAX_IMAGE_MESSAGE_BYTES, MAX_SENSOR_MESSAGE_BYTES
 from .base import ChannelSpec, IngestOptions, ParsedLog, Stream
 from .cdr_block import decode_block, float64_fields
 from .fields import FieldSpec, format_path, get, infer_fields, parse_path, stamp_seconds
 from .image_topics import CameraCollector, is_camera
-from .limits import MAX_IMAGE_MESSAGE_BYTES, MAX_SENSOR_MESSAGE_BYTES
 from .mcap_chunks import chunk_records, linear_messages
 from .spill import RowBuffer, reorder
 
@@ -288,7 +288,7 @@ def read_topics(
             raise IngestError(
                 path,
                 f"a {t.schema or 'sensor'} message of {size:,} bytes, over the limit of {MAX_SENSOR_MESSAGE_BYTES:,} "
-                "for a topic read as sensor channels (sessions/ingest/limits.py)",
+                "for a topic read as sensor channels (sessions/limits.py)",
                 where=f"topic {t.topic}, log time {message.log_time}",
             )
         if t.block is not None:

@@ -1,6 +1,6 @@
 """Small files, big decoded sizes: every bomb is refused in one line with exit 2 (a hostile camera frame costs the
 frame, exit 0), the CLI's peak memory stays under ``PEAK_LIMIT_MB`` (measured in a child process) and the session
-is byte-identical after a refusal. The limits: ``sessions/ingest/limits.py``."""
+is byte-identical after a refusal. The limits: ``sessions/limits.py``."""
 
 from __future__ import annotations
 
@@ -108,9 +108,47 @@ def test_a_pixel_bomb_frame_costs_the_frame_and_the_log_is_ingested(session: Pat
     assert any(warning in x for x in lines), lines
 
 
+def labels_measured(session: Path, label_file: Path) -> tuple[int, list[str], float]:
+    """``workbench labels import`` in a child process: exit code, output lines, peak resident memory."""
+    cli = [sys.executable, "-m", "workbench.cli", "labels", "import", str(session), str(label_file)]
+    out = subprocess.run(
+        [sys.executable, "-c", MEASURE, *cli], capture_output=True, text=True, cwd=REPO, timeout=300, check=True
+    )
+    res = json.loads(out.stdout)
+    PEAKS.append(res["peak_mb"])
+    return res["rc"], [x for x in res["out"].splitlines() if x.strip()], res["peak_mb"]
+
+
+def billion_row_parquet(path: Path) -> Path:
+    """1.6 MB whose metadata claims a billion rows (a column of nulls has no buffers to write)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    pq.write_table(pa.table({"log": pa.nulls(10**9)}), path, row_group_size=10**9)
+    return path
+
+
+@pytest.mark.parametrize(
+    "name, build, needle",
+    [
+        ("nested.json", lambda p: p.write_text("[" * 100_000 + "]" * 100_000), "nested deeper than"),
+        ("records.json", lambda p: p.write_text('[{"log": {"a": [1, 2]}, "terrain": "ice"}]'), "nested deeper than 2"),
+        ("billion.parquet", billion_row_parquet, "claims 1,000,000,000 rows, over the limit of 5,000,000"),
+    ],
+)
+def test_label_file_bombs_are_refused_before_they_are_decoded(session: Path, tmp_path: Path, name, build, needle):
+    label_file = tmp_path / name
+    build(label_file)
+    before = fingerprint(session)
+    rc, lines, peak = labels_measured(session, label_file)
+    assert rc == 2 and len(lines) == 1 and name in lines[0] and needle in lines[0], lines
+    assert peak < PEAK_LIMIT_MB, f"peak {peak:.0f} MB"
+    assert fingerprint(session) == before
+
+
 def test_bomb_summary(promise) -> None:
     """The promise line, after the cases above ran in this module."""
     if not PEAKS:
         pytest.skip("no bomb case ran")
-    promise(f"promise 8 (bombs: decoded sizes bounded): {len(PEAKS)} ingests, largest peak RSS {max(PEAKS):.0f} MB "
+    promise(f"promise 8 (bombs: decoded sizes bounded): {len(PEAKS)} files, largest peak RSS {max(PEAKS):.0f} MB "
             f"(limit {PEAK_LIMIT_MB:.0f} MB)")  # fmt: skip

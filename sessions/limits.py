@@ -26,3 +26,15 @@ MAX_FRAME_PIXELS = 40_000_000
 """Declared pixels of one camera frame, checked from its header before it is decoded (any format Pillow opens). An
 8K frame has 33.2 million; Pillow's own guard starts at 89 million and raises an error no reader expects. A frame over
 it is skipped and counted, never the log."""
+
+MAX_LABEL_FILE_BYTES = 256 * MiB
+"""A label file (CSV, Parquet, JSON) on disk, and a Parquet file's decoded row groups. A label is a row of a few
+dozen bytes: 256 MiB is millions of segments."""
+
+MAX_LABEL_ROWS = 5_000_000
+"""Rows of one label file, from a Parquet file's metadata before any row is decoded. Five million one-second
+segments are eight weeks of logs labelled end to end; importing 100,000 rows takes about 3 s."""
+
+MAX_LABEL_NESTING = 2
+"""Depth of a JSON label file: a list of records of plain values (``[{"log": ..., "start_s": ...}]``) is two. The
+parser itself gives up past Python's recursion limit, with an error no reader expects."""
