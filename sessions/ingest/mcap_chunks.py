@@ -2,43 +2,19 @@
 
 The mcap library decompresses a chunk to whatever its record declares (zstd allocates the declared size, lz4
 whatever comes out) before anything can check it. Here the declared size is checked first, and the decompression
-stops one byte past it, so neither a lying header nor a lying frame costs more than the limit.
+(``bounded_decode``) stops one byte past it, so neither a lying header nor a lying frame costs more than the limit.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import io
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO
 
 from ..errors import IngestError
-from ..limits import MAX_CHUNK_BYTES, MiB
-
-READ_BLOCK = 1 * MiB  # decompressed a block at a time, to stop as soon as a chunk passes what it declared
-
-
-def _bounded(chunk, limit: int) -> bytes:
-    """The chunk's decoded bytes, at most ``limit + 1`` of them (one more says it did not stop)."""
-    if chunk.compression == "zstd":
-        import zstandard
-
-        out = bytearray()
-        with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(chunk.data), read_across_frames=True) as reader:
-            while len(out) <= limit:
-                block = reader.read(min(READ_BLOCK, limit + 1 - len(out)))
-                if not block:
-                    break
-                out += block
-        return bytes(out)
-    if chunk.compression == "lz4":
-        import lz4.frame
-
-        return lz4.frame.LZ4FrameDecompressor().decompress(chunk.data, max_length=limit + 1)
-    if chunk.compression == "":
-        return chunk.data
-    raise ValueError(f"chunk compression {chunk.compression!r} is not supported (zstd, lz4 or none are)")
+from ..limits import MAX_CHUNK_BYTES
+from .bounded_decode import decompress
 
 
 def chunk_records(chunk, *, path: Path, where: str, limit: int = MAX_CHUNK_BYTES) -> list:
@@ -58,7 +34,7 @@ def chunk_records(chunk, *, path: Path, where: str, limit: int = MAX_CHUNK_BYTES
             where=where,
         )
     try:
-        data = _bounded(chunk, declared)
+        data = decompress(chunk.data, chunk.compression, declared)
     except ValueError:
         raise
     except Exception as exc:  # the decompressor's own errors: damaged data

@@ -119,3 +119,59 @@ def camera_log(path: Path, hostile: bytes, *, fmt: str = "png", seconds: float =
                 w.write_message("/camera/compressed", cam, m, log_time=ns, publish_time=ns)
         w.finish()
     return path
+
+
+def _ros1_records(raw: bytes, start: int) -> list[tuple[int, int, dict[str, bytes], bytes]]:
+    """``(offset, end, header fields, data)`` of every record of a ROS 1 bag from ``start``."""
+    records, pos = [], start
+    while pos < len(raw):
+        (hlen,) = struct.unpack_from("<I", raw, pos)
+        fields, at = {}, pos + 4
+        while at < pos + 4 + hlen:
+            (flen,) = struct.unpack_from("<I", raw, at)
+            name, _, value = raw[at + 4 : at + 4 + flen].partition(b"=")
+            fields[name.decode()] = value
+            at += 4 + flen
+        (dlen,) = struct.unpack_from("<I", raw, at)
+        records.append((pos, at + 4 + dlen, fields, raw[at + 4 : at + 4 + dlen]))
+        pos = at + 4 + dlen
+    return records
+
+
+def _ros1_record(fields: dict[str, bytes], data: bytes) -> bytes:
+    header = b"".join(struct.pack("<I", len(k) + 1 + len(v)) + k.encode() + b"=" + v for k, v in fields.items())
+    return struct.pack("<I", len(header)) + header + struct.pack("<I", len(data)) + data
+
+
+def ros1_chunk_bomb(path: Path, *, zeros: int = 300_000_000) -> Path:
+    """A ROS 1 bag whose bz2 chunk holds its messages and ``zeros`` bytes after them: a few hundred bytes more on
+    disk, ``zeros`` more when decoded. Written by ``rosbags``, then the chunk record rebuilt and the index moved."""
+    import bz2
+
+    from rosbags.rosbag1 import Writer as BagWriter
+    from rosbags.typesys import Stores, get_typestore
+
+    from tests.sessions.test_ingest_bag import _write
+
+    small = path.with_name(path.stem + "-small.bag")
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    writer = BagWriter(small)
+    writer.set_compression(BagWriter.CompressionFormat.BZ2)  # before it opens
+    with writer as w:
+        _write(w, ts.serialize_ros1, ts, 0.5)
+    raw = small.read_bytes()
+    magic = raw.index(b"\n") + 1
+    (head, *rest) = _ros1_records(raw, magic)
+    start, end, fields, data = next(r for r in rest if r[2]["op"] == b"\x05")  # the one chunk
+    c = bz2.BZ2Compressor(9)
+    parts = [c.compress(bz2.decompress(data))] + [c.compress(z) for z in _zeros(zeros)] + [c.flush()]
+    decoded = len(bz2.decompress(data)) + zeros
+    chunk = _ros1_record({**fields, "size": struct.pack("<I", decoded)}, b"".join(parts))
+    delta = len(chunk) - (end - start)
+    h_start, h_end, h_fields, h_data = head
+    (index_pos,) = struct.unpack("<Q", h_fields["index_pos"])
+    header = _ros1_record({**h_fields, "index_pos": struct.pack("<Q", index_pos + delta)}, h_data)
+    assert len(header) == h_end - h_start  # the bag header keeps its padded size
+    path.write_bytes(raw[:magic] + header + raw[h_end:start] + chunk + raw[end:])
+    small.unlink()
+    return path

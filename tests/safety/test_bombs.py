@@ -15,7 +15,7 @@ import pytest
 from sessions import Session
 from tests.conftest import REPO
 
-from .bomb_files import camera_log, chunk_bomb, jpeg_bomb, png_bomb
+from .bomb_files import camera_log, chunk_bomb, jpeg_bomb, png_bomb, ros1_chunk_bomb
 
 PEAK_LIMIT_MB = 1024.0
 MEASURE = (
@@ -87,6 +87,13 @@ def test_a_chunk_that_decodes_to_more_than_it_declares_stops_at_the_declaration(
 def test_a_sensor_message_far_larger_than_its_schema_is_refused_with_its_topic(session: Path, tmp_path) -> None:
     bomb = chunk_bomb(tmp_path / "big-imu.mcap", messages=1, size=20_000_000)  # under the chunk limit
     refused(session, bomb, "message of 20,000,000 bytes, over the limit of 1,048,576", "topic /imu")
+
+
+def test_a_ros1_bag_chunk_that_decodes_past_the_limit_is_refused(session: Path, tmp_path: Path) -> None:
+    """10 KB on disk, a bz2 chunk of half a second of IMU and 300 MB of zeros: decoding stops at the limit."""
+    bomb = ros1_chunk_bomb(tmp_path / "bz2-bomb.bag")
+    assert bomb.stat().st_size < 20_000
+    refused(session, bomb, "a bag chunk decodes to more than 134,217,728 bytes, the limit")
 
 
 @pytest.mark.parametrize("kind", ["png", "jpeg"])
