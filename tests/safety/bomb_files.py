@@ -175,3 +175,23 @@ def ros1_chunk_bomb(path: Path, *, zeros: int = 300_000_000) -> Path:
     path.write_bytes(raw[:magic] + header + raw[h_end:start] + chunk + raw[end:])
     small.unlink()
     return path
+
+
+def ros1_count_lie(path: Path, *, field: str = "chunk_count", value: int = 0xFFFFFFFF) -> Path:
+    """A ROS 1 bag whose header claims ``value`` for ``field`` (``chunk_count``, ``conn_count``): the index read
+    from the file must stop where the file does."""
+    from rosbags.rosbag1 import Writer as BagWriter
+    from rosbags.typesys import Stores, get_typestore
+
+    from tests.sessions.test_ingest_bag import _write
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    with BagWriter(path) as w:
+        _write(w, ts.serialize_ros1, ts, 0.5)
+    raw = path.read_bytes()
+    magic = raw.index(b"\n") + 1
+    h_start, h_end, h_fields, h_data = _ros1_records(raw, magic)[0]
+    header = _ros1_record({**h_fields, field: struct.pack("<I", value)}, h_data)
+    assert len(header) == h_end - h_start
+    path.write_bytes(raw[:magic] + header + raw[h_end:])
+    return path

@@ -15,6 +15,7 @@ COUNTED = {  # module -> the promise its tests check
     "test_fuzz_readers": "promise 3 (fuzz targets: the MCAP and CSV readers)",
     "test_safe_defaults": "promise 5 (safe by default: loopback, upload limit and names, no pickle, newer schema)",
     "test_disk_full": "promise 6 (full and read-only disk: labels and models, store, CLI and UI)",
+    "test_bombs": "promise 8 (bombs: decoded bytes and pixels bounded in every reader, the CLI and uploads)",
     "test_security": "promise 7 (security: same origin and token, escaped names, uploads cut at the limit, label "
     "import, CSV formulas, tampered files, taken port)",
 }
