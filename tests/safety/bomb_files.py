@@ -195,3 +195,30 @@ def ros1_count_lie(path: Path, *, field: str = "chunk_count", value: int = 0xFFF
     assert len(header) == h_end - h_start
     path.write_bytes(raw[:magic] + header + raw[h_end:])
     return path
+
+
+def ros2_message_bomb(folder: Path, *, zeros: int = 300_000_000) -> Path:
+    """A ROS 2 SQLite bag with zstd-compressed messages, one of which is ``zeros`` bytes of zeros compressed (a few
+    KB in the database). Returns the ``.db3``."""
+    import sqlite3
+
+    import zstandard
+    from rosbags.rosbag2 import Writer as Bag2Writer
+    from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
+    from rosbags.typesys import Stores, get_typestore
+
+    from tests.sessions.test_ingest_bag import _write
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    writer = Bag2Writer(folder, version=8)
+    writer.set_compression(CompressionMode.MESSAGE, CompressionFormat.ZSTD)
+    with writer as w:
+        _write(w, ts.serialize_cdr, ts, 0.5)
+    db3 = next(folder.glob("*.db3"))
+    out = io.BytesIO()
+    with zstandard.ZstdCompressor(level=3).stream_writer(out, size=zeros, closefd=False) as z:
+        for block in _zeros(zeros):
+            z.write(block)
+    with sqlite3.connect(db3) as conn:
+        conn.execute("UPDATE messages SET data = ? WHERE id = (SELECT MIN(id) FROM messages)", (out.getvalue(),))
+    return db3

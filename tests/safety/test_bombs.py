@@ -16,7 +16,15 @@ import pytest
 from sessions import Session
 from tests.conftest import REPO
 
-from .bomb_files import camera_log, chunk_bomb, jpeg_bomb, png_bomb, ros1_chunk_bomb, ros1_count_lie
+from .bomb_files import (
+    camera_log,
+    chunk_bomb,
+    jpeg_bomb,
+    png_bomb,
+    ros1_chunk_bomb,
+    ros1_count_lie,
+    ros2_message_bomb,
+)
 
 PEAK_LIMIT_MB = 1024.0
 MEASURE = (
@@ -96,6 +104,12 @@ def test_a_ros1_bag_chunk_that_decodes_past_the_limit_is_refused(session: Path, 
     bomb = ros1_chunk_bomb(tmp_path / "bz2-bomb.bag")
     assert bomb.stat().st_size < 20_000
     refused(session, bomb, "a bag chunk decodes to more than 134,217,728 bytes, the limit")
+
+
+@pytest.mark.slow
+def test_a_ros2_bag_message_that_decodes_past_the_limit_is_refused(session: Path, tmp_path: Path) -> None:
+    """A zstd-compressed message of a ``.db3`` holding 300 MB of zeros in a few KB."""
+    refused(session, ros2_message_bomb(tmp_path / "bag2"), "a bag message decodes to more than 134,217,728 bytes")
 
 
 @pytest.mark.slow
