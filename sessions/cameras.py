@@ -20,11 +20,11 @@ import numpy as np
 
 from .errors import SessionError
 from .ingest.image_topics import CameraStream
+from .limits import MAX_STORED_FRAME_BYTES
 from .log_files import checked_in_logs
 from .logs import LogInfo
 
 INDEX_DTYPE = np.dtype([("t", "<f8"), ("offset", "<i8"), ("size", "<i8")])
-MAX_FRAME_BYTES = 16 << 20  # a frame's size in an index past this is damage, not a picture
 
 
 @dataclass(frozen=True)
@@ -130,7 +130,7 @@ class CameraStore:
         ok = index.dtype == INDEX_DTYPE and index.ndim == 1
         if ok and len(index):
             offsets, sizes = index["offset"], index["size"]
-            ok = offsets.min() >= 0 and sizes.min() >= 0 and sizes.max() <= MAX_FRAME_BYTES
+            ok = offsets.min() >= 0 and sizes.min() >= 0 and sizes.max() <= MAX_STORED_FRAME_BYTES
             ok = ok and (offsets + sizes).max() <= size
         if not ok:
             raise SessionError(f"{self.path}: {what} index does not match its frames; the session was changed")

@@ -1,7 +1,8 @@
 """How much a reader decodes, stated once with the reasons: each reader checks before it allocates.
 
 A log's size on disk says little about what it decodes to (a 52 KB MCAP chunk can declare 1.6 GB of zeros), so every
-limit counts decoded bytes or declared pixels, and a refusal names the limit, the file and the place.
+limit counts decoded bytes or declared pixels, and a refusal names the limit, the file and the place. The UI's upload
+limit (``workbench.ui.MAX_UPLOAD_MB``) counts the bytes sent; what an upload decodes to meets these limits after.
 """
 
 from __future__ import annotations
@@ -26,6 +27,14 @@ MAX_FRAME_PIXELS = 40_000_000
 """Declared pixels of one camera frame, checked from its header before it is decoded (any format Pillow opens). An
 8K frame has 33.2 million; Pillow's own guard starts at 89 million and raises an error no reader expects. A frame over
 it is skipped and counted, never the log."""
+
+MAX_CSV_LINE_BYTES = 1 * MiB
+"""One line of a sensor CSV: a row is a few hundred bytes, so a longer "line" is not one (a file of one 2 GB line is
+refused at its first megabyte, not read whole)."""
+
+MAX_STORED_FRAME_BYTES = 16 * MiB
+"""One camera frame as the session keeps it (a JPEG of at most 640 px): a larger size in a frames index is damage or
+tampering, and the index is refused before a frame is read."""
 
 MAX_LABEL_FILE_BYTES = 256 * MiB
 """A label file (CSV, Parquet, JSON) on disk, and a Parquet file's decoded row groups. A label is a row of a few

@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import IngestError
+from ..limits import MAX_CSV_LINE_BYTES
 from .base import TIME_UNITS, IngestOptions, ParsedLog, Stream
 
 # QCAT (CSIRO, DyRET robot): `{terrain}_{speed}_legSensors_{raw|imu}.csv`, the terrain given as an index.
@@ -65,16 +66,13 @@ def is_qcat(path: Path) -> bool:
     return QCAT_RE.match(path.name) is not None
 
 
-MAX_LINE_BYTES = 1 << 20  # a sensor CSV row is a few hundred bytes; a longer "line" is not one
-
-
 def _check_text(path: Path, *, block: int = 1 << 20) -> None:
     """Refuse binary data and absurd lines before the parser holds them: a 2 GB line would be read whole."""
     line, run, offset = 1, 0, 0  # run: bytes of the current line so far
 
     def too_long(at_line: int) -> IngestError:
         return IngestError(
-            path, f"a line longer than {MAX_LINE_BYTES >> 20} MiB: not a sensor CSV", where=f"line {at_line}"
+            path, f"a line longer than {MAX_CSV_LINE_BYTES >> 20} MiB: not a sensor CSV", where=f"line {at_line}"
         )
 
     with open(path, "rb") as f:
@@ -88,12 +86,12 @@ def _check_text(path: Path, *, block: int = 1 << 20) -> None:
             else:
                 lengths = np.diff(breaks, prepend=-1) - 1  # each line ending in this chunk
                 lengths[0] += run
-                over = np.flatnonzero(lengths > MAX_LINE_BYTES)
+                over = np.flatnonzero(lengths > MAX_CSV_LINE_BYTES)
                 if len(over):
                     raise too_long(line + int(over[0]))
                 line += len(breaks)
                 run = len(chunk) - int(breaks[-1]) - 1
-            if run > MAX_LINE_BYTES:
+            if run > MAX_CSV_LINE_BYTES:
                 raise too_long(line)
             offset += len(chunk)
 
