@@ -39,14 +39,14 @@ class Ledger:
     errors: list[str] = field(default_factory=list)
 
 
-def _label_until_killed(url: str, ledger: Ledger, connected: threading.Event, end_s: float) -> None:
+def _label_until_killed(url: str, ledger: Ledger, labelling: threading.Event, end_s: float) -> None:
+    """Label until the server dies; ``labelling`` is set at the round's first answer (or when the round ends)."""
     try:
         client = ViserClient(url)
         client.wait_widget("Save label (Enter)")
     except Exception:
-        connected.set()  # killed before the page was up: nothing to label this round
+        labelling.set()  # killed before the page was up: nothing to label this round
         return
-    connected.set()
     try:
         while ledger.next_s + WIDTH_S < end_s:
             a = round(ledger.next_s, 2)
@@ -57,9 +57,11 @@ def _label_until_killed(url: str, ledger: Ledger, connected: threading.Event, en
                 ledger.errors.append(f"{title}: {body}")
                 return
             ledger.acked[int(found.group(1))] = a
+            labelling.set()
     except Exception:
         return  # the server died under us: that is the point
     finally:
+        labelling.set()
         with contextlib.suppress(Exception):
             client.close()
 
@@ -95,11 +97,15 @@ def run_kills(tmp_path: Path, walk_s: float, kills: int, seed: int) -> tuple[int
     stored = 0
     for _ in range(kills):
         server = Server(path)
-        connected = threading.Event()
-        worker = threading.Thread(target=_label_until_killed, args=(server.url, ledger, connected, log.duration_s))
+        labelling = threading.Event()
+        worker = threading.Thread(target=_label_until_killed, args=(server.url, ledger, labelling, log.duration_s))
         worker.start()
-        connected.wait(60)
-        time.sleep(float(rng.uniform(0.05, 1.0)))  # a random moment of labelling
+        # The moment is drawn from the first answer on: the page takes about a second to build after its Save
+        # button arrives, and a first label answered only after that made every kill of a slow machine land before
+        # any acknowledgement (CI: 10 kills, 0 labels checked). Labels take ~40 ms, so a moment drawn over a second
+        # still lands in every phase of a save.
+        labelling.wait(60)
+        time.sleep(float(rng.uniform(0.0, 1.0)))
         os.kill(server.proc.pid, signal.SIGKILL)
         server.proc.wait(10)
         worker.join(30)

@@ -98,9 +98,13 @@ class SuggestPanel:
         if self.strategy.value != self.host.state.strategy:  # another browser changed it
             self.host.set_widget(self.strategy, self.host.state.strategy)
         queue = self.visible_queue()
-        if self.current is not None and self.current.key not in {q.key for q in queue}:
-            # the queue was recomputed: keep showing the same stretch if it is still suggested
-            self.current = None
+        ranked = {q.key: q for q in queue}
+        # A rescoring (after a retrain, another browser's label) recomputes the queue while a person looks at one
+        # suggestion: it stays on screen and A or X still act on it. Dropping it made an A pressed a moment after N
+        # find nothing to accept; a stretch still ranked takes its new reason and guess.
+        stale = self.current is not None and self.current.key not in ranked
+        if self.current is not None and not stale:
+            self.current = ranked[self.current.key]
         has = self.current is not None
         self.accept_button.disabled = not (has and self.current.guess is not None)
         self.skip_button.disabled = not has
@@ -110,7 +114,9 @@ class SuggestPanel:
             guess = f"model's guess: <b>{html.escape(q.guess)}</b>" if q.guess else "no guess yet"
             self.info.content = (
                 f"<div style='font-size:0.85em;padding:4px;border-left:3px solid #00897b'>"
-                f"<b>{html.escape(q.log.name)}</b> {a:.1f}–{b:.1f} s<br>{html.escape(q.reason)}<br>{guess}</div>"
+                f"<b>{html.escape(q.log.name)}</b> {a:.1f}–{b:.1f} s<br>{html.escape(q.reason)}<br>{guess}"
+                + ("<br><small style='color:#b26a00'>no longer ranked after the last scoring</small>" if stale else "")
+                + "</div>"
             )
         else:
             self.info.content = f"<small style='color:#666'>{html.escape(self._hint(queue))}</small>"
