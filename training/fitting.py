@@ -24,7 +24,8 @@ class ClassifierFit:
     models: list[nn.Module]
     metrics: dict
     history: list[list[dict[str, float]]] = field(default_factory=list)
-    folds: list[list[int]] = field(default_factory=list)  # validation segment indices of each fold
+    folds: list[list[int]] = field(default_factory=list)  # validation indices of each fold: pieces, else segments
+    pieces: list[tuple[int, int, int]] = field(default_factory=list)  # (segment index, start, stop) per piece
 
 
 def fold_indices(labels: Sequence[int], k: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -9,7 +9,8 @@ from sklearn.metrics import accuracy_score, confusion_matrix, f1_score, recall_s
 
 
 def classification_metrics(y_true: np.ndarray, y_pred: np.ndarray, classes: Sequence[str]) -> dict:
-    """Accuracy, macro-F1 (over the classes present in ``y_true``), per-class recall and the confusion matrix.
+    """Accuracy, macro-F1 (over the classes present in ``y_true``), per-class recall and the confusion matrix
+    (NaN figures when ``y_true`` is empty).
 
     Args:
         y_true: ``(N,)`` class indices.
@@ -17,6 +18,17 @@ def classification_metrics(y_true: np.ndarray, y_pred: np.ndarray, classes: Sequ
         classes: Names of all ``K`` classes.
     """
     labels = list(range(len(classes)))
+    if len(y_true) == 0:  # nothing could be measured (each terrain's only piece in its own fold): no figure
+        nan = float("nan")
+        empty = [[0] * len(labels) for _ in labels]
+        return {
+            "accuracy": nan,
+            "macro_f1": nan,
+            "per_class_recall": {},
+            "confusion": empty,
+            "classes": list(classes),
+            "n": 0,
+        }
     present = sorted(set(np.asarray(y_true).tolist()))
     recall = recall_score(y_true, y_pred, labels=labels, average=None, zero_division=0)
     return {

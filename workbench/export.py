@@ -21,7 +21,15 @@ from sessions import (
     read_source,
     write_frame,
 )
-from training import BundleError, ModelBundle, load_bundle, parameter_count, run_predictor
+from training import (
+    BundleError,
+    ModelBundle,
+    estimate_headline,
+    estimate_table,
+    load_bundle,
+    parameter_count,
+    run_predictor,
+)
 
 ONNX_TOLERANCE = 1e-4
 CHECK_SAMPLES = 1500  # per log, for the ONNX check: a per-sample loop in onnxruntime
@@ -43,6 +51,31 @@ def prediction_frame(log: str, probs: np.ndarray, classes: Sequence[str], rate_h
     for k, c in enumerate(classes):
         frame[f"p_{c}"] = probs[:, k]
     return frame
+
+
+def _estimate_section(m: dict) -> list[str]:
+    """Per terrain the figure that exists for the labels the session has, and which it is (``training.estimates``)."""
+    estimate = m.get("estimate")
+    if not estimate:
+        return _held_out_section(m)
+    words = estimate_headline(estimate) or "not measurable"
+    balanced = estimate.get("balanced_accuracy")
+    return [
+        "## What to expect on new runs",
+        "",
+        f"**{words}**" + (f", balanced accuracy {balanced:.1%}" if balanced is not None else "") + ".",
+        "",
+        f"{estimate['note'][:1].upper()}{estimate['note'][1:]}." if estimate["note"] else "",
+        "",
+        "A terrain labelled in two logs or more is measured on held-out logs: each of its labelled steps predicted by "
+        "a model fitted without any label or signal of its log. A terrain labelled in one log cannot be (holding the "
+        "log out removes the terrain); it gets a same-run figure: contiguous blocks of its log held out, a guard "
+        "wider than the model's input between them and the training time. Same-run figures flatter what a new run "
+        "will score: its surface, speed and mounting were in training.",
+        "",
+        *estimate_table(estimate),
+        "",
+    ]
 
 
 def _held_out_section(m: dict) -> list[str]:
@@ -86,11 +119,12 @@ def model_card(bundle: ModelBundle, *, version: int, session: str) -> str:
         f"- stage 2: {m.get('n_segments', '?')} labelled segments, {m.get('labelled_seconds', 0):.0f} s "
         f"({m.get('labelled_fraction', 0):.1%} of the time)",
         "",
-        *_held_out_section(m),
+        *_estimate_section(m),
         "## Out-of-fold metrics (same logs)",
         "",
-        "Each labelled step predicted, in a pass over its whole log, by the fold model that did not train on it. The "
-        "other labelled segments of the same logs did train that model, so these figures flatter what to expect on "
+        "Each labelled step predicted, in a pass over its whole log, by the fold model that did not train on it "
+        "(the default family holds out blocks of labelled time, so these are same-run figures for every terrain). "
+        "The other labelled time of the same logs did train that model, so these figures flatter what to expect on "
         "logs the model never saw; `workbench evaluate session SESSION --reference FILE` measures that, holding out "
         "whole logs.",
         "",

@@ -24,16 +24,26 @@ import torch
 from sklearn.model_selection import GroupKFold, StratifiedGroupKFold
 from torch.nn import functional as F
 
-from ..fitting import ClassifierFit, Segment, fold_indices
+from ..blocking import blocked_folds
+from ..estimates import terrain_estimate
+from ..fitting import ClassifierFit, Segment
 from ..metrics import classification_metrics
 from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
-from .spectra import SpectralSteps
+from .spectra import SpectralConfig, SpectralSteps
 from .window_classifier import WindowClassifier, WindowClassifierConfig
 from .window_config import WindowFitConfig
 
+BLOCK_GUARDS = 4  # a block is four guards long: a fold's guard never takes more than half of a block next to it
 PSEUDO_STRIDE = 3  # rows of a stretch self-training reads: every third frame
 PREDICT_CHUNK = 4096  # steps per call when scoring segments: bounds the stacked frames in memory
 Stretch = tuple[int, int, int]  # (log index, start, stop): unlabelled, no change point inside
+
+
+def block_and_guard(front: SpectralConfig) -> tuple[int, int]:
+    """Samples per block of the ensemble's blocked folds, and the guard around a held-out block: wider than the
+    input a step reads (its last ``window`` frames)."""
+    guard = front.span + front.hop
+    return BLOCK_GUARDS * guard, guard
 
 
 def frame_rows(features: SpectralSteps, start: int, stop: int) -> np.ndarray:
@@ -171,11 +181,13 @@ def fit_window_classifier(
         cancel: Polled between fits.
 
     Returns:
-        The ensemble and out-of-fold metrics over every labelled step, each predicted by the fold model that did
-        not train on it. ``metrics["pseudo_stretches"]`` is the mean number of stretches a fold took as
-        pseudo-labels. ``metrics["held_out_logs"]`` (when two or more logs are labelled) is the honest figure: each
-        labelled step predicted by a model fitted without any label or stretch of its log, from folds over logs
-        (extra fits, not ensemble members).
+        The ensemble (one model per blocked fold, :mod:`training.blocking`) and its out-of-fold metrics: each
+        labelled step predicted by the fold model that did not train on its block, steps of a terrain that model
+        never saw left out (same-run figures). ``metrics["pseudo_stretches"]`` is the mean number of stretches a
+        fold took as pseudo-labels. ``metrics["held_out_logs"]`` (when a terrain is labelled in two logs or more):
+        its steps predicted by a model fitted without any label or stretch of their log, from folds over logs
+        (extra fits, not ensemble members). ``metrics["estimate"]`` (:func:`training.estimates.terrain_estimate`)
+        says per terrain which of the two exists. ``folds`` index ``pieces``: the segments cut into blocks.
     """
     if not segments:
         raise ValueError("no labelled segments to train the classifier on")
@@ -183,17 +195,16 @@ def fit_window_classifier(
     k = len(classes)
     t0 = time.monotonic()
     mean, std = _moments(features)
-    window = features[0].config.window
-    model_config = WindowClassifierConfig(features[0].shape[1], k, window=window, hidden=config.hidden)
-    seg_rows = [frame_rows(features[i], a, b) for i, a, b, _ in segments]
-    seg_y = [np.full(len(r), s[3]) for r, s in zip(seg_rows, segments, strict=True)]
+    front = features[0].config
+    model_config = WindowClassifierConfig(features[0].shape[1], k, window=front.window, hidden=config.hidden)
     use_stretches = config.self_training and len(stretches) > 0
     # consecutive frames' windows share all but one frame: every PSEUDO_STRIDE-th row of a stretch carries nearly
     # all it holds, and the refits (most of a fit's time) read a third of the rows
     stretch_rows = [frame_rows(features[i], a, b)[::PSEUDO_STRIDE] for i, a, b in stretches] if use_stretches else []
 
-    def fit_on(train_idx: np.ndarray, skip_logs: set[int], seed: int) -> tuple[WindowClassifier, int]:
-        """A fold's network on its segments, trained again with the stretches of logs outside ``skip_logs``."""
+    def fit_on(train: Sequence[Segment], skip_logs: set[int], seed: int) -> tuple[WindowClassifier, int, set[int]]:
+        """A fold's network on ``train``, trained again with the stretches of logs outside ``skip_logs``; with the
+        classes it saw."""
 
         def fresh() -> WindowClassifier:
             torch.manual_seed(seed)
@@ -201,65 +212,103 @@ def fit_window_classifier(
             model.set_standardisation(mean, std)
             return model
 
-        x = np.concatenate([seg_rows[i] for i in train_idx])
-        y = np.concatenate([seg_y[i] for i in train_idx])
+        rows = [frame_rows(features[i], a, b) for i, a, b, _ in train]
+        if not any(len(r) for r in rows):
+            raise ValueError("the labelled segments are shorter than one frame: nothing to train the classifier on")
+        x = np.concatenate(rows)
+        y = np.concatenate([np.full(len(r), s[3]) for r, s in zip(rows, train, strict=True)])
         model = train_rows(fresh(), x, y, config.epochs, config, seed, cancel)
-        rows = [r for r, s in zip(stretch_rows, stretches, strict=False) if s[0] not in skip_logs]
-        px, py = _pseudo_labels(model, rows, config.agree) if use_stretches else ([], [])
+        seen = {int(c) for c in np.unique(y)}
+        kept = [r for r, s in zip(stretch_rows, stretches, strict=False) if s[0] not in skip_logs]
+        px, py = _pseudo_labels(model, kept, config.agree) if use_stretches else ([], [])
         if px:
             x, y = np.concatenate([x, *px]), np.concatenate([y, *py])
             model = train_rows(fresh(), x, y, config.refit_epochs, config, seed, cancel)
-        return model, len(px)
+        return model, len(px), seen
 
-    def predict(val_idx: np.ndarray, model: WindowClassifier) -> tuple[np.ndarray, np.ndarray]:
-        """Truth and prediction at every step of the segments ``val_idx``, as the passes score them."""
-        true = [np.full(segments[i][2] - segments[i][1], segments[i][3]) for i in val_idx]
-        pred = [predict_steps(model, features[segments[i][0]], segments[i][1], segments[i][2]) for i in val_idx]
+    def predict(held: Sequence[Segment], model: WindowClassifier) -> tuple[np.ndarray, np.ndarray]:
+        """Truth and prediction at every step of ``held``, as the passes score them."""
+        true = [np.full(b - a, c) for _, a, b, c in held]
+        pred = [predict_steps(model, features[i], a, b) for i, a, b, _ in held]
         return np.concatenate(true), np.concatenate(pred)
 
-    folds = fold_indices([s[3] for s in segments], config.k_folds, config.seed)
-    by_log = _log_folds(segments, config.k_folds) if config.held_out else []
+    # the ensemble's folds hold out contiguous blocks, a guard wider than a step's input around them: labels given
+    # as whole runs (one segment per terrain) still leave every fold every terrain
+    block, guard = block_and_guard(front)
+    blocked = blocked_folds(segments, config.k_folds, block=block, guard=guard)
+    pieces = [p.as_segment for p in blocked.pieces]
+    logs_per_class = {c: len({s[0] for s in segments if s[3] == c}) for c in {s[3] for s in segments}}
+    shared = any(n >= 2 for n in logs_per_class.values())  # a terrain in two logs: held-out logs can measure it
+    by_log = _log_folds(segments, config.k_folds) if config.held_out and shared else []
+    total = blocked.k + len(by_log)
     models, histories, oof_true, oof_pred, pseudo = [], [], [], [], []
-    for f_i, (train_idx, val_idx) in enumerate(folds, start=1):
+    for f in range(blocked.k):
         if cancel():
             raise Cancelled("classifier training cancelled")
-        model, taken = fit_on(train_idx, set(), config.seed + f_i)
+        held = [pieces[j] for j in blocked.held_out(f)]
+        train = blocked.training(f) if blocked.k > 1 else pieces
+        if not any(len(frame_rows(features[i], a, b)) for i, a, b, _ in train):
+            # tiny labels close together: the guards took every other piece; this one fold trains on them whole
+            train = [pieces[j] for j, g in enumerate(blocked.fold_of) if g != f] or pieces
+        model, taken, seen = fit_on(train, set(), config.seed + f + 1)
         pseudo.append(taken)
         models.append(model)
-        true, pred = predict(val_idx, model)
+        true, pred = predict(held, model)
         oof_true.append(true)
         oof_pred.append(pred)
         histories.append(
             [{"epoch": config.epochs, "pseudo_stretches": taken, "val_accuracy": float((true == pred).mean())}]
         )
+        if blocked.k > 1:  # a terrain this fold never trained on cannot be right: its steps are not measured
+            keep = np.isin(true, list(seen))
+            oof_true[-1], oof_pred[-1] = true[keep], pred[keep]
         if progress:
-            done = len(folds) + len(by_log)
-            progress(Progress("classifier", f_i, done, 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
-    metrics = classification_metrics(np.concatenate(oof_true), np.concatenate(oof_pred), classes)
-    metrics["out_of_fold"] = len(folds) > 1
+            progress(Progress("classifier", f + 1, total, 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
+    same_true, same_pred = np.concatenate(oof_true), np.concatenate(oof_pred)
+    metrics = classification_metrics(same_true, same_pred, classes)
+    metrics["out_of_fold"] = blocked.k > 1
     metrics["n_segments"] = len(segments)
+    metrics["n_pieces"] = len(pieces)
     metrics["labelled_samples"] = int(sum(s[2] - s[1] for s in segments))
     metrics["pseudo_stretches"] = float(np.mean(pseudo))
+    held_out = None
     if by_log:
         held_true, held_pred = [], []
-        for f_i, (train_idx, val_idx) in enumerate(by_log, start=len(folds) + 1):
+        for f_i, (train_idx, val_idx) in enumerate(by_log, start=blocked.k + 1):
             if cancel():
                 raise Cancelled("classifier training cancelled")
-            held = {segments[i][0] for i in val_idx}
-            model, _ = fit_on(train_idx, held, config.seed + f_i)  # a held-out log lends no stretch: unseen
-            true, pred = predict(val_idx, model)
-            held_true.append(true)
-            held_pred.append(pred)
+            held_logs = {segments[i][0] for i in val_idx}
+            # a held-out log lends no stretch: unseen
+            model, _, seen = fit_on([segments[i] for i in train_idx], held_logs, config.seed + f_i)
+            true, pred = predict([segments[i] for i in val_idx], model)
+            measurable = [c for c in seen if logs_per_class[c] >= 2]  # a one-log terrain has no other log to learn
+            keep = np.isin(true, measurable)
+            held_true.append(true[keep])
+            held_pred.append(pred[keep])
             if progress:
-                total = len(folds) + len(by_log)
                 progress(Progress("classifier", f_i, total, 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
-        m = classification_metrics(np.concatenate(held_true), np.concatenate(held_pred), classes)
-        metrics["held_out_logs"] = {
-            "accuracy": m["accuracy"],
-            "macro_f1": m["macro_f1"],
-            "per_class_recall": m["per_class_recall"],
-            "folds": len(by_log),
-            "logs": len({s[0] for s in segments}),
-            "n": m["n"],
-        }
-    return ClassifierFit(models, metrics, histories, [v.tolist() for _, v in folds])  # type: ignore[arg-type]
+        held_out = np.concatenate(held_true), np.concatenate(held_pred)
+        if len(held_out[0]):
+            m = classification_metrics(*held_out, classes)
+            metrics["held_out_logs"] = {
+                "accuracy": m["accuracy"],
+                "macro_f1": m["macro_f1"],
+                "per_class_recall": {c: r for c, r in m["per_class_recall"].items() if c in _names(classes, held_out)},
+                "folds": len(by_log),
+                "logs": len({s[0] for s in segments}),
+                "n": m["n"],
+            }
+    if blocked.k > 1:
+        metrics["estimate"] = terrain_estimate(classes, logs_per_class, (same_true, same_pred), held_out)
+    return ClassifierFit(
+        models,
+        metrics,
+        histories,
+        [blocked.held_out(f) for f in range(blocked.k)],
+        [(p.segment, p.start, p.stop) for p in blocked.pieces],
+    )
+
+
+def _names(classes: Sequence[str], scored: tuple[np.ndarray, np.ndarray]) -> set[str]:
+    """Names of the classes with a step in ``scored``."""
+    return {classes[int(c)] for c in np.unique(scored[0])}

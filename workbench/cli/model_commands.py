@@ -201,6 +201,10 @@ def _train_classifier(
     finally:
         bar.close()
     m = v.metrics
+    estimate = m.get("estimate")
+    if estimate:
+        _print_estimate(v.id, str(v.config.get("model", "paper")), m, estimate)
+        return
     held = m.get("held_out_logs")
     if held:
         print(
@@ -212,6 +216,27 @@ def _train_classifier(
         f"{m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} on {m['n_segments']} segments "
         f"({m['labelled_seconds']:.0f} s labelled)"
     )
+
+
+def _print_estimate(version: int, model: str, m: dict, estimate: dict) -> None:
+    """The estimate that exists per terrain, saying which it is (``training.estimates``)."""
+    from training import estimate_headline
+
+    words = estimate_headline(estimate) or "accuracy not measurable"
+    balanced = estimate.get("balanced_accuracy")
+    print(
+        f"classifier v{version} ({model} family): {words}"
+        + (f", balanced {100 * balanced:.1f} %" if balanced is not None else "")
+        + f", on {m['n_segments']} segments ({m['labelled_seconds']:.0f} s labelled)"
+    )
+    if estimate["note"]:
+        print(f"  {estimate['note']}")
+    per = estimate["per_terrain"]
+    width = max(len("terrain"), *(len(n) for n in per))
+    print(f"  {'terrain':<{width}}  recall   measured by     logs")
+    for name, e in per.items():
+        recall = "   –  " if e["recall"] is None else f"{100 * e['recall']:5.1f} %"
+        print(f"  {name:<{width}}  {recall}  {e['by']:<14}  {e['logs']}")
 
 
 def export(session: Pos[Path], out: Path, predictions: bool = False) -> None:

@@ -25,6 +25,7 @@ from training import (
     TrainConfig,
     WindowFitConfig,
     assign_folds,
+    block_and_guard,
     distributed,
     family,
     family_names,
@@ -37,6 +38,7 @@ from training import (
 )
 
 from ..retrain import RETRAIN
+from .fold_record import labels_record, new_labels, recorded_pieces
 from .front_end import choose_front_end, spectral_features, unlabelled_stretches
 from .stage_inputs import consistency_pairs, signal_change_points, stage2_features
 
@@ -263,7 +265,7 @@ def train_classifier(
     new = None
     if init is not None and warm_epochs is not None:
         config = replace(config, max_epochs=warm_epochs, patience=1, lr=config.lr * RETRAIN.warm_lr_scale)
-        new = _new_labels(used, previous.config.get("labels"))
+        new = new_labels(used, previous.config.get("labels"))
     pairs = []
     if config.consistency > 0:
         fits = config.context + 2 * config.label_piece  # a log shorter holds no pair: skip its change points
@@ -356,19 +358,20 @@ def _fine_tune_window(
         return None
     p_version, bundle = active_predictor(session)
     seen = previous.config.get("labels") or {}
-    folds_seen, ids_seen = seen.get("folds"), seen.get("ids")
-    if previous.config.get("predictor") != p_version.id or not isinstance(folds_seen, list) or not ids_seen:
-        return None
-    if len(folds_seen) != len(ids_seen):  # a record that does not add up: trust none of it
+    if previous.config.get("predictor") != p_version.id or not seen.get("ids"):
         return None
     old = load_bundle(session.path / previous.path)
     logs = model_logs(session, bundle.channels)
     classes, used, segments = _labelled(session, logs)
     if old.classes != classes or old.spectral is None or len(old.classifiers) < 2:
         return None
-    known = dict(zip(ids_seen, folds_seen, strict=True))
-    folds = assign_folds([s[3] for s in segments], [known.get(s.id, -1) for s in used], len(old.classifiers))
-    new = _new_labels(used, seen) or []
+    fresh = set(new_labels(used, seen) or [])
+    recorded = recorded_pieces(used, segments, seen, fresh, block_and_guard(old.spectral)[0])
+    if recorded is None:  # a record that does not add up: trust none of it
+        return None
+    pieces, known = recorded
+    folds = assign_folds([segments[i][3] for i, _, _ in pieces], known, len(old.classifiers))
+    new = [j for j, (i, _, _) in enumerate(pieces) if i in fresh]
     # only labelled logs' frames are read: a fine-tune never looks at the rest (thousands of trials at QCAT scale)
     needed = sorted({s[0] for s in segments})
     at = {i: j for j, i in enumerate(needed)}
@@ -377,7 +380,7 @@ def _fine_tune_window(
     with _recorded_run(session, "classifier", params) as result:
         fit = fam.fine_tune(
             features,
-            [(at[i], a, b, c) for i, a, b, c in segments],
+            [(at[segments[i][0]], a, b, segments[i][3]) for i, a, b in pieces],
             classes,
             old.classifiers,
             folds=folds,
@@ -388,6 +391,7 @@ def _fine_tune_window(
             progress=progress,
             cancel=cancel,
         )
+        fit.pieces = pieces
         version = _save_classifier(
             session,
             bundle,
@@ -438,25 +442,7 @@ def _save_classifier(
         info={**bundle.info, "predictor_version": recipe["predictor"], "history": fit.history},
         **stage2,
     )
-    fold_of = [-1] * len(used)
-    for f, val in enumerate(fit.folds):
-        for i in val:
-            fold_of[i] = f
-    seen = {
-        "ids": [s.id for s in used],
-        "as_of": max((s.updated_at for s in used), default=""),
-        "folds": fold_of,  # the fold model that never trained on each: a fine-tune keeps them out-of-fold
-    }
-    return _save_version(session, "classifier", full, {**recipe, "labels": seen})
-
-
-def _new_labels(used: Sequence[Segment], seen: dict | None) -> list[int] | None:
-    """Indices into ``used`` of segments a version trained on ``seen`` (its recorded ids and newest change) did not
-    see: added or changed since. ``None`` (train on all) when the version recorded nothing."""
-    if not seen:
-        return None
-    ids, as_of = set(seen.get("ids", ())), seen.get("as_of", "")
-    return [i for i, s in enumerate(used) if s.id not in ids or s.updated_at > as_of]
+    return _save_version(session, "classifier", full, {**recipe, "labels": labels_record(fit, used, segments)})
 
 
 def active_bundle(session: Session) -> tuple[ModelVersion, ModelBundle]:

@@ -10,7 +10,7 @@ trains anything.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -60,16 +60,14 @@ def evaluate_session(
     if reference is not None:
         n = session.import_reference(reference)
         log(f"reference: {n} row(s) from {reference} (kept apart from labels)")
+    # the reference is checked before the models: a person told to train first would then be told this
+    _enough_reference([x for x in session.logs() if session.reference(x.id)], session.path)
     p_version, bundle = active_predictor(session)
     logs = model_logs(session, bundle.channels)
     classes = tuple(t.name for t in session.terrains())
     truth = {x.id: session.reference(x.id) for x in logs}
     judged = [i for i, x in enumerate(logs) if truth[x.id]]
-    if len(judged) < 2:
-        raise WorkbenchError(
-            f"{session.path}: {len(judged)} log(s) have reference labels; held-out logs need at least 2 "
-            "(give them with --reference FILE)"
-        )
+    _enough_reference(judged, session.path)
     active = session.active_model("classifier")
     recipe = active.config if active is not None else {}
     fam = family(classifier_family(session))
@@ -88,6 +86,7 @@ def evaluate_session(
     segments = [(index[s.log_id], s.start, s.stop, classes.index(s.terrain)) for s in labels]
     k = min(folds, len(judged))
     y_true, y_pred, rows = [], [], []
+    unmeasured: dict[str, int] = {}  # reference samples of a terrain no fold could have predicted
     for fold, (_, held) in enumerate(KFold(k, shuffle=True, random_state=seed).split(judged), start=1):
         held_logs = {judged[j] for j in held}
         train = [s for s in segments if s[0] not in held_logs]
@@ -111,11 +110,19 @@ def evaluate_session(
         order = sorted(held_logs)
         scored = score_logs(fit.models, [features[i] for i in order], [outs[logs[i].id].surprise() for i in order])
         fold_true, fold_pred = [], []
+        trained = {s[3] for s in train}
         for i, s in zip(order, scored, strict=True):
             predicted = s.predicted
             for a, b, terrain in truth[logs[i].id]:
-                fold_true.append(np.full(b - a, classes.index(terrain)))
+                c = classes.index(terrain)
+                if c not in trained:  # no label of it outside the fold: no model could be right; not a recall of 0
+                    unmeasured[terrain] = unmeasured.get(terrain, 0) + b - a
+                    continue
+                fold_true.append(np.full(b - a, c))
                 fold_pred.append(predicted[a:b])
+        if not fold_true:
+            rows.append(f"| {fold} | {_names(logs, held_logs)} | – | no reference terrain labelled outside the fold |")
+            continue
         t, p = np.concatenate(fold_true), np.concatenate(fold_pred)
         y_true.append(t)
         y_pred.append(p)
@@ -126,6 +133,24 @@ def evaluate_session(
         raise WorkbenchError(f"{session.path}: no fold had labels of two terrains outside its held-out logs")
     m = classification_metrics(np.concatenate(y_true), np.concatenate(y_pred), classes)
     rate = logs[0].rate_hz
+    # rows and columns of the terrains in use only: a session's other terrains are empty lines
+    in_use = [
+        c
+        for c in classes
+        if c in {t for x in judged for _, _, t in truth[logs[x].id]} | {classes[s[3]] for s in segments}
+    ]
+    at = [classes.index(c) for c in in_use]
+    reference_logs = {c: sum(any(t == c for _, _, t in truth[logs[x].id]) for x in judged) for c in in_use}
+    recall_rows = []
+    for c in in_use:
+        if c in m["per_class_recall"]:
+            extra = f" ({unmeasured[c] / rate:.0f} s not measurable)" if c in unmeasured else ""
+            recall_rows.append(f"| {c} | {100 * m['per_class_recall'][c]:.1f}{extra} |")
+        elif c in unmeasured:
+            recall_rows.append(
+                f"| {c} | not measurable by held-out logs: reference in {reference_logs[c]} log(s), no label of it "
+                "outside the fold that held them out |"
+            )
     lines = [
         f"# Session {session.path.name}: leave-logs-out against reference labels",
         "",
@@ -133,23 +158,38 @@ def evaluate_session(
         f"per fold on the other logs' labels. {len(judged)} logs with reference, {k} folds, "
         f"{m['n'] / rate:.0f} s of reference time scored.",
         "",
+        f"Scored {m['n']} reference samples; {sum(unmeasured.values())} not measurable (a terrain with no label "
+        "outside the fold that held its log out: no model there could name it).",
+        "",
         "| fold | held-out logs | accuracy (%) | trained on |",
         "| --- | --- | --- | --- |",
         *rows,
         "",
-        f"**Accuracy {100 * m['accuracy']:.2f} %, macro-F1 {m['macro_f1']:.3f}** over all held-out reference time.",
+        f"**Accuracy {100 * m['accuracy']:.2f} %, macro-F1 {m['macro_f1']:.3f}** over the held-out reference time "
+        "of terrains labelled outside its fold.",
         "",
         "| terrain | recall (%) |",
         "| --- | --- |",
-        *(f"| {c} | {100 * r:.1f} |" for c, r in m["per_class_recall"].items()),
+        *recall_rows,
         "",
-        "Confusion (rows: reference, columns: predicted; samples):",
+        "Confusion (rows: reference, columns: predicted; samples; the terrains in the reference or the labels):",
         "",
-        "| | " + " | ".join(classes) + " |",
-        "| --- | " + " | ".join("---" for _ in classes) + " |",
-        *(f"| {c} | " + " | ".join(str(v) for v in row) + " |" for c, row in zip(classes, m["confusion"], strict=True)),
+        "| | " + " | ".join(in_use) + " |",
+        "| --- | " + " | ".join("---" for _ in in_use) + " |",
+        *(
+            f"| {c} | " + " | ".join(str(m["confusion"][i][j]) for j in at) + " |"
+            for c, i in zip(in_use, at, strict=True)
+        ),
     ]
     return "\n".join(lines) + "\n"
+
+
+def _enough_reference(judged: Sequence[object], path: Path) -> None:
+    if len(judged) < 2:
+        raise WorkbenchError(
+            f"{path}: {len(judged)} log(s) have reference labels; held-out logs need at least 2 "
+            "(give them with --reference FILE)"
+        )
 
 
 def _recipe(fam: Family, hidden: int, feature_mode: str) -> str:

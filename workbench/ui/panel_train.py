@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from sessions import WorkbenchError
+from training import estimate_headline
 
 from .plots import confusion_image, learning_curve_image
 
@@ -117,11 +118,15 @@ class TrainPanel:
         for v in reversed(versions):
             m = v.metrics
             if v.stage == "classifier":
-                held = m.get("held_out_logs")
+                held, estimate = m.get("held_out_logs"), m.get("estimate")
+                if estimate:
+                    figure = f"{estimate_headline(estimate) or 'accuracy not measurable'}, {estimate['note']}, "
+                else:  # a version from before the estimate, a quick fine-tune, the paper family
+                    figure = (f"acc {100 * held['accuracy']:.1f} % on held-out logs, " if held else "") + (
+                        f"acc {100 * m.get('accuracy', float('nan')):.1f} % (same logs), "
+                    )
                 what = (
-                    f"{v.config.get('model', 'paper')}: "
-                    + (f"acc {100 * held['accuracy']:.1f} % on held-out logs, " if held else "")
-                    + f"acc {100 * m.get('accuracy', float('nan')):.1f} % (same logs), "
+                    f"{v.config.get('model', 'paper')}: {figure}"
                     f"F1 {m.get('macro_f1', float('nan')):.2f}, "
                     f"{m.get('labelled_seconds', 0):.0f} s labelled"
                     + (", quick fine-tune" if v.config.get("new_labels") is not None else "")

@@ -7,6 +7,8 @@ import html
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from training import HELD_OUT, estimate_headline
+
 if TYPE_CHECKING:
     from .host import PanelHost
 
@@ -21,13 +23,8 @@ def status_html(host: PanelHost) -> str:
     classifier = session.active_model("classifier")
     predictor = session.active_model("predictor")
     if classifier is not None:
-        m = classifier.metrics
-        held = m.get("held_out_logs") or {}
-        acc, where = held.get("accuracy"), "on held-out logs"
-        if acc is None and m.get("out_of_fold"):  # a quick fine-tune measures no held-out logs; its refit will
-            acc, where = m.get("accuracy"), "out of fold"
-        model = f"<b>{html.escape(str(classifier.config.get('model', 'paper')))} v{classifier.id}</b>" + (
-            f" · {100 * acc:.0f} % {where}" if acc is not None else ""
+        model = f"<b>{html.escape(str(classifier.config.get('model', 'paper')))} v{classifier.id}</b>" + _figure(
+            classifier.metrics
         )
     elif predictor is not None:
         model = f"<b>stage 1 v{predictor.id}</b> · no classifier yet"
@@ -49,6 +46,27 @@ def status_html(host: PanelHost) -> str:
         doing = ""
     doing_html = f" · <i style='color:#1565c0'>{html.escape(doing)}…</i>" if doing else ""
     return f"<div style='font-size:0.8em;line-height:1.5'>{model}<br>{labels}{doing_html}</div>"
+
+
+def _figure(m: dict) -> str:
+    """The active classifier's estimate, saying which it is; a same-run figure carries its caution, in full on hover
+    (the person deciding whether to label more reads it here)."""
+    estimate = m.get("estimate")
+    if estimate:
+        words = estimate_headline(estimate)
+        if words is None:
+            return " · <span style='color:#b26a00'>accuracy not measurable yet</span>"
+        if estimate["kind"] == HELD_OUT:
+            return f" · {html.escape(words)}"
+        return (
+            f" · <span title='{html.escape(estimate['note'], quote=True)}'>{html.escape(words)} "
+            "<b style='color:#b26a00'>(new runs may score lower)</b></span>"
+        )
+    held = m.get("held_out_logs") or {}  # a version from before the estimate, or the paper family's
+    acc, where = held.get("accuracy"), "on held-out logs"
+    if acc is None and m.get("out_of_fold"):  # a quick fine-tune measures no held-out logs; its refit will
+        acc, where = m.get("accuracy"), "out of fold"
+    return f" · {100 * acc:.0f} % {where}" if acc is not None and acc == acc else ""
 
 
 class StatusBar:

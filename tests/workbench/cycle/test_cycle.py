@@ -181,7 +181,7 @@ def test_cli_train_export_classify_labels(tmp_path: Path, demo_logs: list[Path],
         seed_labels(session, 0.1, seed=2)
     assert main(["train", str(s), "--stage", "classifier", "--hidden", "8", "--max-epochs", "1"]) == 0
     out = capsys.readouterr().out
-    assert "(default family): out-of-fold accuracy (same logs)" in out
+    assert "classifier v2 (default family): " in out and "measured by" in out  # the estimate per terrain
     paper = ["train", str(s), "--stage", "classifier", "--model", "paper", "--hidden", "8", "--max-epochs", "1"]
     assert main(paper) == 0
     assert "(paper family)" in capsys.readouterr().out

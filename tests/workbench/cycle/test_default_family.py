@@ -100,9 +100,9 @@ def _free_second(session: Session, log) -> int:
 
 
 def test_a_retrain_after_more_labels_fine_tunes_the_default_models_and_keeps_their_folds(session: Session) -> None:
-    base = cycle.train_classifier(session, model="default")  # from scratch: its segments' folds recorded
+    base = cycle.train_classifier(session, model="default")  # from scratch: its pieces' folds recorded
     seen = base.config["labels"]
-    assert len(seen["folds"]) == len(seen["ids"]) and set(seen["folds"]) <= set(range(5))
+    assert {p[0] for p in seen["pieces"]} == set(seen["ids"]) and {p[3] for p in seen["pieces"]} <= set(range(5))
     old_bundle = load_bundle(session.path / base.path)
     log = session.logs()[1]
     a = _free_second(session, log)
@@ -111,9 +111,11 @@ def test_a_retrain_after_more_labels_fine_tunes_the_default_models_and_keeps_the
     quick = cycle.train_classifier(session, warm_epochs=2)  # what the UI's Retrain asks for
     assert quick.config["warm_start"] is True and quick.config["fine_tuned_from"] == base.id
     assert quick.config["new_labels"] == 1
-    folds = dict(zip(quick.config["labels"]["ids"], quick.config["labels"]["folds"], strict=True))
-    assert all(folds[i] == f for i, f in zip(seen["ids"], seen["folds"], strict=True))  # old segments keep theirs
-    assert 0 <= folds[added.id] < 5
+    kept = quick.config["labels"]["pieces"]
+    assert all(p in kept for p in seen["pieces"])  # old segments keep their pieces and folds
+    ((_, start, stop, fold),) = [p for p in kept if p[0] == added.id]  # a second is one piece
+    assert (start, stop) == (added.start, added.stop) and 0 <= fold < 5
+    folds = {added.id: fold}
     assert quick.metrics["out_of_fold"] and "held_out_logs" not in quick.metrics
     assert quick.metrics["n"] == sum(s.length for s in session.segments())
     bundle = load_bundle(session.path / quick.path)
@@ -173,10 +175,27 @@ def test_a_version_whose_fold_record_does_not_add_up_is_followed_by_a_fit_from_s
 
     base = cycle.train_classifier(session, model="default")
     labels = base.config["labels"]
-    cut = {**base.config, "labels": {**labels, "folds": labels["folds"][:-1]}}  # a record edited by hand, say
+    cut = {**base.config, "labels": {**labels, "pieces": labels["pieces"][:-1]}}  # a record edited by hand, say
     with session._write() as conn:
         conn.execute("UPDATE model_versions SET config = ? WHERE id = ?", (json.dumps(cut), base.id))
     assert cycle.train_classifier(session, warm_epochs=2).config["warm_start"] is False
+
+    # a version from before blocked folds recorded one fold per segment: a fine-tune reads it as one piece each
+    base = session.active_model("classifier")
+    labels = base.config["labels"]
+    fold = {p[0]: p[3] for p in labels["pieces"]}
+    assert len(fold) == len(labels["pieces"])  # the seeded labels are short: one piece each
+    older = {**base.config, "labels": {"ids": labels["ids"], "as_of": labels["as_of"]}}
+    older["labels"]["folds"] = [fold[i] for i in labels["ids"]]
+    with session._write() as conn:
+        conn.execute("UPDATE model_versions SET config = ? WHERE id = ?", (json.dumps(older), base.id))
+    log = session.logs()[0]
+    a = _free_second(session, log)
+    session.add_segment(log.id, a, a + int(log.rate_hz), load_bundle(session.path / base.path).classes[0], author="t")
+    quick = cycle.train_classifier(session, warm_epochs=2)
+    assert quick.config["warm_start"] is True and quick.config["fine_tuned_from"] == base.id
+    got = {p[0]: p[3] for p in quick.config["labels"]["pieces"]}
+    assert all(got[i] == fold[i] for i in labels["ids"])  # each old segment kept the fold it had
 
 
 def test_a_third_family_trains_scores_and_exports_in_a_session_with_no_workbench_change(

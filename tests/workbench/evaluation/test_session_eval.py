@@ -18,7 +18,7 @@ from workbench.demo import generate_demo_logs, seed_labels
 @pytest.fixture(params=["default", "paper"])
 def three_logs(tmp_path: Path, request) -> Path:
     """Three demo logs, 30 % labelled, both stages trained; the evaluation retrains the active family per fold."""
-    logs = generate_demo_logs(tmp_path / "logs", n_logs=3, minutes=1.0, seed=7)
+    logs = generate_demo_logs(tmp_path / "logs", n_logs=3, minutes=0.7, seed=7)
     s = Session.create(tmp_path / "s")
     s.ingest(logs)
     seed_labels(s, 0.3, seed=2)
@@ -39,6 +39,11 @@ def test_reference_from_a_file_scores_held_out_logs(three_logs: Path, tmp_path: 
         with s._write() as conn:  # start from a session without reference, as a user's own logs are
             conn.execute("DELETE FROM reference")
         n_samples = sum(b - a for _, a, b, _ in rows)
+        # the first reference row becomes a terrain of one log that nobody labelled: no fold can predict it
+        s.add_terrain("ice")
+        first = rows[0]
+        rows[0] = (*first[:3], "ice")
+        s.add_terrain("unused")  # a terrain of the session in neither the reference nor the labels
     frame = pd.DataFrame(rows, columns=["log", "start_sample", "end_sample", "terrain"])
     frame.to_csv(tmp_path / "reference.csv", index=False)
 
@@ -53,18 +58,26 @@ def test_reference_from_a_file_scores_held_out_logs(three_logs: Path, tmp_path: 
     assert f"stage 2 of the {family} family" in out
     accuracy = float(re.search(r"\*\*Accuracy ([0-9.]+) %", out).group(1))
     assert 0.0 <= accuracy <= 100.0
-    rows_after = out.split("Confusion")[1].splitlines()[4:]  # after the heading, a blank line, header and rule
+    assert re.search(r"\| ice \| not measurable by held-out logs: reference in 1 log\(s\)", out), out
+    header, _, *rows_after = out.split("Confusion")[1].splitlines()[2:]  # after the heading and a blank line
     confusion = [line for line in rows_after if line.startswith("| ")]
-    assert len(confusion) == 6
-    assert sum(int(v) for line in confusion for v in line.strip("|").split("|")[1:]) == n_samples
+    assert "ice" in header and "unused" not in header and len(confusion) == 7  # the demo's 6 and ice
+    scored, unscored = (
+        int(x) for x in re.search(r"Scored (\d+) reference samples; (\d+) not measurable", out).groups()
+    )
+    assert scored + unscored == n_samples and unscored >= first[2] - first[1]  # ice, and any terrain of one log
+    assert sum(int(v) for line in confusion for v in line.strip("|").split("|")[1:]) == scored
     with Session.open(three_logs) as s:
         assert s.segments() == labels_before  # the reference trained nothing and became no label
         assert sum(b - a for x in s.logs() for a, b, _ in s.reference(x.id)) == n_samples
 
 
-def test_without_reference_it_says_what_is_missing(three_logs: Path, capsys) -> None:
-    with Session.open(three_logs) as s, s._write() as conn:
-        conn.execute("DELETE FROM reference")
-    assert main(["evaluate", "session", str(three_logs)]) == 2
+def test_without_reference_it_says_what_is_missing(tmp_path: Path, capsys) -> None:
+    """Said before anything else is needed: this session has no model either."""
+    with Session.create(tmp_path / "s") as s:
+        s.ingest(generate_demo_logs(tmp_path / "logs", n_logs=2, minutes=0.3, seed=7))
+        with s._write() as conn:
+            conn.execute("DELETE FROM reference")
+    assert main(["evaluate", "session", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "0 log(s) have reference labels" in err[0] and "--reference FILE" in err[0]
