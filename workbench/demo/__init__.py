@@ -3,6 +3,7 @@ session's reference truth."""
 
 from .ros2_cdr import COMPRESSED_IMAGE_SCHEMA, IMU_SCHEMA, WRENCH_STAMPED_SCHEMA
 from .ros2_cdr import encode as encode_stamped_floats
+from .run_conditions import RunConditions
 from .seed_labels import seed_labels
 from .walk_files import generate_demo_logs, write_walk
 from .walks import FOOT_HZ, IMU_HZ, TERRAINS, Walk, generate_walk
@@ -14,6 +15,7 @@ __all__ = [
     "IMU_SCHEMA",
     "TERRAINS",
     "WRENCH_STAMPED_SCHEMA",
+    "RunConditions",
     "Walk",
     "encode_stamped_floats",
     "generate_demo_logs",

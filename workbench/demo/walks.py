@@ -4,7 +4,8 @@ Each walk is a trot whose terrain changes in patches of varied length. Terrains 
 learn but no single threshold separates: how sharply a foot's force rises at touchdown, the stance force profile
 (soft ground loads slowly), slip (tangential force noise and bursts), the vibration spectrum the body picks up, and
 body sway. Every patch draws its parameters around its terrain's values, and speed and gait frequency vary, so the
-classes overlap. Ground truth goes to ``<log>.truth.json`` beside each log, for evaluation only.
+classes overlap. Every walk is a run of its own (:mod:`.run_conditions`): its speed, gait, sensor gains and IMU
+mounting differ from the other walks'. Ground truth goes to ``<log>.truth.json`` beside each log, for evaluation only.
 
 The signals are the IMU at 100 Hz and the four feet's wrenches at 50 Hz.
 """
@@ -14,6 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from .run_conditions import RunConditions
 
 TERRAINS = ("concrete", "grass", "gravel", "mulch", "dirt", "sand")
 FEET = ("fl", "fr", "rl", "rr")
@@ -101,8 +104,17 @@ def _patches(rng: np.random.Generator, duration_s: float, order: list[str]) -> l
     return out
 
 
-def generate_walk(seed: int, duration_s: float, *, t0: float = 1.7e9) -> Walk:
-    """Simulate one walk of ``duration_s`` seconds (deterministic for a seed)."""
+def generate_walk(seed: int, duration_s: float, *, t0: float = 1.7e9, conditions: RunConditions | None = None) -> Walk:
+    """Simulate one walk of ``duration_s`` seconds (deterministic for a seed).
+
+    Args:
+        seed: The walk: its terrain patches and, unless ``conditions`` is given, its run conditions.
+        duration_s: Length of the walk.
+        t0: Absolute time of its first sample.
+        conditions: Speed, gait, sensor gains and IMU mounting (default: drawn for the seed, so every walk is a
+            run of its own; ``RunConditions()`` is the nominal robot).
+    """
+    run = RunConditions.draw(seed) if conditions is None else conditions
     rng = np.random.default_rng(seed)
     fs = IMU_HZ
     n = int(duration_s * fs)
@@ -123,8 +135,8 @@ def generate_walk(seed: int, duration_s: float, *, t0: float = 1.7e9) -> Walk:
     blend = int(0.4 * fs)  # terrain transitions take a stride or so
     par = {k: _smooth(v, blend) for k, v in par.items()}
 
-    speed = np.clip(0.7 + 0.3 * _slow_noise(rng, n, fs, 0.02), 0.25, 1.3)  # m/s
-    freq = 1.3 + 0.9 * speed + 0.08 * _slow_noise(rng, n, fs, 0.05)  # gait cycles / s
+    speed = run.speed * np.clip(0.7 + 0.3 * _slow_noise(rng, n, fs, 0.02), 0.25, 1.3)  # m/s
+    freq = run.gait * (1.3 + 0.9 * speed + 0.08 * _slow_noise(rng, n, fs, 0.05))  # gait cycles / s
     phase = np.cumsum(freq) / fs
     duty = np.clip(0.62 - 0.12 * speed + 0.12 * par["sink"], 0.4, 0.8)
     stance_s = duty / freq
@@ -193,4 +205,5 @@ def generate_walk(seed: int, duration_s: float, *, t0: float = 1.7e9) -> Walk:
         ],
         axis=1,
     )
-    return Walk(t0, t, forces, gyro, accel, quat, tuple(truth), np.cumsum(speed) / fs)
+    accel, gyro, quat = run.measure_imu(accel, gyro, quat)
+    return Walk(t0, t, run.measure_forces(forces), gyro, accel, quat, tuple(truth), np.cumsum(speed) / fs)

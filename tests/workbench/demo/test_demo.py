@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.demo import FOOT_HZ, IMU_HZ, TERRAINS, generate_demo_logs, generate_walk
+from workbench.demo import FOOT_HZ, IMU_HZ, TERRAINS, RunConditions, generate_demo_logs, generate_walk
 from workbench.demo.ground_camera import CAMERA_FPS, HEIGHT, ground_frames, terrain_tile
 
 
@@ -16,6 +16,21 @@ def test_same_seed_same_walk_other_seed_other_walk() -> None:
     np.testing.assert_array_equal(a.forces, b.forces)
     assert a.truth == b.truth
     assert not np.allclose(a.forces, c.forces)
+
+
+def test_each_walk_is_a_run_of_its_own_on_the_same_terrain_patches() -> None:
+    nominal, run = generate_walk(3, 60.0, conditions=RunConditions()), generate_walk(3, 60.0)
+    assert run.truth == nominal.truth  # the run's conditions come from a stream of their own
+    conditions = RunConditions.draw(3)
+    assert conditions != RunConditions.draw(4) and conditions.speed != 1.0
+    np.testing.assert_allclose(run.distance[-1] / nominal.distance[-1], conditions.speed, rtol=1e-9)
+    gravity = run.accel.mean(0) / np.linalg.norm(run.accel.mean(0))  # the mounting tilts gravity off the IMU's z
+    tilt = np.degrees(np.arccos(gravity[2]))
+    expected = np.degrees(np.hypot(*conditions.mount_rad))
+    assert abs(tilt - expected) < 1.0, (tilt, expected)
+    np.testing.assert_allclose(np.linalg.norm(run.quat, axis=1), 1.0, atol=1e-9)
+    ratio = run.forces[:, :, 2].sum(0) / nominal.forces[:, :, 2].sum(0)  # per foot: its sensor's gain
+    np.testing.assert_allclose(ratio, conditions.force_gain, rtol=1e-3)
 
 
 def test_every_walk_visits_all_six_terrains_in_patches_of_varied_length() -> None:
@@ -27,7 +42,7 @@ def test_every_walk_visits_all_six_terrains_in_patches_of_varied_length() -> Non
 
 
 def test_physics_is_plausible() -> None:
-    walk = generate_walk(1, 120.0)
+    walk = generate_walk(1, 120.0, conditions=RunConditions())  # the nominal robot: no gain, no mounting angle
     assert abs(walk.accel[:, 2].mean() - 9.81) < 0.2  # on average the feet carry the body
     np.testing.assert_allclose(np.linalg.norm(walk.quat, axis=1), 1.0, atol=1e-9)
     stance = walk.forces[:, :, 2] > 20.0
