@@ -20,10 +20,13 @@ from .simulate import (
 from .stretches import PredictedStretch, predicted_stretches, uncovered
 from .suggest import STRATEGIES, Strategy, Suggestion, candidates, class_weights, coverage, suggest
 from .tracks import (
+    DRIFT_TRACK_AT_1,
     KINDS,
     Interval,
     Kind,
     LogScores,
+    drift_track,
+    drifted_share,
     entropy,
     highlight_intervals,
     intervals,
@@ -35,6 +38,7 @@ from .tracks import (
 )
 
 __all__ = [
+    "DRIFT_TRACK_AT_1",
     "KINDS",
     "STRATEGIES",
     "CurvePoint",
@@ -54,6 +58,8 @@ __all__ = [
     "change_points",
     "class_weights",
     "coverage",
+    "drift_track",
+    "drifted_share",
     "entropy",
     "highlight_intervals",
     "intervals",

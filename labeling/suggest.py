@@ -3,8 +3,9 @@
 Candidates are the log cut at its change points (long stretches cut into pieces of at most ``max_len``) and the
 highlighted intervals of the strategy's tracks, minus labelled time. Each candidate gets the mean of the strategy's
 normalised track over it; the combined default mixes uncertainty, disagreement and surprise and favours classes with
-few labels. Selection is greedy and never overlaps labelled time or an earlier suggestion; the combined strategy
-also spreads picks over logs and over guessed classes.
+few labels, and offers time unlike anything labelled (a drift score above 1) before the rest. Selection is greedy
+and never overlaps labelled time or an earlier suggestion; the combined strategy also spreads picks over logs and
+over guessed classes.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Literal
 import numpy as np
 
 from .changepoints import spans
-from .tracks import Kind, LogScores, intervals, normalised_tracks
+from .tracks import DRIFT_TRACK_AT_1, Kind, LogScores, intervals, normalised_tracks
 
 Strategy = Literal["random", "entropy", "margin", "disagreement", "surprise", "combined"]
 STRATEGIES: tuple[Strategy, ...] = ("random", "entropy", "margin", "disagreement", "surprise", "combined")
@@ -26,6 +27,8 @@ Span = tuple[int, int, int]  # (log, start, stop) in samples
 WEIGHTS: dict[str, float] = {"unsure": 0.45, "disagreement": 0.3, "surprise": 0.25}
 LOG_DECAY, CLASS_DECAY, NEIGHBOUR_DECAY = 0.7, 0.8, 0.5
 NOVELTY_FLOOR, CLUSTER_DECAY, PREFILTER = 0.25, 0.05, 10
+DRIFT_PRIORITY = 1.0  # added to a drifted candidate's score (others lie in [0, 1]): drifted time is offered first
+DRIFT_CAP = 4.0  # a drifted candidate's own score is weighted by its drift, up to this
 
 
 @dataclass(frozen=True)
@@ -72,7 +75,7 @@ def _kinds_for(strategy: Strategy) -> tuple[Kind, ...]:
     if strategy in ("random", "surprise"):
         return ("surprise",)
     if strategy == "combined":
-        return ("surprise", "entropy", "margin", "disagreement")
+        return ("surprise", "entropy", "margin", "disagreement", "drift")
     return (strategy, "surprise")  # surprise is the fallback before a classifier exists
 
 
@@ -176,6 +179,14 @@ def suggest(
         base = weight * typical
         if mean_probs is None:
             why = ["typical"] * len(cands)
+    drift = _mean_drift(cands, scores) if strategy == "combined" and "drift" in parts else None
+    if drift is not None:
+        # the model's uncertainty means little where its inputs are unlike the labels: a person's label there is
+        # worth most (the smoothed track, so a lone drifted frame does not count)
+        drifted = parts["drift"] >= DRIFT_TRACK_AT_1
+        # among drifted candidates the farther first: a new robot's log before the odd stretch of a known one
+        base = np.where(drifted, DRIFT_PRIORITY + base * np.minimum(drift, DRIFT_CAP), base)
+        why = ["drift" if d else w for d, w in zip(drifted, why, strict=True)]
 
     chosen: list[int] = []
     alive = np.ones(len(cands), bool)
@@ -199,6 +210,8 @@ def suggest(
     for rank, i in enumerate(chosen):
         g = None if guess is None else int(guess[i])
         reason = _reason(why[i], mean_probs[i] if mean_probs is not None else None, classes, rare[i])
+        if why[i] == "drift" and drift is not None:
+            reason = f"unlike anything labelled (drift {drift[i]:.1f})" + reason[len("unlike anything labelled") :]
         out.append(Suggestion(int(logs[i]), int(starts[i]), int(stops[i]), float(base[i] * factor[i]), reason, g, rank))
     return out
 
@@ -277,6 +290,14 @@ def _components(
     return parts, probs
 
 
+def _mean_drift(cands: Sequence[Span], scores: Sequence[LogScores]) -> np.ndarray | None:
+    """``(N,)`` mean drift score over each candidate, or ``None`` when a log has none."""
+    if any(s.drift is None for s in scores):
+        return None
+    cums = [np.concatenate([[0.0], np.cumsum(np.asarray(s.drift, np.float64))]) for s in scores]
+    return np.array([(cums[g][b] - cums[g][a]) / (b - a) for g, a, b in cands])
+
+
 def _base_scores(strategy: Strategy, parts: dict[str, np.ndarray], n: int, seed: int) -> tuple[np.ndarray, list[str]]:
     """``(N,)`` score of each candidate and the name of the component that drives it."""
     if strategy == "random":
@@ -311,6 +332,7 @@ def _reason(driver: str, probs: np.ndarray | None, classes: Sequence[str], rarit
         "margin": "classifier unsure",
         "unsure": "classifier unsure",
         "typical": "typical of many unlabelled stretches",
+        "drift": "unlike anything labelled",
     }[driver]
     if probs is not None and driver in ("entropy", "margin", "unsure") and second:
         text = f"classifier unsure between {first} and {second}"

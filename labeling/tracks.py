@@ -12,8 +12,9 @@ from typing import Literal
 
 import numpy as np
 
-Kind = Literal["surprise", "entropy", "margin", "disagreement"]
-KINDS: tuple[Kind, ...] = ("surprise", "entropy", "margin", "disagreement")
+Kind = Literal["surprise", "entropy", "margin", "disagreement", "drift"]
+KINDS: tuple[Kind, ...] = ("surprise", "entropy", "margin", "disagreement", "drift")
+DRIFT_TRACK_AT_1 = 0.9  # the drift track's value where the drift score is 1 (the line past which a step is drifted)
 _EPS = 1e-12
 
 
@@ -25,11 +26,14 @@ class LogScores:
         surprise: ``(T,)`` stage-1 prediction error (any non-negative scale).
         probs: ``(T, K)`` ensemble-mean class probabilities, or ``None`` before a classifier exists.
         disagreement: ``(T,)`` ensemble mutual information (BALD), or ``None``.
+        drift: ``(T,)`` how unlike the labelled data each step is (1: as far as the farthest 5 % of held-out
+            labelled time), or ``None`` when the model gives none.
     """
 
     surprise: np.ndarray
     probs: np.ndarray | None = None
     disagreement: np.ndarray | None = None
+    drift: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.surprise)
@@ -50,6 +54,8 @@ class LogScores:
             return np.asarray(self.surprise, np.float64)
         if kind == "disagreement":
             return None if self.disagreement is None else np.asarray(self.disagreement, np.float64)
+        if kind == "drift":
+            return None if self.drift is None else np.asarray(self.drift, np.float64)
         if self.probs is None:
             return None
         return self.entropy if kind == "entropy" else margin_uncertainty(self.probs)
@@ -140,10 +146,28 @@ def session_normaliser(tracks: Sequence[np.ndarray], *, max_reference: int = 200
     return normalise
 
 
+def drift_track(drift: np.ndarray) -> np.ndarray:
+    """A drift score (``≥ 0``, 1 at the drifted line) as a track in ``[0, 1)``: ``1 − 10^−d``, so 1 lands at
+    ``DRIFT_TRACK_AT_1`` (the default highlight threshold) and 2 at 0.99.
+
+    Drift keeps its own scale instead of the session's ranks: "unlike anything labelled" is a fact about the labels,
+    and a session with nothing drifted highlights nothing.
+    """
+    return (1.0 - np.power(10.0, -np.maximum(np.asarray(drift, np.float64), 0.0))).astype(np.float32)
+
+
+def drifted_share(drift: np.ndarray | None) -> float | None:
+    """The share of steps whose drift score is above 1 (``None`` without a score)."""
+    if drift is None or len(drift) == 0:
+        return None
+    return float(np.mean(np.asarray(drift) > 1.0))
+
+
 def normalised_tracks(
     scores: Sequence[LogScores], *, window: int = 25, kinds: Sequence[Kind] = KINDS
 ) -> list[dict[Kind, np.ndarray]]:
-    """Each available kind of each log, smoothed over ``window`` samples and ranked across the session.
+    """Each available kind of each log, smoothed over ``window`` samples and ranked across the session (drift:
+    on its own scale, :func:`drift_track`).
 
     Returns:
         Per log, ``kind -> (T,)`` in ``[0, 1]``; kinds the model cannot give yet are left out.
@@ -154,7 +178,7 @@ def normalised_tracks(
         present = [t for t in smoothed if t is not None]
         if not present:
             continue
-        norm = session_normaliser(present)
+        norm = drift_track if kind == "drift" else session_normaliser(present)
         del present  # each smoothed track is dropped once normalised
         for i, t in enumerate(smoothed):
             if t is not None:

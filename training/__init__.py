@@ -71,6 +71,8 @@ __all__, __getattr__, __dir__ = lazy_exports(
         ),
         # the default family's room
         "spectral_cnn": (
+            "DRIFTED",
+            "DriftReference",
             "SpectralConfig",
             "SpectralSteps",
             "SpectralStream",
@@ -80,7 +82,12 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "WindowFitConfig",
             "assign_folds",
             "block_and_guard",
+            "drift_of_log",
+            "drift_of_rows",
             "fine_tune_window_classifier",
+            "fit_drift",
+            "fit_temperature",
+            "scale_head",
             "fit_window_classifier",
             "frame_ends",
             "frame_features",

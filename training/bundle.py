@@ -17,13 +17,14 @@ from torch import nn
 from .normalizer import Normalizer
 from .paper_lstm import FeatureMode, Predictor, PredictorConfig
 from .registry import Family, family_of_kind
-from .spectral_cnn import SpectralConfig
+from .spectral_cnn import DriftReference, SpectralConfig
 from .training_errors import BundleError
 
 BUNDLE_SCHEMA = 1
 CONFIG_FILE = "model.json"
 PREDICTOR_FILE = "predictor.safetensors"
 CLASSIFIER_FILE = "classifier.safetensors"
+DRIFT_FILE = "drift.safetensors"
 
 
 @dataclass
@@ -41,6 +42,8 @@ class ModelBundle:
         metrics: Out-of-fold metrics of the classifier.
         info: Free-form description: training data summary, versions, dates.
         spectral: The default family's front end (``feature_mode == "spectral"``); ``None`` for the paper family.
+        drift: What the drift score compares a step with (the default family's, from the labelled frames); ``None``
+            for the paper family and bundles trained before it existed.
     """
 
     predictor: Predictor
@@ -53,6 +56,7 @@ class ModelBundle:
     metrics: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
     spectral: SpectralConfig | None = None
+    drift: DriftReference | None = None
 
     @property
     def family(self) -> str:
@@ -81,6 +85,7 @@ class ModelBundle:
             "metrics": self.metrics,
             "info": self.info,
             "spectral": None if self.spectral is None else self.spectral.to_dict(),
+            "drift": None if self.drift is None else self.drift.settings(),
         }
 
 
@@ -114,6 +119,8 @@ def save_bundle(bundle: ModelBundle, directory: str | Path) -> Path:
                 for k, v in m.state_dict().items()
             }
             save_file(weights, tmp / CLASSIFIER_FILE)
+        if bundle.drift is not None:
+            save_file({k: torch.from_numpy(v) for k, v in bundle.drift.arrays().items()}, tmp / DRIFT_FILE)
         (tmp / CONFIG_FILE).write_text(json.dumps(bundle.config(), indent=1))
         for f in tmp.iterdir():
             with open(f, "rb") as fh:
@@ -157,6 +164,7 @@ def load_bundle(directory: str | Path) -> ModelBundle:
                         state.setdefault(key, value)
                 model.load_state_dict(state)
                 classifiers.append(model.eval())
+        drift = _drift(directory, cfg)
     except (OSError, KeyError, TypeError, RuntimeError, ValueError, SafetensorError) as exc:
         raise BundleError(f"{directory}: damaged model bundle ({type(exc).__name__}: {exc})") from None
     return ModelBundle(
@@ -170,7 +178,22 @@ def load_bundle(directory: str | Path) -> ModelBundle:
         metrics=cfg.get("metrics", {}),
         info=cfg.get("info", {}),
         spectral=spectral,
+        drift=drift,
     )
+
+
+def _drift(directory: Path, cfg: dict) -> DriftReference | None:
+    """The drift reference, when the bundle has one whose embeddings are as wide as its classifier's."""
+    if not cfg.get("drift") or not cfg.get("classifier"):
+        return None
+    arrays = {k: v.numpy() for k, v in load_file(directory / DRIFT_FILE).items()}
+    drift = DriftReference.from_arrays(arrays, cfg["drift"])
+    width = 2 * int(cfg["classifier"].get("hidden", 0))
+    frame = int(cfg["classifier"]["n_features"]) // int(cfg["classifier"].get("window", 1))
+    fits = all(r.shape[1] == width for r in drift.references) and all(x.shape[1] == frame for x in drift.inputs)
+    if int(cfg["drift"]["members"]) != int(cfg["n_folds"]) or not fits:
+        raise ValueError("the drift reference does not match the classifier")
+    return drift
 
 
 def _spectral(directory: Path, cfg: dict) -> SpectralConfig | None:

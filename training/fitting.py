@@ -26,6 +26,7 @@ class ClassifierFit:
     history: list[list[dict[str, float]]] = field(default_factory=list)
     folds: list[list[int]] = field(default_factory=list)  # validation indices of each fold: pieces, else segments
     pieces: list[tuple[int, int, int]] = field(default_factory=list)  # (segment index, start, stop) per piece
+    drift: object | None = None  # the family's drift reference (the default family's ``DriftReference``), if any
 
 
 def fold_indices(labels: Sequence[int], k: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import shutil
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+import labeling
 from sessions import (
     IngestError,
     IngestOptions,
@@ -35,14 +36,21 @@ ONNX_TOLERANCE = 1e-4
 CHECK_SAMPLES = 1500  # per log, for the ONNX check: a per-sample loop in onnxruntime
 
 
-def prediction_frame(log: str, probs: np.ndarray, classes: Sequence[str], rate_hz: float) -> pd.DataFrame:
-    """Per-timestep predictions of one log: sample, time, most probable terrain, and ``p_<terrain>`` columns.
+MOSTLY_DRIFTED = 0.5  # a file with more drifted time than this gets a warning line from classify
+
+
+def prediction_frame(
+    log: str, probs: np.ndarray, classes: Sequence[str], rate_hz: float, drift: np.ndarray | None = None
+) -> pd.DataFrame:
+    """Per-timestep predictions of one log: sample, time, most probable terrain, ``p_<terrain>`` columns and, when
+    the model gives one, ``drift`` (how unlike the labelled data the step is; above 1: drifted).
 
     Args:
         log: The log's name.
         probs: ``(T, K)`` class probabilities.
         classes: The ``K`` terrain names.
         rate_hz: The log's sample rate.
+        drift: ``(T,)`` drift scores, or ``None``.
     """
     t = np.arange(len(probs))
     frame = pd.DataFrame(
@@ -50,7 +58,20 @@ def prediction_frame(log: str, probs: np.ndarray, classes: Sequence[str], rate_h
     )
     for k, c in enumerate(classes):
         frame[f"p_{c}"] = probs[:, k]
+    if drift is not None:
+        frame["drift"] = np.asarray(drift, np.float32)
     return frame
+
+
+def drift_warning(name: str, drift: np.ndarray | None) -> str | None:
+    """One line when most of a log is unlike the labelled data, else ``None``."""
+    share = labeling.drifted_share(drift)
+    if share is None or share <= MOSTLY_DRIFTED:
+        return None
+    return (
+        f"warning: {name}: {share:.0%} of its time is unlike anything labelled (drift > 1): its predictions are "
+        "less reliable there; label some of it and retrain"
+    )
 
 
 def _estimate_section(m: dict) -> list[str]:
@@ -99,8 +120,46 @@ def _held_out_section(m: dict) -> list[str]:
     ]
 
 
-def model_card(bundle: ModelBundle, *, version: int, session: str) -> str:
-    """A Markdown description of a bundle: what it is, what it was trained on, how well it does."""
+def _drift_section(bundle: ModelBundle, drifted: Mapping[str, float] | None) -> list[str]:
+    """The drift score and the temperature: what they mean and how much of the session lies past the line."""
+    if bundle.drift is None:
+        return []
+    q = bundle.drift.quantile
+    lines = [
+        "## Where the model does not know",
+        "",
+        "Each step gets a drift score: how far its input lies, in the classifier's embedding, from the labelled "
+        f"frames (the mean distance to the {bundle.drift.neighbours} nearest), in units of the distance that only "
+        f"{1 - q:.0%} of held-out labelled time exceeds. Above 1 the step is unlike anything labelled: the figures "
+        "above were measured on labelled time, so they do not hold there. `workbench classify` writes the score in "
+        "a `drift` column and warns for a file mostly above 1; the UI draws it as the drift row and suggests such "
+        "time first.",
+        "",
+    ]
+    if drifted:
+        total = float(np.mean(list(drifted.values())))
+        worst = sorted(drifted.items(), key=lambda kv: -kv[1])[:10]
+        lines += [
+            f"In this session, {total:.0%} of the logs' time (mean over {len(drifted)} logs) scores above 1.",
+            "",
+            "| log | time above 1 |",
+            "| --- | --- |",
+            *[f"| {name} | {share:.0%} |" for name, share in worst],
+            "",
+        ]
+    cal = bundle.metrics.get("calibration") or {}
+    if cal.get("on"):
+        lines += [
+            f"The ensemble's probabilities are calibrated: every member's logits are divided by "
+            f"{cal['temperature']:.2f}, fitted on {cal['n']:,} predictions of {cal['on']} (temperature scaling).",
+            "",
+        ]
+    return lines
+
+
+def model_card(bundle: ModelBundle, *, version: int, session: str, drifted: Mapping[str, float] | None = None) -> str:
+    """A Markdown description of a bundle: what it is, what it was trained on, how well it does, and where it does
+    not know (``drifted``: per log name, the share of its time with a drift score above 1)."""
     m, family = bundle.metrics, bundle.stage2_family()
     lines = [
         f"# Terrain classifier v{version}",
@@ -120,6 +179,7 @@ def model_card(bundle: ModelBundle, *, version: int, session: str) -> str:
         f"({m.get('labelled_fraction', 0):.1%} of the time)",
         "",
         *_estimate_section(m),
+        *_drift_section(bundle, drifted),
         "## Out-of-fold metrics (same logs)",
         "",
         "Each labelled step predicted, in a pass over its whole log, by the fold model that did not train on it "
@@ -192,7 +252,14 @@ def _write_export(
 
     written: list[tuple[Path, str]] = []
     shutil.copytree(session.path / version.path, out / "bundle")
-    (out / "bundle" / "MODEL_CARD.md").write_text(model_card(bundle, version=version.id, session=session.path.name))
+    scored = score_session(session) if predictions or bundle.drift is not None else {}
+    drifted = {
+        session.log(log_id).name: share
+        for log_id, s in scored.items()
+        if (share := labeling.drifted_share(s.drift)) is not None
+    }
+    card = model_card(bundle, version=version.id, session=session.path.name, drifted=drifted)
+    (out / "bundle" / "MODEL_CARD.md").write_text(card)
     written.append((out / "bundle", f"model bundle v{version.id} (safetensors + model.json + MODEL_CARD.md)"))
     onnx = export_onnx(bundle, out / "classifier_stream.onnx")
     logs = model_logs(session, bundle.channels)[:2]
@@ -204,8 +271,8 @@ def _write_export(
         written.append((session.export_labels(out / f"labels{suffix}"), "label segments"))
     if predictions:
         frames = [
-            prediction_frame(session.log(log_id).name, scores.probs, bundle.classes, bundle.rate_hz)
-            for log_id, scores in score_session(session).items()
+            prediction_frame(session.log(log_id).name, scores.probs, bundle.classes, bundle.rate_hz, scores.drift)
+            for log_id, scores in scored.items()
         ]
         written.append((write_frame(pd.concat(frames), out / "predictions.parquet"), "per-timestep predictions"))
     return written
@@ -263,11 +330,12 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
             features = in_memory_features(arrays, bundle, bundle.spectral)
         else:
             features = [o.lazy(bundle.feature_mode) for o in outs]
-        scored = score_logs(bundle.classifiers, features, [o.surprise() for o in outs])
+        scored = score_logs(bundle.classifiers, features, [o.surprise() for o in outs], drift=bundle.drift)
         frames = [
-            prediction_frame(name, s.probs, bundle.classes, bundle.rate_hz)
+            prediction_frame(name, s.probs, bundle.classes, bundle.rate_hz, s.drift)
             for name, s in zip(names, scored, strict=True)
         ]
         write_frame(pd.concat(frames), out)
+        lines += [w for name, s in zip(names, scored, strict=True) if (w := drift_warning(name, s.drift))]
         lines.append(f"wrote predictions for {len(arrays)} log(s) to {out}")
     return (2 if any(x.startswith("error:") for x in lines) else 0), lines

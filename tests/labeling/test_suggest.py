@@ -147,3 +147,20 @@ def test_combined_with_embeddings_covers_distinct_regimes_first() -> None:
         change_points=[np.array([1000, 2000])],
     )
     assert again[0].start >= 1000
+
+
+def test_combined_offers_the_drifted_log_first_and_says_why() -> None:
+    # three logs the model is equally unsure about; the middle one is unlike anything labelled
+    scores = make_scores([2000, 2000, 2000], 3, 7)
+    drift = [np.full(2000, 0.4), np.full(2000, 1.8), np.full(2000, 0.5)]
+    scores = [LogScores(s.surprise, s.probs, s.disagreement, d) for s, d in zip(scores, drift, strict=True)]
+    got = suggest(scores, strategy="combined", n=4, max_len=200, min_len=50, classes=["a", "b", "c"])
+    assert got[0].log == 1
+    assert got[0].reason.startswith("unlike anything labelled (drift 1.8)")
+    assert all(s.reason.startswith("unlike anything labelled") == (s.log == 1) for s in got)
+    # the other strategies do not read drift; nor does combined when nothing is drifted
+    calm = [LogScores(s.surprise, s.probs, s.disagreement, np.full(2000, 0.3)) for s in scores]
+    assert not any("unlike" in s.reason for s in suggest(calm, strategy="combined", n=4, max_len=200, min_len=50))
+    assert [s.log for s in suggest(scores, strategy="entropy", n=3, max_len=200, min_len=50)] == [
+        s.log for s in suggest(make_scores([2000, 2000, 2000], 3, 7), strategy="entropy", n=3, max_len=200, min_len=50)
+    ]

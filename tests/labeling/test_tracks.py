@@ -4,7 +4,10 @@ import numpy as np
 import pytest
 
 from labeling import (
+    DRIFT_TRACK_AT_1,
     LogScores,
+    drift_track,
+    drifted_share,
     entropy,
     highlight_intervals,
     intervals,
@@ -71,6 +74,21 @@ def test_normalised_tracks_leave_out_what_the_model_cannot_give() -> None:
     (t,) = normalised_tracks(warm, window=5)
     assert set(t) == {"surprise", "entropy", "margin", "disagreement"}
     assert all(len(v) == 50 for v in t.values())
+
+
+def test_the_drift_track_keeps_its_own_scale_so_nothing_drifted_highlights_nothing() -> None:
+    np.testing.assert_allclose(drift_track(np.array([0.0, 1.0, 2.0])), [0.0, DRIFT_TRACK_AT_1, 0.99], atol=1e-6)
+    calm = [LogScores(np.ones(300), drift=np.full(300, 0.6)), LogScores(np.ones(200), drift=np.full(200, 0.2))]
+    tracks = normalised_tracks(calm, window=5)
+    assert all(t["drift"].max() < DRIFT_TRACK_AT_1 for t in tracks)  # ranks would have lit the top 10 %
+    assert not [iv for iv in highlight_intervals(tracks, DRIFT_TRACK_AT_1) if iv.kind == "drift"]
+    shifted = np.full(300, 0.2)
+    shifted[100:180] = 2.5
+    (t,) = normalised_tracks([LogScores(np.ones(300), drift=shifted)], window=5)
+    drifted = [iv for iv in highlight_intervals([t], DRIFT_TRACK_AT_1) if iv.kind == "drift"]
+    (iv,) = drifted  # the stretch, give or take the smoothing's half window
+    assert abs(iv.start - 100) <= 2 and abs(iv.stop - 180) <= 2
+    assert drifted_share(shifted) == pytest.approx(80 / 300) and drifted_share(None) is None
 
 
 def test_highlight_intervals_find_the_surprising_stretch() -> None:

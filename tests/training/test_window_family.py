@@ -64,7 +64,12 @@ def fitted(logs):
     fit = fit_window_classifier(
         feats, segments, ("a", "b", "c"), config=WindowFitConfig(k_folds=3), stretches=stretches
     )
-    bundle = ModelBundle(
+    return window_bundle(fit, normalizer, config), feats, fit
+
+
+def window_bundle(fit, normalizer: Normalizer, config: SpectralConfig) -> ModelBundle:
+    """A bundle of a fit on :func:`_walk` logs (its drift reference included) with a tiny stage 1."""
+    return ModelBundle(
         Predictor(PredictorConfig(3, 8)),
         normalizer,
         ("fast", "noise", "held"),
@@ -74,8 +79,8 @@ def fitted(logs):
         feature_mode="spectral",
         metrics=fit.metrics,
         spectral=config,
+        drift=fit.drift,
     )
-    return bundle, feats, fit
 
 
 def test_front_end_reads_a_log_in_chunks_and_expands_to_steps_on_demand(logs) -> None:

@@ -9,8 +9,9 @@ stretches whose frames agree (:mod:`.fit_window`); the UI's quick Retrain fine-t
 Its stage 1 (the surprise highlight, the suggestions' embeddings) is still the paper family's LSTM predictor.
 
 Modules: ``spectra`` (the front end), ``window_config`` (fit settings), ``window_classifier`` (the network),
-``fit_window`` / ``window_finetune`` (the fits), ``window_step`` (one sample at a time), ``cnn_family`` (what the
-registry reads).
+``fit_window`` / ``window_finetune`` (the fits), ``window_calibration`` (the ensemble's temperature),
+``window_drift`` (how unlike the labelled frames a step is), ``window_step`` (one sample at a time), ``cnn_family``
+(what the registry reads).
 """
 
 from ..lazy_names import lazy_exports
@@ -43,6 +44,8 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "train_rows",
         ),
         "window_finetune": ("assign_folds", "fine_tune_window_classifier"),
+        "window_calibration": ("fit_temperature", "scale_head"),
+        "window_drift": ("DRIFTED", "DriftReference", "drift_of_log", "drift_of_rows", "fit_drift"),
         "window_step": ("WindowStep", "WindowStepModel"),
         "cnn_family": ("FAMILY",),
     },

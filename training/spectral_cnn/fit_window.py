@@ -30,8 +30,10 @@ from ..fitting import ClassifierFit, Segment
 from ..metrics import classification_metrics
 from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
 from .spectra import SpectralConfig, SpectralSteps
+from .window_calibration import fit_temperature, scale_head
 from .window_classifier import WindowClassifier, WindowClassifierConfig
 from .window_config import WindowFitConfig
+from .window_drift import fit_drift
 
 BLOCK_GUARDS = 4  # a block is four guards long: a fold's guard never takes more than half of a block next to it
 PSEUDO_STRIDE = 3  # rows of a stretch self-training reads: every third frame
@@ -116,12 +118,17 @@ def predict_steps(model: WindowClassifier, features: SpectralSteps, start: int, 
 
 
 @torch.inference_mode()
+def row_logits(model: WindowClassifier, x: np.ndarray) -> np.ndarray:
+    """Logits ``(N, K)`` of rows ``(N, W·F)``."""
+    if len(x) == 0:
+        return np.zeros((0, model.config.n_classes), np.float32)
+    chunks = np.array_split(x, -(-len(x) // PREDICT_CHUNK))
+    return torch.cat([model.logits(torch.from_numpy(c)) for c in chunks]).numpy()
+
+
 def _predict_rows(model: WindowClassifier, x: np.ndarray) -> np.ndarray:
     """Classes of rows ``(N, W·F)``."""
-    if len(x) == 0:
-        return np.zeros(0, np.int64)
-    chunks = np.array_split(x, -(-len(x) // PREDICT_CHUNK))
-    return torch.cat([model.logits(torch.from_numpy(c)).argmax(1) for c in chunks]).numpy()
+    return row_logits(model, x).argmax(1)
 
 
 def _pseudo_labels(
@@ -139,24 +146,57 @@ def _pseudo_labels(
     return xs, ys
 
 
-def _log_folds(segments: Sequence[Segment], k: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Folds over segments that hold out whole logs (at most ``k``), terrains spread over them as evenly as whole
-    logs allow; none when fewer than two logs are labelled or a fold's training part would hold one terrain only."""
-    logs = np.asarray([s[0] for s in segments])
+LOG_FOLD_DRAWS = 20  # shuffles of the folds over logs tried; the one that measures the most labelled time is kept
+
+
+def _log_folds(segments: Sequence[Segment], k: int, groups: Sequence[int]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Folds over segments that hold out whole recordings (``groups[log]``, at most ``k`` folds), terrains spread
+    over them as evenly as whole recordings allow; none when fewer than two are labelled or a fold's training part
+    would hold one terrain only.
+
+    scikit-learn's stratified group folds can hold out every recording of a terrain at once (six logs, two per
+    terrain, three folds: each fold held out one terrain's pair, and nothing was measured), so ``LOG_FOLD_DRAWS`` of
+    its shuffles and as many dealings of each terrain's recordings to the folds in turn are tried, and the one whose
+    held-out segments' terrains stay most in training, by labelled time, is kept.
+    """
+    logs = np.asarray([groups[s[0]] for s in segments])
     n_logs = len(np.unique(logs))
     if n_logs < 2:
         return []
     labels = np.asarray([s[3] for s in segments])
+    length = np.asarray([s[2] - s[1] for s in segments])
+
+    def measured(folds: list[tuple[np.ndarray, np.ndarray]]) -> int:
+        return sum(int(length[va][np.isin(labels[va], labels[tr])].sum()) for tr, va in folds)
+
+    def dealt(seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Recordings ordered by their main terrain (shuffled within it) and dealt to the folds in turn: a
+        terrain's recordings land in different folds."""
+        rng = np.random.default_rng(seed)
+        ids = np.unique(logs)
+        main = [np.bincount(labels[logs == g], weights=length[logs == g]).argmax() for g in ids]
+        order = ids[np.lexsort((rng.random(len(ids)), main))]
+        fold_of = {int(g): i % min(k, n_logs) for i, g in enumerate(order)}
+        which = np.asarray([fold_of[int(g)] for g in logs])
+        return [(np.flatnonzero(which != f), np.flatnonzero(which == f)) for f in range(min(k, n_logs))]
+
+    candidates = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # "least populated class has only N members"
-        try:
-            splitter = StratifiedGroupKFold(min(k, n_logs), shuffle=True, random_state=0)
-            folds = list(splitter.split(logs, labels, groups=logs))
-        except ValueError:  # every terrain has fewer segments than folds: whole logs, unstratified
-            folds = list(GroupKFold(min(k, n_logs)).split(logs, groups=logs))
-    if any(len({segments[i][3] for i in tr}) < 2 for tr, _ in folds):
-        return []
-    return folds
+        for draw in range(LOG_FOLD_DRAWS):
+            try:
+                splitter = StratifiedGroupKFold(min(k, n_logs), shuffle=True, random_state=draw)
+                candidates.append(list(splitter.split(logs, labels, groups=logs)))
+            except ValueError:  # every terrain has fewer segments than folds: whole logs, unstratified
+                candidates.append(list(GroupKFold(min(k, n_logs)).split(logs, groups=logs)))
+            candidates.append(dealt(draw))
+    best: list[tuple[np.ndarray, np.ndarray]] = []
+    for folds in candidates:
+        if any(len(set(labels[tr].tolist())) < 2 for tr, _ in folds):
+            continue
+        if not best or measured(folds) > measured(best):
+            best = folds
+    return best
 
 
 def fit_window_classifier(
@@ -166,6 +206,7 @@ def fit_window_classifier(
     *,
     config: WindowFitConfig | None = None,
     stretches: Sequence[Stretch] = (),
+    groups: Sequence[int] | None = None,
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
 ) -> ClassifierFit:
@@ -177,6 +218,8 @@ def fit_window_classifier(
         classes: The ``K`` class names.
         config: Fit settings.
         stretches: Unlabelled spans ``(log index, start, stop)`` for self-training (ignored when it is off).
+        groups: The recording (run) each log belongs to, for the held-out figures and the calibration; default:
+            every log is its own (a session's logs are runs; a protocol that cuts runs into pieces passes the runs).
         progress: Called after each fold.
         cancel: Polled between fits.
 
@@ -188,6 +231,9 @@ def fit_window_classifier(
         its steps predicted by a model fitted without any label or stretch of their log, from folds over logs
         (extra fits, not ensemble members). ``metrics["estimate"]`` (:func:`training.estimates.terrain_estimate`)
         says per terrain which of the two exists. ``folds`` index ``pieces``: the segments cut into blocks.
+        The members' logits are divided by one temperature (folded into their heads) fitted on held-out-log
+        predictions where they exist, else on the blocked out-of-fold ones (``metrics["calibration"]``); ``drift``
+        is the ensemble's :class:`.window_drift.DriftReference`.
     """
     if not segments:
         raise ValueError("no labelled segments to train the classifier on")
@@ -202,9 +248,11 @@ def fit_window_classifier(
     # all it holds, and the refits (most of a fit's time) read a third of the rows
     stretch_rows = [frame_rows(features[i], a, b)[::PSEUDO_STRIDE] for i, a, b in stretches] if use_stretches else []
 
-    def fit_on(train: Sequence[Segment], skip_logs: set[int], seed: int) -> tuple[WindowClassifier, int, set[int]]:
+    def fit_on(
+        train: Sequence[Segment], skip_logs: set[int], seed: int
+    ) -> tuple[WindowClassifier, int, set[int], np.ndarray]:
         """A fold's network on ``train``, trained again with the stretches of logs outside ``skip_logs``; with the
-        classes it saw."""
+        classes it saw and the labelled rows it trained on."""
 
         def fresh() -> WindowClassifier:
             torch.manual_seed(seed)
@@ -215,7 +263,7 @@ def fit_window_classifier(
         rows = [frame_rows(features[i], a, b) for i, a, b, _ in train]
         if not any(len(r) for r in rows):
             raise ValueError("the labelled segments are shorter than one frame: nothing to train the classifier on")
-        x = np.concatenate(rows)
+        labelled = x = np.concatenate(rows)
         y = np.concatenate([np.full(len(r), s[3]) for r, s in zip(rows, train, strict=True)])
         model = train_rows(fresh(), x, y, config.epochs, config, seed, cancel)
         seen = {int(c) for c in np.unique(y)}
@@ -224,7 +272,7 @@ def fit_window_classifier(
         if px:
             x, y = np.concatenate([x, *px]), np.concatenate([y, *py])
             model = train_rows(fresh(), x, y, config.refit_epochs, config, seed, cancel)
-        return model, len(px), seen
+        return model, len(px), seen, labelled
 
     def predict(held: Sequence[Segment], model: WindowClassifier) -> tuple[np.ndarray, np.ndarray]:
         """Truth and prediction at every step of ``held``, as the passes score them."""
@@ -232,16 +280,26 @@ def fit_window_classifier(
         pred = [predict_steps(model, features[i], a, b) for i, a, b, _ in held]
         return np.concatenate(true), np.concatenate(pred)
 
+    def held_rows(held: Sequence[Segment], seen: set[int]) -> tuple[np.ndarray, np.ndarray]:
+        """The frame rows of ``held`` and their classes, terrains outside ``seen`` left out."""
+        rows = [(frame_rows(features[i], a, b), c) for i, a, b, c in held if c in seen]
+        rows = [(r, c) for r, c in rows if len(r)]
+        if not rows:
+            return np.zeros((0, features[0].shape[1]), np.float32), np.zeros(0, np.int64)
+        return np.concatenate([r for r, _ in rows]), np.concatenate([np.full(len(r), c) for r, c in rows])
+
     # the ensemble's folds hold out contiguous blocks, a guard wider than a step's input around them: labels given
     # as whole runs (one segment per terrain) still leave every fold every terrain
     block, guard = block_and_guard(front)
     blocked = blocked_folds(segments, config.k_folds, block=block, guard=guard)
     pieces = [p.as_segment for p in blocked.pieces]
-    logs_per_class = {c: len({s[0] for s in segments if s[3] == c}) for c in {s[3] for s in segments}}
+    group_of = list(range(len(features))) if groups is None else [int(g) for g in groups]
+    logs_per_class = {c: len({group_of[s[0]] for s in segments if s[3] == c}) for c in {s[3] for s in segments}}
     shared = any(n >= 2 for n in logs_per_class.values())  # a terrain in two logs: held-out logs can measure it
-    by_log = _log_folds(segments, config.k_folds) if config.held_out and shared else []
+    by_log = _log_folds(segments, config.k_folds, group_of) if config.held_out and shared else []
     total = blocked.k + len(by_log)
     models, histories, oof_true, oof_pred, pseudo = [], [], [], [], []
+    trained_rows, oof_rows, oof_logits, oof_classes = [], [], [], []  # per member: for the drift and calibration
     for f in range(blocked.k):
         if cancel():
             raise Cancelled("classifier training cancelled")
@@ -250,9 +308,14 @@ def fit_window_classifier(
         if not any(b > a and b >= front.frame for _, a, b, _ in train):  # a piece has rows once it reaches a frame
             # tiny labels close together: the guards took every other piece; this one fold trains on them whole
             train = [pieces[j] for j, g in enumerate(blocked.fold_of) if g != f] or pieces
-        model, taken, seen = fit_on(train, set(), config.seed + f + 1)
+        model, taken, seen, labelled = fit_on(train, set(), config.seed + f + 1)
         pseudo.append(taken)
         models.append(model)
+        rows, rows_y = held_rows(held, seen) if blocked.k > 1 else held_rows([], seen)
+        trained_rows.append(labelled)
+        oof_rows.append(rows)
+        oof_logits.append(row_logits(model, rows))
+        oof_classes.append(rows_y)
         true, pred = predict(held, model)
         oof_true.append(true)
         oof_pred.append(pred)
@@ -272,22 +335,29 @@ def fit_window_classifier(
     metrics["labelled_samples"] = int(sum(s[2] - s[1] for s in segments))
     metrics["pseudo_stretches"] = float(np.mean(pseudo))
     held_out = None
+    calibration = (np.concatenate(oof_logits), np.concatenate(oof_classes), "same run")
     if by_log:
-        held_true, held_pred = [], []
+        held_true, held_pred, held_logits, held_classes = [], [], [], []
         for f_i, (train_idx, val_idx) in enumerate(by_log, start=blocked.k + 1):
             if cancel():
                 raise Cancelled("classifier training cancelled")
-            held_logs = {segments[i][0] for i in val_idx}
+            held_groups = {group_of[segments[i][0]] for i in val_idx}
+            held_logs = {j for j, g in enumerate(group_of) if g in held_groups}
             # a held-out log lends no stretch: unseen
-            model, _, seen = fit_on([segments[i] for i in train_idx], held_logs, config.seed + f_i)
+            model, _, seen, _ = fit_on([segments[i] for i in train_idx], held_logs, config.seed + f_i)
             true, pred = predict([segments[i] for i in val_idx], model)
-            measurable = [c for c in seen if logs_per_class[c] >= 2]  # a one-log terrain has no other log to learn
-            keep = np.isin(true, measurable)
+            measurable = {c for c in seen if logs_per_class[c] >= 2}  # a one-log terrain has no other log to learn
+            keep = np.isin(true, list(measurable))
             held_true.append(true[keep])
             held_pred.append(pred[keep])
+            rows, rows_y = held_rows([segments[i] for i in val_idx], measurable)
+            held_logits.append(row_logits(model, rows))
+            held_classes.append(rows_y)
             if progress:
                 progress(Progress("classifier", f_i, total, 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
         held_out = np.concatenate(held_true), np.concatenate(held_pred)
+        if sum(len(c) for c in held_classes):
+            calibration = (np.concatenate(held_logits), np.concatenate(held_classes), "held-out logs")
         if len(held_out[0]):
             m = classification_metrics(*held_out, classes)
             metrics["held_out_logs"] = {
@@ -300,10 +370,16 @@ def fit_window_classifier(
             }
     if blocked.k > 1:
         metrics["estimate"] = terrain_estimate(classes, logs_per_class, (same_true, same_pred), held_out)
+    logits, truth, source = calibration
+    temperature = fit_temperature(logits, truth) if config.calibrate and len(truth) else 1.0
+    for model in models:
+        scale_head(model, temperature)
+    metrics["calibration"] = {"temperature": temperature, "on": source if temperature != 1.0 else None, "n": len(truth)}
     return ClassifierFit(
         models,
         metrics,
         histories,
         [blocked.held_out(f) for f in range(blocked.k)],
         [(p.segment, p.start, p.stop) for p in blocked.pieces],
+        drift=fit_drift(models, trained_rows, oof_rows, seed=config.seed),
     )

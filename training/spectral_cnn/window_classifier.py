@@ -69,6 +69,10 @@ class WindowClassifier(nn.Module):
 
     def logits(self, windows: torch.Tensor) -> torch.Tensor:
         """``windows (N, W·F)`` -> ``logits (N, K)``."""
+        return self.head(self.embedding(windows))  # (N, K)
+
+    def embedding(self, windows: torch.Tensor) -> torch.Tensor:
+        """``windows (N, W·F)`` -> the pooled features the head reads, ``(N, 2H)``: what the drift score compares."""
         cfg = self.config
         x = windows.unflatten(1, (cfg.window, cfg.frame_width))  # (N, W, F)
         x = _dropout((x - self.in_mean) * self.in_scale, cfg.dropout, self.training).transpose(1, 2)  # (N, F, W)
@@ -76,7 +80,7 @@ class WindowClassifier(nn.Module):
         h = F.gelu(self.conv(h), approximate="tanh")  # (N, H, W)
         mean = h.mean(dim=2)  # (N, H)
         std = ((h - mean[:, :, None]).pow(2).mean(dim=2) + SPREAD_EPS).sqrt()  # finite gradient at no spread
-        return self.head(torch.cat([mean, std], dim=1))  # (N, K)
+        return torch.cat([mean, std], dim=1)  # (N, 2H)
 
     def forward(self, features: torch.Tensor, state: None = None) -> tuple[torch.Tensor, None]:
         """``features (B, T, W·F)`` -> ``logits (B, T, K)``; no state is carried.

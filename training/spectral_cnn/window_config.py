@@ -22,6 +22,7 @@ class WindowFitConfig:
         self_training: Refit each fold with pseudo-labelled stretches.
         agree: Share of a stretch's frames that must agree before it is pseudo-labelled.
         held_out: Also measure accuracy on held-out logs (folds over logs: as many fits again).
+        calibrate: Divide the members' logits by a temperature fitted on held-out predictions.
         seed: Seed of the folds, initial weights and batches.
     """
 
@@ -37,4 +38,5 @@ class WindowFitConfig:
     self_training: bool = True
     agree: float = 0.9
     held_out: bool = True
+    calibrate: bool = True
     seed: int = 0

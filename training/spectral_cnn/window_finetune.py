@@ -28,6 +28,7 @@ from .fit_window import frame_rows, predict_steps, train_rows
 from .spectra import SpectralSteps
 from .window_classifier import WindowClassifier
 from .window_config import WindowFitConfig
+from .window_drift import fit_drift
 
 
 def assign_folds(labels: Sequence[int], known: Sequence[int], k: int) -> list[int]:
@@ -133,4 +134,21 @@ def fine_tune_window_classifier(
     metrics["labelled_samples"] = int(sum(s[2] - s[1] for s in segments))
     metrics["new_segments"] = int(is_new.sum())
     history = [[{"steps": steps, "new_segments": int((is_new & (fold_of != m)).sum())}] for m in range(k)]
-    return ClassifierFit(models, metrics, history, [np.flatnonzero(fold_of == m).tolist() for m in range(k)])  # type: ignore[arg-type]
+
+    def stacked(which: np.ndarray) -> np.ndarray:
+        picked = [rows[i] for i in which if len(rows[i])]
+        return np.concatenate(picked) if picked else np.zeros((0, features[0].shape[1]), np.float32)
+
+    # the members' embeddings moved: the drift reference is drawn again from the rows each one trained on
+    trained = [stacked(np.flatnonzero(fold_of != m)) for m in range(k)]
+    held = [stacked(np.flatnonzero(fold_of == m)) if k > 1 else stacked(np.zeros(0, int)) for m in range(k)]
+    if not any(len(t) for t in trained):  # a single fold model trains on its own fold
+        trained = [stacked(np.arange(len(segments)))] * k
+    drift = fit_drift(models, trained, held, seed=config.seed)
+    return ClassifierFit(
+        models,
+        metrics,
+        history,
+        [np.flatnonzero(fold_of == m).tolist() for m in range(k)],  # type: ignore[arg-type]
+        drift=drift,
+    )

@@ -237,6 +237,9 @@ def _print_estimate(version: int, model: str, m: dict, estimate: dict) -> None:
     for name, e in per.items():
         recall = "   –  " if e["recall"] is None else f"{100 * e['recall']:5.1f} %"
         print(f"  {name:<{width}}  {recall}  {e['by']:<14}  {e['logs']}")
+    cal = m.get("calibration") or {}
+    if cal.get("on"):
+        print(f"  probabilities calibrated on {cal['on']}: logits divided by {cal['temperature']:.2f}")
 
 
 def export(session: Pos[Path], out: Path, predictions: bool = False) -> None:
@@ -288,5 +291,5 @@ def classify(
     )
     code, lines = classify_files(bundle, files, out, options)
     for line in lines:
-        print(line, file=sys.stderr if line.startswith("error:") else sys.stdout)
+        print(line, file=sys.stderr if line.startswith(("error:", "warning:")) else sys.stdout)
     return code

@@ -76,6 +76,8 @@ def store_scores(session: Session, scores: SessionScores) -> Path | None:
         if s.probs is not None and s.disagreement is not None:
             arrays["probs"] = np.asarray(s.probs)
             arrays["disagreement"] = np.asarray(s.disagreement)
+        if s.drift is not None:
+            arrays["drift"] = np.asarray(s.drift)
         for kind, track in scores.tracks.get(log_id, {}).items():
             arrays[f"track.{kind}"] = np.asarray(track)
         tmp = folder / f".{log_id:06d}.{uuid.uuid4().hex[:8]}.npz"
@@ -135,7 +137,10 @@ def stored_scores(session: Session) -> StoredScores | None:
             with np.load(folder / f"{x.id:06d}.npz") as z:
                 has = "probs" in z.files  # stage 1 only: surprise alone
                 scores[x.id] = labeling.LogScores(
-                    z["surprise"], z["probs"] if has else None, z["disagreement"] if has else None
+                    z["surprise"],
+                    z["probs"] if has else None,
+                    z["disagreement"] if has else None,
+                    z["drift"] if "drift" in z.files else None,
                 )
                 tracks[x.id] = {k.split(".", 1)[1]: z[k] for k in z.files if k.startswith("track.")}
     except (OSError, ValueError, KeyError):

@@ -14,7 +14,17 @@ import numpy as np
 
 import labeling
 from sessions import LogInfo, ModelVersion, Session, WorkbenchError
-from training import Classifier, LazyFeatures, ModelBundle, SpectralSteps, WindowClassifier, ensemble_pass, load_bundle
+from training import (
+    Classifier,
+    DriftReference,
+    LazyFeatures,
+    ModelBundle,
+    SpectralSteps,
+    WindowClassifier,
+    drift_of_log,
+    ensemble_pass,
+    load_bundle,
+)
 
 from .front_end import spectral_features
 from .stage_inputs import stage1_outputs
@@ -28,6 +38,7 @@ def score_logs(
     features: Sequence[np.ndarray | LazyFeatures | SpectralSteps],
     surprise: Sequence[np.ndarray],
     *,
+    drift: DriftReference | None = None,
     batch: int = 64,
     device: str = "cpu",
 ) -> list[labeling.LogScores]:
@@ -41,12 +52,13 @@ def score_logs(
         features: Per log, ``(T, F)`` stage-2 inputs (a ``LazyFeatures`` or ``SpectralSteps`` computes only the
             chunk asked for).
         surprise: Per log, ``(T,)`` stage-1 error (``Stage1Outputs.surprise``).
+        drift: The bundle's drift reference; with spectral features, each step's drift score is computed too.
         batch: Logs per LSTM call.
         device: Torch device.
 
     Returns:
         Per log, ``LogScores``: ``(T,)`` surprise, and with classifiers ``(T, K)`` mean probabilities and ``(T,)``
-        mutual information between prediction and member (BALD).
+        mutual information between prediction and member (BALD), and ``(T,)`` drift where it is known.
     """
     if not classifiers:
         return [labeling.LogScores(np.asarray(s)) for s in surprise]
@@ -59,7 +71,13 @@ def score_logs(
         disagreement[i][a:b] = labeling.mutual_information(probs)
 
     ensemble_pass(classifiers, features, reduce, batch=batch, device=device)
-    return [labeling.LogScores(np.asarray(s), m, d) for s, m, d in zip(surprise, mean, disagreement, strict=True)]
+    drifts: list[np.ndarray | None] = [None] * len(features)
+    if drift is not None and all(isinstance(f, SpectralSteps) for f in features):
+        drifts = [drift_of_log(drift, classifiers, f) for f in features]  # type: ignore[arg-type]
+    return [
+        labeling.LogScores(np.asarray(s), m, d, r)
+        for s, m, d, r in zip(surprise, mean, disagreement, drifts, strict=True)
+    ]
 
 
 @dataclass(frozen=True)
@@ -103,7 +121,8 @@ def _score_session_logs(
         features = spectral_features(session, predictor.id, bundle, logs, classifier.spectral)
     else:
         features = [outs[x.id].lazy(classifier.feature_mode) for x in logs]
-    return logs, outs, score_logs(classifier.classifiers, features, [outs[x.id].surprise() for x in logs])
+    surprise = [outs[x.id].surprise() for x in logs]
+    return logs, outs, score_logs(classifier.classifiers, features, surprise, drift=classifier.drift)
 
 
 def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[int] | None = None) -> SessionScores:

@@ -438,6 +438,7 @@ def _save_classifier(
     full = replace(
         bundle,
         classifiers=fit.models,
+        drift=fit.drift,
         metrics=metrics,
         info={**bundle.info, "predictor_version": recipe["predictor"], "history": fit.history},
         **stage2,

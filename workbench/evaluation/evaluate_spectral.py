@@ -16,11 +16,13 @@ from dataclasses import replace
 import numpy as np
 
 from training import (
+    DRIFTED,
     Normalizer,
     SpectralConfig,
     SpectralSteps,
     WindowFitConfig,
     classification_metrics,
+    drift_of_rows,
     expected_calibration_error,
     fit_window_classifier,
     frame_features,
@@ -45,6 +47,27 @@ def window_inputs(
             out.append(stacked_frames(frames, np.asarray([len(frames) - 1]), config.window)[0])
             owner.append(i)
     return np.asarray(out, np.float32), np.asarray(owner)
+
+
+def drift_figures(drift: np.ndarray, right: np.ndarray) -> dict:
+    """What the drift score says about test windows ``drift (N,)`` whose predictions were ``right (N,)``: the share
+    called drifted, the accuracy on either side of the line, and the AUROC of drift for telling errors."""
+    drifted = drift > DRIFTED
+    wrong = ~right
+    auroc = float("nan")
+    if wrong.any() and right.any():
+        ranks = np.argsort(np.argsort(drift)) + 1.0  # ties are rare on a continuous score
+        auroc = float((ranks[wrong].sum() - wrong.sum() * (wrong.sum() + 1) / 2) / (wrong.sum() * right.sum()))
+    return {
+        "drifted_share": float(drifted.mean()) if len(drift) else float("nan"),
+        "accuracy_drifted": float(right[drifted].mean()) if drifted.any() else float("nan"),
+        "accuracy_not_drifted": float(right[~drifted].mean()) if (~drifted).any() else float("nan"),
+        "drift_error_auroc": auroc,
+    }
+
+
+def _pct(x: float) -> str:
+    return "–" if np.isnan(x) else f"{x:.0%}"
 
 
 def borealtc_window_protocol(
@@ -77,7 +100,9 @@ def borealtc_window_protocol(
     protocol = protocol or WindowProtocol()
     size, win, stride = (round(s * rate_hz) for s in (protocol.partition_s, protocol.window_s, protocol.stride_s))
     parts, y, run_of = partitions(runs, labels, size)
-    fit = replace(fit or WindowFitConfig(), seed=seed, held_out=False)  # the protocol holds out its own test fold
+    # held-out figures hold out whole runs, as a session whose logs are the runs would: the calibration is fitted
+    # on them
+    fit = replace(fit or WindowFitConfig(), seed=seed)
     results = []
     for fold, (train_idx, test_idx) in enumerate(
         outer_folds(y, run_of, split=split, folds=protocol.folds, seed=seed), start=1
@@ -91,18 +116,22 @@ def borealtc_window_protocol(
         first = config.span - 1  # the first step whose window holds full frames only
         segments = [(j, first, size, int(y[i])) for j, i in enumerate(train_idx) if i in chosen]
         stretches = [(j, first, size) for j, i in enumerate(train_idx) if i not in chosen]
-        cfit = fit_window_classifier(features, segments, classes, config=fit, stretches=stretches)
+        groups = [int(run_of[i]) for i in train_idx]
+        cfit = fit_window_classifier(features, segments, classes, config=fit, stretches=stretches, groups=groups)
         x, owner = window_inputs([parts[i] for i in test_idx], win, stride, config, normalizer)
         probs = run_classifiers(cfit.models, [x])[0].mean(0)  # (N, K): the windows as steps, the model is per step
         y_true = y[test_idx][owner]
         m = classification_metrics(y_true, probs.argmax(1), classes)
         m["calibration_error"] = expected_calibration_error(probs, y_true)
+        m["temperature"] = cfit.metrics["calibration"]["temperature"]
         m["pseudo_stretches"] = cfit.metrics["pseudo_stretches"]
+        m.update(drift_figures(drift_of_rows(cfit.drift, cfit.models, x), probs.argmax(1) == y_true))
         results.append(FoldResult(fold, m["accuracy"], m["macro_f1"], len(x), len(chosen), time.monotonic() - t0, m))
         log(
             f"fold {fold} ({split}): accuracy {m['accuracy']:.2%}, macro-F1 {m['macro_f1']:.3f} on {len(x)} windows "
             f"({len(chosen)} labelled partitions, {m['pseudo_stretches']:.0f} pseudo-labelled, "
-            f"calibration error {m['calibration_error']:.3f}, "
-            f"{time.monotonic() - t0:.0f} s)"
+            f"calibration error {m['calibration_error']:.3f} at temperature {m['temperature']:.2f}, "
+            f"drifted {m['drifted_share']:.0%} of windows: accuracy {_pct(m['accuracy_drifted'])} there, "
+            f"{_pct(m['accuracy_not_drifted'])} elsewhere; {time.monotonic() - t0:.0f} s)"
         )
     return results

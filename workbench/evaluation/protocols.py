@@ -171,10 +171,32 @@ def evaluate_borealtc(
             f"{r.labelled_partitions} | {r.seconds:.0f} |"
             for r in res
         ]
-    report = "\n".join(lines + per_fold)
+    report = "\n".join(lines + per_fold + _calibration_rows(rows))
     if out is not None:
         out.write_text(json.dumps(detail, indent=1, default=str))
     return report
+
+
+def _calibration_rows(rows: list[tuple[str, list[FoldResult]]]) -> list[str]:
+    """Per fold of the default family: calibration error and temperature, and what the drift score said of the test
+    windows (the share above 1, accuracy on either side, AUROC of drift for telling errors)."""
+    out = [
+        "",
+        "| method | fold | calibration error | temperature | drifted windows | accuracy drifted / not | AUROC of drift "
+        "for errors |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for name, res in rows:
+        for r in res:
+            m = r.metrics
+            if "drifted_share" not in m:
+                continue
+            out.append(
+                f"| {name} | {r.fold} | {m['calibration_error']:.3f} | {m['temperature']:.2f} | "
+                f"{m['drifted_share']:.1%} | {m['accuracy_drifted']:.1%} / {m['accuracy_not_drifted']:.1%} | "
+                f"{m['drift_error_auroc']:.2f} |"
+            )
+    return out if len(out) > 3 else []
 
 
 def _table(rows: list[tuple[str, list[dict]]], extra: list[str] | None = None) -> str:

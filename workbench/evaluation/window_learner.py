@@ -58,7 +58,7 @@ class WindowLearner:
         stretches = self._stretches(labels) if self.fit.self_training else []
         settings = replace(self.fit, held_out=False)  # the simulation measures held-out logs itself
         fit = fit_window_classifier(self.pool, segments, self.classes, config=settings, stretches=stretches)
-        scores = score_logs(fit.models, self.pool, self.pool_error, batch=256)
+        scores = score_logs(fit.models, self.pool, self.pool_error, drift=fit.drift, batch=256)  # as the UI scores
         y_true, y_pred = self.test_predict(fit.models)
         m = classification_metrics(y_true, y_pred, self.classes)
         return labeling.Round(scores, m["accuracy"], m["macro_f1"])

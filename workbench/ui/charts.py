@@ -20,6 +20,8 @@ from .decimate import Decimated
 PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf")
 Y_AXIS_PX = 74  # the same for every chart, so their plotting areas line up
 SURPRISE, UNSURE, SELECTION, SUGGESTED = "#ef6c00", "#6a1b9a", "#1e88e5", "#00897b"
+DRIFT = "#ad1457"  # the drift row: time unlike anything labelled (no terrain colour is near it)
+DRIFT_LINE = 0.9  # the drift track's value at a drift score of 1 (``labeling.DRIFT_TRACK_AT_1``)
 
 
 @dataclass(frozen=True)
@@ -126,11 +128,12 @@ class TrackInputs:
     selection: np.ndarray  # (P,) bool
     confidence: np.ndarray | None = None  # (P,) the predicted stretch's mean probability
     review: np.ndarray | None = None  # (P,) bool: the stretch under review
+    drift: np.ndarray | None = None  # (P,) drift track in [0, 1): DRIFT_LINE and above is unlike anything labelled
 
 
 # The model's stretches are drawn more opaque the surer it is: below 0.6, 0.6 to 0.8, above 0.8 (hex alpha).
 CONFIDENCE_LEVELS = ((0.0, "38"), (0.6, "80"), (0.8, "e6"))
-ROWS = {"labels": (5.1, 5.9), "model": (4.1, 4.9), "suggested": (3.1, 3.9), "scores": (0.0, 2.9)}
+ROWS = {"labels": (5.1, 5.9), "model": (4.1, 4.9), "suggested": (3.1, 3.9), "drift": (2.1, 2.9), "scores": (0.0, 1.9)}
 
 
 def _band(mask: np.ndarray, row: str) -> np.ndarray:
@@ -141,8 +144,9 @@ def _band(mask: np.ndarray, row: str) -> np.ndarray:
 def tracks_chart(
     x: TrackInputs, terrains: Sequence[tuple[str, str]], *, cursor_s: float | None, height: int = 150
 ) -> dict:
-    """Labels and the model's guess coloured by terrain, suggestions, the selection, surprise and uncertainty with
-    their highlighted intervals: one chart so they share the window and the cursor."""
+    """Labels and the model's guess coloured by terrain, suggestions, time unlike anything labelled (drift), the
+    selection, surprise and uncertainty with their highlighted intervals: one chart so they share the window and the
+    cursor."""
     cols: list[np.ndarray] = []
     series: list[dict] = [{"label": "t (s)"}]
 
@@ -177,6 +181,10 @@ def tracks_chart(
         add(np.where(review, bar + 0.15, bar), "stretch under review", "#212121", fill_to=bar)
     add(_band(x.suggested, "suggested"), "suggested", SUGGESTED + "66", fill_to=ROWS["suggested"][0])
     add(_band(x.current, "suggested"), "current suggestion", SUGGESTED, fill_to=ROWS["suggested"][0])
+    if x.drift is not None:
+        lo, hi = ROWS["drift"]
+        add(_band(x.drift >= DRIFT_LINE, "drift"), "unlike anything labelled", DRIFT + "99", fill_to=lo)
+        add(lo + (hi - lo) * x.drift, "drift", "rgba(0,0,0,0)", fill_to=lo, stroke=DRIFT)
     top = ROWS["scores"][1]
     if x.highlight is not None:
         add(np.where(x.highlight, top, 0.0), "highlight", "#ffb30040", fill_to=0.0)
@@ -200,8 +208,8 @@ def tracks_chart(
                 "size": Y_AXIS_PX,
                 "label": "",
                 "labelSize": 14,
-                "splits": (1.45, 3.5, 4.5, 5.5),
-                "values": ("scores", "suggested", "model", "labels"),
+                "splits": (0.95, 2.5, 3.5, 4.5, 5.5),
+                "values": ("scores", "drift", "suggested", "model", "labels"),
                 "grid": {"show": False},
                 "ticks": {"show": False},
                 "font": "11px sans-serif",

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 from sessions import LogInfo, Terrain
 
-from .charts import SURPRISE, UNSURE
+from .charts import DRIFT, SURPRISE, UNSURE
 
 
 def legend_html(
@@ -41,7 +41,8 @@ def legend_html(
         f"cursor {cursor_s:.2f} s{sel}{doing}<br>{chips}"
         f"<span style='color:{SURPRISE}'> ━ surprise</span>"
         f"<span style='color:{UNSURE}'> ━ uncertainty</span>"
-        "<span style='background:#ffb30040'> highlighted </span></div>"
+        "<span style='background:#ffb30040'> highlighted </span>"
+        f"<span style='background:{DRIFT}99;color:#fff'> drift: unlike anything labelled </span></div>"
     )
 
 

@@ -7,11 +7,14 @@ import html
 import io
 import tempfile
 import zipfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import labeling
 from sessions import IngestError, Session, WorkbenchError
 
+from .charts import DRIFT
 from .uploads import MAX_UPLOAD_MB, UPLOAD_SUFFIXES, safe_name
 
 if TYPE_CHECKING:
@@ -31,8 +34,14 @@ def _duration(seconds: float) -> str:
     return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
 
 
-def logs_table_html(session: Session) -> str:
-    """An HTML table of the session's logs (name, format, duration, rate, channels, labelled time)."""
+def logs_table_html(session: Session, drifted: Mapping[int, float | None] | None = None) -> str:
+    """An HTML table of the session's logs (name, format, duration, rate, channels, labelled time and, once the
+    model gives a drift score, the share of each log unlike anything labelled).
+
+    Args:
+        session: The session.
+        drifted: Per log id, the share of its time with a drift score above 1 (``None``: not scored).
+    """
     logs = session.logs()
     if not logs:
         return _STYLE + "<p>No logs yet. Ingest some with <code>workbench ingest SESSION FILE...</code></p>"
@@ -40,20 +49,36 @@ def logs_table_html(session: Session) -> str:
     for seg in session.segments():
         labelled[seg.log_id] = labelled.get(seg.log_id, 0) + seg.length
     rows = []
+    drift_column = bool(drifted) and any(v is not None for v in drifted.values())
     for log in logs:
         lab = labelled.get(log.id, 0) / max(log.n_samples, 1)
         title = html.escape(f"{log.format}: {log.source_path}", quote=True)
+        cell = ""
+        if drift_column:
+            share = drifted.get(log.id)  # type: ignore[union-attr]
+            strong = share is not None and share > 0.5
+            text = "–" if share is None else f"{share:.0%}"
+            cell = f"<td class='n'>{f'<b style=color:{DRIFT}>{text}</b>' if strong else text}</td>"
         rows.append(
             f"<tr><td class='n'>{log.id}</td><td title='{title}'>{html.escape(log.name)}</td>"
             f"<td class='n'>{_duration(log.duration_s)}</td><td class='n'>{log.rate_hz:g}</td>"
-            f"<td class='n'>{log.n_channels}</td><td class='n'>{len(log.gaps)}</td><td class='n'>{lab:.0%}</td></tr>"
+            f"<td class='n'>{log.n_channels}</td><td class='n'>{len(log.gaps)}</td><td class='n'>{lab:.0%}</td>"
+            f"{cell}</tr>"
         )
+    head = (
+        "<th class='n' title='share of the log whose drift score is above 1: unlike anything labelled'>"
+        "unlike labelled</th>"
+        if drift_column
+        else ""
+    )
     total = sum(log.duration_s for log in logs)
     return (
         _STYLE
         + f"<p><b>{len(logs)}</b> logs, {_duration(total)} in all</p>"
         + "<table class='wb-table'><tr><th class='n'>#</th><th>log</th><th class='n'>length</th>"
-        + "<th class='n'>Hz</th><th class='n'>channels</th><th class='n'>gaps</th><th class='n'>labelled</th></tr>"
+        + "<th class='n'>Hz</th><th class='n'>channels</th><th class='n'>gaps</th><th class='n'>labelled</th>"
+        + head
+        + "</tr>"
         + "".join(rows)
         + "</table>"
     )
@@ -75,7 +100,9 @@ class DataPanel:
         self.refresh()
 
     def refresh(self) -> None:
-        self.logs.content = logs_table_html(self.host.state.session)
+        scores = self.host.state.scores.scores
+        drifted = {i: labeling.drifted_share(s.drift) for i, s in scores.items()}
+        self.logs.content = logs_table_html(self.host.state.session, drifted)
 
     def _uploaded(self) -> None:
         f = self.upload.value

@@ -50,7 +50,7 @@ def track_inputs(
     rel = idx - lo
     labels = per_sample_labels(hi - lo, [(x - lo, y - lo, k) for x, y, k in segs if y > lo and x < hi])[rel]
     tracks = scores.tracks.get(log.id)
-    predicted = confidence = surprise = unsure = highlight = None
+    predicted = confidence = surprise = unsure = highlight = drift = None
     if tracks is not None:
         win = {k: v[lo:hi] for k, v in tracks.items()}
         surprise = bucket_max(win["surprise"], rel)
@@ -62,6 +62,8 @@ def track_inputs(
             if k in win:
                 high |= win[k] >= threshold
         highlight = high[rel]
+        if "drift" in win:
+            drift = bucket_max(win["drift"], rel)
     if stretches:
         order = np.asarray([terrains.index(c) if c in terrains else -1 for c in scores.classes])
         starts = np.asarray([x.start for x in stretches])
@@ -92,6 +94,7 @@ def track_inputs(
         in_selection,
         confidence=confidence,
         review=in_review,
+        drift=drift,
     )
 
 

@@ -311,7 +311,7 @@ class ClientView:
                 self.suggest_panel.refresh()
             if event in ("job", "models", "scores"):
                 self.train_panel.refresh(event)
-            if event in ("labels", "models"):
+            if event in ("labels", "models", "scores"):
                 self.data_panel.refresh()
             self.status_bar.refresh()
 

@@ -2,10 +2,20 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from workbench.ui.charts import TrackInputs, channel_groups, per_sample_labels, trace_chart, tracks_chart, with_cursor
+from workbench.ui.charts import (
+    ROWS,
+    TrackInputs,
+    channel_groups,
+    per_sample_labels,
+    trace_chart,
+    tracks_chart,
+    with_cursor,
+)
 from workbench.ui.decimate import decimate
 from workbench.ui.panel_data import safe_name
 
@@ -120,6 +130,16 @@ def test_charts_have_one_series_per_data_column() -> None:
     series = {s["label"]: i for i, s in enumerate(spec["series"])}
     grass = spec["data"][series["label grass"]]
     assert grass[(idx >= 100) & (idx < 500)].min() == 5.9 and grass[idx >= 600].max() == 5.1  # band up only there
+    assert "unlike anything labelled" not in series  # no drift score (the paper family): no drift row
+    # a drift track: the band is up where it passes the line (a drift score of 1), the line follows the level
+    drift = np.where(idx >= 2000, 0.97, 0.4)
+    spec = tracks_chart(replace(inputs, drift=drift), [("concrete", "#888888")], cursor_s=None)
+    series = {s["label"]: i for i, s in enumerate(spec["series"])}
+    band, level = spec["data"][series["unlike anything labelled"]], spec["data"][series["drift"]]
+    lo, hi = ROWS["drift"]
+    assert band[idx >= 2000].min() == hi and band[idx < 2000].max() == lo
+    np.testing.assert_allclose(level, lo + (hi - lo) * drift)
+    assert "drift" in spec["axes"][1]["values"]
 
 
 def test_upload_names_cannot_leave_the_folder() -> None:

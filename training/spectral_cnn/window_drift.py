@@ -1,0 +1,204 @@
+"""How unlike the labelled data a step's input is: the drift score of the default family.
+
+Each ensemble member keeps two views of a sample of the labelled frames it trained on: their embeddings (the pooled
+features its head reads, scaled to unit length) and their inputs (the window's standardised frames, averaged). A
+step's distance in a view is the mean Euclidean distance to its ``neighbours`` nearest reference rows (deep nearest
+neighbours, Sun et al. 2022). The embedding's distance is divided by its ``quantile`` over the labelled frames the
+member did *not* train on (its held-out blocks), the inputs' by ``INPUT_MARGIN`` times theirs; the larger is taken
+and scaled once more so that exactly ``1 − quantile`` of the held-out labelled time scores above 1. The score is the
+members' mean. Pseudo-labels never enter the reference: the score says "unlike anything a person labelled".
+
+Why this shape. The embedding tells the model's errors best: on BorealTC's *inner* folds by run (each outer fold's
+held-out-run fits, their held-out labelled frames; outer test folds unread), the AUROC of drift for telling a wrong
+prediction was 0.79 for unit embeddings, 0.75 raw, 0.66 for the inputs alone, 0.68 for the larger of embedding and
+inputs at equal weight, and 0.79 with the inputs counted from twice their quantile. But the embedding alone misses a
+robot far off: its features fall where the network's GELUs are flat, near labelled ones. On the demo walks (two
+one-minute walks, 15 % labelled; share of a new walk's time above 1, raw embedding alone): a new walk of the same robot
+0.45, IMU gains x3 0.73, twice the speed 0.91, all changes at once 0.17. The inputs' view sees that walk
+(``tests/workbench/cycle/test_drift_session.py``), and a vibration of an unseen frequency at four times the
+amplitude, which unit embeddings scored 0.9 (``tests/training/test_window_drift.py``).
+
+Nothing here reads sessions or files; the bundle stores a :class:`DriftReference` beside the weights.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from .spectra import SpectralSteps, stacked_frames
+from .window_classifier import WindowClassifier
+
+DRIFT_NEIGHBOURS = 5
+DRIFT_QUANTILE = 0.95
+DRIFTED = 1.0  # a step above this is called drifted
+REFERENCE_ROWS = 2048  # labelled frames kept per member: 1 MB of embeddings at 128 features
+QUERY_CHUNK = 2048  # frames per distance block: QUERY_CHUNK × REFERENCE_ROWS floats at a time
+VIEWS = ("embedding", "inputs")
+INPUT_MARGIN = 2.0  # the inputs' view counts from twice its held-out quantile: it catches what is far off, no more
+
+
+@dataclass(frozen=True)
+class DriftReference:
+    """What the drift score compares a frame with.
+
+    Attributes:
+        references: Per ensemble member, ``(N_m, E)`` embeddings of labelled frames it trained on.
+        inputs: Per member, ``(N_m, F)`` the same frames' window-mean standardised inputs.
+        scales: ``(M, 2)`` per member, the divisor of each view's neighbour distance (embedding, inputs).
+        neighbours: Nearest reference rows averaged.
+        quantile: The held-out quantile that scores 1.
+    """
+
+    references: tuple[np.ndarray, ...]
+    inputs: tuple[np.ndarray, ...]
+    scales: np.ndarray
+    neighbours: int = DRIFT_NEIGHBOURS
+    quantile: float = DRIFT_QUANTILE
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """As named arrays for a safetensors file."""
+        out = {}
+        for i, (r, x) in enumerate(zip(self.references, self.inputs, strict=True)):
+            out[f"member{i}.reference"] = np.ascontiguousarray(r, np.float32)
+            out[f"member{i}.inputs"] = np.ascontiguousarray(x, np.float32)
+        out["scales"] = np.asarray(self.scales, np.float32)
+        return out
+
+    def settings(self) -> dict:
+        """The JSON-able settings stored beside the arrays."""
+        return {"neighbours": self.neighbours, "quantile": self.quantile, "members": len(self.references)}
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray], settings: dict) -> DriftReference:
+        """Rebuild from :meth:`arrays` and :meth:`settings`.
+
+        Raises:
+            ValueError: The arrays do not match the settings.
+        """
+        members = int(settings["members"])
+        refs = tuple(np.asarray(arrays[f"member{i}.reference"], np.float32) for i in range(members))
+        inputs = tuple(np.asarray(arrays[f"member{i}.inputs"], np.float32) for i in range(members))
+        scales = np.asarray(arrays["scales"], np.float32)
+        shapes_ok = all(r.ndim == 2 and x.ndim == 2 and len(r) == len(x) > 0 for r, x in zip(refs, inputs, strict=True))
+        if scales.shape != (members, len(VIEWS)) or not shapes_ok or not (scales > 0).all():
+            raise ValueError("the drift reference's arrays do not match its settings")
+        return cls(refs, inputs, scales, int(settings["neighbours"]), float(settings["quantile"]))
+
+
+@torch.inference_mode()
+def member_views(model: WindowClassifier, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit-length embeddings ``(N, E)`` and window-mean standardised inputs ``(N, F)`` of stacked-frame rows
+    ``(N, W·F)``."""
+    cfg = model.config
+    emb, inp = [], []
+    for c in range(0, len(rows), QUERY_CHUNK):
+        x = torch.from_numpy(np.ascontiguousarray(rows[c : c + QUERY_CHUNK], np.float32))  # (n, W·F)
+        emb.append(torch.nn.functional.normalize(model.embedding(x), dim=1).numpy())
+        frames = x.unflatten(1, (cfg.window, cfg.frame_width))  # (n, W, F)
+        inp.append(((frames - model.in_mean) * model.in_scale).mean(dim=1).numpy())
+    if not emb:
+        return np.zeros((0, 2 * cfg.hidden), np.float32), np.zeros((0, cfg.frame_width), np.float32)
+    return np.concatenate(emb), np.concatenate(inp)
+
+
+def neighbour_distance(
+    reference: np.ndarray, queries: np.ndarray, neighbours: int, *, skip_self: bool = False
+) -> np.ndarray:
+    """Mean Euclidean distance of each query ``(N, E)`` to its ``neighbours`` nearest rows of ``reference``
+    ``(R, E)``; ``skip_self`` drops each query's nearest (the query is in the reference)."""
+    k = min(neighbours + int(skip_self), len(reference))
+    ref_sq = np.square(reference).sum(axis=1)  # (R,)
+    out = np.empty(len(queries), np.float32)
+    for c in range(0, len(queries), QUERY_CHUNK):
+        q = queries[c : c + QUERY_CHUNK]  # (n, E)
+        sq = np.square(q).sum(axis=1)[:, None] + ref_sq[None] - 2.0 * (q @ reference.T)  # (n, R) no (n, R, E)
+        near = np.sqrt(np.maximum(np.partition(sq, k - 1, axis=1)[:, :k], 0.0))  # (n, k) the nearest
+        if skip_self and k > 1:
+            near = np.sort(near, axis=1)[:, 1:]
+        out[c : c + QUERY_CHUNK] = near.mean(axis=1)
+    return out
+
+
+def _distances(
+    ref: tuple[np.ndarray, np.ndarray], views: tuple[np.ndarray, np.ndarray], neighbours: int, *, skip_self: bool
+) -> np.ndarray:
+    """``(N, 2)`` neighbour distance of each row in each view."""
+    return np.stack(
+        [neighbour_distance(r, v, neighbours, skip_self=skip_self) for r, v in zip(ref, views, strict=True)], axis=1
+    )
+
+
+def fit_drift(
+    models: Sequence[WindowClassifier],
+    trained: Sequence[np.ndarray],
+    held: Sequence[np.ndarray],
+    *,
+    seed: int = 0,
+    neighbours: int = DRIFT_NEIGHBOURS,
+    quantile: float = DRIFT_QUANTILE,
+) -> DriftReference:
+    """The reference of an ensemble from the labelled rows each member trained on and those it did not.
+
+    Args:
+        models: The ``M`` members.
+        trained: Per member, ``(N, W·F)`` labelled rows it trained on (a sample of ``REFERENCE_ROWS`` is kept).
+        held: Per member, labelled rows it never trained on (its held-out blocks); empty for a single model, whose
+            scales then come from its reference with each row's own match left out.
+        seed: Seed of the sample.
+        neighbours: Nearest reference rows averaged.
+        quantile: The held-out quantile that scores 1.
+    """
+    rng = np.random.default_rng(seed)
+    every = [r for r in (*trained, *held) if len(r)]
+    if not every:
+        raise ValueError("no labelled rows to draw the drift reference from")
+    refs, inputs, scales = [], [], []
+    for model, rows, out in zip(models, trained, held, strict=True):
+        if len(rows) == 0:  # a member that trained on no labelled row of its own: every labelled row stands in
+            rows, out = np.concatenate(every), rows
+        if len(rows) > REFERENCE_ROWS:
+            rows = rows[np.sort(rng.choice(len(rows), REFERENCE_ROWS, replace=False))]
+        ref = member_views(model, rows)
+        if len(out):
+            dist = _distances(ref, member_views(model, out), neighbours, skip_self=False)  # (N, 2)
+        else:
+            dist = _distances(ref, ref, neighbours, skip_self=True)
+        scale = np.maximum(np.quantile(dist, quantile, axis=0), 1e-6) * np.asarray([1.0, INPUT_MARGIN])  # (2,)
+        scale = scale * max(float(np.quantile((dist / scale).max(axis=1), quantile)), 1e-6)  # the larger, as one
+        refs.append(ref[0])
+        inputs.append(ref[1])
+        scales.append(scale)
+    return DriftReference(tuple(refs), tuple(inputs), np.asarray(scales, np.float32), neighbours, quantile)
+
+
+def drift_of_rows(reference: DriftReference, models: Sequence[WindowClassifier], rows: np.ndarray) -> np.ndarray:
+    """Drift ``(N,)`` of stacked-frame rows ``(N, W·F)``: the members' mean of the larger scaled view distance."""
+    total = np.zeros(len(rows), np.float32)
+    for m, model in enumerate(models):
+        ref = (reference.references[m], reference.inputs[m])
+        dist = _distances(ref, member_views(model, rows), reference.neighbours, skip_self=False)  # (N, 2)
+        total += (dist / reference.scales[m]).max(axis=1)
+    return total / len(models)
+
+
+def drift_of_log(reference: DriftReference, models: Sequence[WindowClassifier], features: SpectralSteps) -> np.ndarray:
+    """Drift ``(T,)`` of every step of one log: its last completed frame's (the first frame's before it completes).
+
+    The frames are stacked a chunk at a time: an hour's stacked rows at once would be 110 MB.
+    """
+    cfg = features.config
+    frames = np.asarray(features.frames, np.float32)  # (N, F)
+    n, t = len(frames), len(features)
+    if n == 0:
+        return np.zeros(t, np.float32)
+    per_frame = np.empty(n, np.float32)
+    for c in range(0, n, QUERY_CHUNK):
+        idx = np.arange(c, min(c + QUERY_CHUNK, n))
+        per_frame[idx] = drift_of_rows(reference, models, stacked_frames(frames, idx, cfg.window))
+    steps = np.arange(t)
+    which = np.clip((steps - (cfg.frame - 1)) // cfg.hop, 0, n - 1)  # (T,) the last completed frame
+    return per_frame[which]
