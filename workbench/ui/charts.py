@@ -15,13 +15,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from labeling import DRIFT_TRACK_AT_1
+
 from .decimate import Decimated
 
 PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf")
 Y_AXIS_PX = 74  # the same for every chart, so their plotting areas line up
 SURPRISE, UNSURE, SELECTION, SUGGESTED = "#ef6c00", "#6a1b9a", "#1e88e5", "#00897b"
 DRIFT = "#ad1457"  # the drift row: time unlike anything labelled (no terrain colour is near it)
-DRIFT_LINE = 0.9  # the drift track's value at a drift score of 1 (``labeling.DRIFT_TRACK_AT_1``)
 
 
 @dataclass(frozen=True)
@@ -128,7 +129,7 @@ class TrackInputs:
     selection: np.ndarray  # (P,) bool
     confidence: np.ndarray | None = None  # (P,) the predicted stretch's mean probability
     review: np.ndarray | None = None  # (P,) bool: the stretch under review
-    drift: np.ndarray | None = None  # (P,) drift track in [0, 1): DRIFT_LINE and above is unlike anything labelled
+    drift: np.ndarray | None = None  # (P,) drift track in [0, 1): DRIFT_TRACK_AT_1 and up: unlike anything labelled
 
 
 # The model's stretches are drawn more opaque the surer it is: below 0.6, 0.6 to 0.8, above 0.8 (hex alpha).
@@ -183,7 +184,7 @@ def tracks_chart(
     add(_band(x.current, "suggested"), "current suggestion", SUGGESTED, fill_to=ROWS["suggested"][0])
     if x.drift is not None:
         lo, hi = ROWS["drift"]
-        add(_band(x.drift >= DRIFT_LINE, "drift"), "unlike anything labelled", DRIFT + "99", fill_to=lo)
+        add(_band(x.drift >= DRIFT_TRACK_AT_1, "drift"), "unlike anything labelled", DRIFT + "99", fill_to=lo)
         add(lo + (hi - lo) * x.drift, "drift", "rgba(0,0,0,0)", fill_to=lo, stroke=DRIFT)
     top = ROWS["scores"][1]
     if x.highlight is not None:
