@@ -73,6 +73,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "spectral_cnn": (
             "DRIFTED",
             "DriftReference",
+            "RowAugment",
             "SpectralConfig",
             "SpectralSteps",
             "SpectralStream",
@@ -81,6 +82,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "WindowClassifierConfig",
             "WindowFitConfig",
             "assign_folds",
+            "augment_rows",
             "block_and_guard",
             "drift_of_log",
             "drift_of_rows",

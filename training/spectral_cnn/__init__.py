@@ -8,10 +8,10 @@ stretches whose frames agree (:mod:`.fit_window`); the UI's quick Retrain fine-t
 (:mod:`.window_finetune`). :mod:`.window_step` runs it one sample at a time (NumPy for the robot, PyTorch for ONNX).
 Its stage 1 (the surprise highlight, the suggestions' embeddings) is still the paper family's LSTM predictor.
 
-Modules: ``spectra`` (the front end), ``window_config`` (fit settings), ``window_classifier`` (the network),
-``fit_window`` / ``window_finetune`` (the fits), ``window_calibration`` (the ensemble's temperature),
-``window_drift`` (how unlike the labelled frames a step is), ``window_step`` (one sample at a time), ``cnn_family``
-(what the registry reads).
+Modules: ``spectra`` (the front end), ``window_config`` (fit settings), ``window_augment`` (run-to-run changes
+drawn on training rows), ``window_classifier`` (the network), ``fit_window`` / ``window_finetune`` (the fits),
+``window_calibration`` (the ensemble's temperature), ``window_drift`` (how unlike the labelled frames a step is),
+``window_step`` (one sample at a time), ``cnn_family`` (what the registry reads).
 """
 
 from ..lazy_names import lazy_exports
@@ -34,6 +34,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "summary_windows",
         ),
         "window_config": ("WindowFitConfig",),
+        "window_augment": ("RowAugment", "augment_rows"),
         "window_classifier": ("WindowClassifier", "WindowClassifierConfig"),
         "fit_window": (
             "Stretch",

@@ -30,6 +30,7 @@ from ..fitting import ClassifierFit, Segment
 from ..metrics import classification_metrics
 from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
 from .spectra import SpectralConfig, SpectralSteps
+from .window_augment import augment_rows
 from .window_calibration import fit_temperature, scale_head
 from .window_classifier import WindowClassifier, WindowClassifierConfig
 from .window_config import WindowFitConfig
@@ -81,14 +82,18 @@ def train_rows(
     config: WindowFitConfig,
     seed: int,
     cancel: CancelFn,
+    *,
+    front: SpectralConfig | None = None,
 ) -> WindowClassifier:
-    """``epochs`` passes of AdamW over rows ``x (N, W·F)`` with classes ``y (N,)`` (at most ``config.max_steps``)."""
+    """``epochs`` passes of AdamW over rows ``x (N, W·F)`` with classes ``y (N,)`` (at most ``config.max_steps``);
+    ``config.augment``'s draws need the frames' layout, ``front``."""
     gen = torch.Generator().manual_seed(seed)
     xt, yt = torch.from_numpy(np.ascontiguousarray(x, np.float32)), torch.from_numpy(np.asarray(y, np.int64))
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     per_epoch = -(-len(xt) // config.batch)
     epochs = max(1, min(epochs, config.max_steps // max(per_epoch, 1)))
     noise_scale = config.noise / model.in_scale.repeat(model.config.window)  # (W·F,) standardised units, raw scale
+    augment = config.augment if front is not None and config.augment.active else None
     model.train()
     left = config.max_steps  # an epoch longer than the budget (a huge label set) stops part-way
     for _ in range(epochs):
@@ -97,6 +102,8 @@ def train_rows(
         for idx in torch.randperm(len(xt), generator=gen).split(config.batch)[:left]:
             left -= 1
             xb = xt[idx]
+            if augment is not None:
+                xb = augment_rows(xb, yt[idx], (xt, yt), front, model.in_mean, augment, gen)
             xb = xb + torch.randn(xb.shape, generator=gen) * noise_scale
             loss = F.cross_entropy(model.logits(xb), yt[idx])
             opt.zero_grad()
@@ -265,13 +272,13 @@ def fit_window_classifier(
             raise ValueError("the labelled segments are shorter than one frame: nothing to train the classifier on")
         labelled = x = np.concatenate(rows)
         y = np.concatenate([np.full(len(r), s[3]) for r, s in zip(rows, train, strict=True)])
-        model = train_rows(fresh(), x, y, config.epochs, config, seed, cancel)
+        model = train_rows(fresh(), x, y, config.epochs, config, seed, cancel, front=front)
         seen = {int(c) for c in np.unique(y)}
         kept = [r for r, s in zip(stretch_rows, stretches, strict=False) if s[0] not in skip_logs]
         px, py = _pseudo_labels(model, kept, config.agree) if use_stretches else ([], [])
         if px:
             x, y = np.concatenate([x, *px]), np.concatenate([y, *py])
-            model = train_rows(fresh(), x, y, config.refit_epochs, config, seed, cancel)
+            model = train_rows(fresh(), x, y, config.refit_epochs, config, seed, cancel, front=front)
         return model, len(px), seen, labelled
 
     def predict(held: Sequence[Segment], model: WindowClassifier) -> tuple[np.ndarray, np.ndarray]:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+
+from .window_augment import RowAugment
 
 
 @dataclass(frozen=True)
@@ -19,6 +21,7 @@ class WindowFitConfig:
         lr: AdamW learning rate.
         weight_decay: AdamW's decoupled L2 penalty.
         noise: Standard deviation of Gaussian noise on the standardised frames while training.
+        augment: Run-to-run changes drawn on each training row (:mod:`.window_augment`; off by default).
         self_training: Refit each fold with pseudo-labelled stretches.
         agree: Share of a stretch's frames that must agree before it is pseudo-labelled.
         held_out: Also measure accuracy on held-out logs (folds over logs: as many fits again).
@@ -35,6 +38,7 @@ class WindowFitConfig:
     lr: float = 3e-3
     weight_decay: float = 1e-2
     noise: float = 0.05
+    augment: RowAugment = field(default_factory=RowAugment)
     self_training: bool = True
     agree: float = 0.9
     held_out: bool = True
