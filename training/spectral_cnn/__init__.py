@@ -33,8 +33,8 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "stacked_frames",
             "summary_windows",
         ),
-        "window_config": ("WindowFitConfig",),
-        "window_augment": ("RowAugment", "augment_rows"),
+        "window_config": ("RowAugment", "WindowFitConfig"),
+        "window_augment": ("augment_rows",),
         "window_classifier": ("WindowClassifier", "WindowClassifierConfig"),
         "fit_window": (
             "Stretch",

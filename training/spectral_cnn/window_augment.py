@@ -1,46 +1,18 @@
 """What changes between runs, drawn on the training rows: screened for the default family on held-out runs.
 
 A run differs from another of the same terrain by its sensors' gains and offsets, the robot's speed (which shifts
-vibration in frequency) and which channels carry the terrain. Each option below draws one such change per training
-row, on the raw frame features (log power spectra of the fast channels, level statistics of the slow ones, the layout
-of :class:`.spectra.SpectralConfig`), before the network standardises them. All are off by default: which earn their
-place is measured on BorealTC's inner folds by run (``benchmarks/runs_screen.py``).
+vibration in frequency) and which channels carry the terrain. Each field of :class:`.window_config.RowAugment` draws
+one such change per training row, on the raw frame features (log power spectra of the fast channels, level
+statistics of the slow ones, the layout of :class:`.spectra.SpectralConfig`), before the network standardises them.
+All are off by default: none earned its place on BorealTC's inner folds by run (``benchmarks/runs_screen.py``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import torch
 
 from .spectra import SpectralConfig
-
-
-@dataclass(frozen=True)
-class RowAugment:
-    """Per-row draws of run-to-run change (0 turns one off).
-
-    Attributes:
-        gain: Spread (standard deviation) of a fast channel's log gain: ``2·ln g`` added to every bin of its log
-            power spectrum, the same in every frame of the row.
-        tilt: Spread of a spectral tilt: a slope across each fast channel's bins, from ``-tilt`` to ``+tilt``.
-        warp: Spread of the log of a frequency scale (a speed or gait-frequency change): bins read at ``k / s``.
-        level: Spread of an offset added to a slow channel's mean, minimum and maximum (normalised units).
-        drop: Chance that a channel is replaced by its mean (every feature of it, every frame of the row).
-        mix: Chance that a row is mixed with another row of its terrain (a convex combination, the weight uniform).
-    """
-
-    gain: float = 0.0
-    tilt: float = 0.0
-    warp: float = 0.0
-    level: float = 0.0
-    drop: float = 0.0
-    mix: float = 0.0
-
-    @property
-    def active(self) -> bool:
-        """Whether any draw is on."""
-        return any(v > 0 for v in (self.gain, self.tilt, self.warp, self.level, self.drop, self.mix))
+from .window_config import RowAugment
 
 
 def augment_rows(

@@ -4,7 +4,32 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .window_augment import RowAugment
+
+@dataclass(frozen=True)
+class RowAugment:
+    """Per-row draws of run-to-run change (0 turns one off).
+
+    Attributes:
+        gain: Spread (standard deviation) of a fast channel's log gain: ``2·ln g`` added to every bin of its log
+            power spectrum, the same in every frame of the row.
+        tilt: Spread of a spectral tilt: a slope across each fast channel's bins, from ``-tilt`` to ``+tilt``.
+        warp: Spread of the log of a frequency scale (a speed or gait-frequency change): bins read at ``k / s``.
+        level: Spread of an offset added to a slow channel's mean, minimum and maximum (normalised units).
+        drop: Chance that a channel is replaced by its mean (every feature of it, every frame of the row).
+        mix: Chance that a row is mixed with another row of its terrain (a convex combination, the weight uniform).
+    """
+
+    gain: float = 0.0
+    tilt: float = 0.0
+    warp: float = 0.0
+    level: float = 0.0
+    drop: float = 0.0
+    mix: float = 0.0
+
+    @property
+    def active(self) -> bool:
+        """Whether any draw is on."""
+        return any(v > 0 for v in (self.gain, self.tilt, self.warp, self.level, self.drop, self.mix))
 
 
 @dataclass(frozen=True)
