@@ -11,7 +11,8 @@ Its stage 1 (the surprise highlight, the suggestions' embeddings) is still the p
 Modules: ``spectra`` (the front end), ``window_config`` (fit settings), ``window_augment`` (run-to-run changes
 drawn on training rows), ``window_classifier`` (the network), ``fit_window`` / ``window_finetune`` (the fits),
 ``window_calibration`` (the ensemble's temperature), ``window_drift`` (how unlike the labelled frames a step is),
-``window_step`` (one sample at a time), ``cnn_family`` (what the registry reads).
+``window_step`` (one sample at a time), ``frame_predictor`` (a stage 1 over the frames: the next frame from the
+ones before), ``cnn_family`` (what the registry reads).
 """
 
 from ..lazy_names import lazy_exports
@@ -48,6 +49,14 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "window_calibration": ("fit_temperature", "scale_head"),
         "window_drift": ("DRIFTED", "DriftReference", "drift_of_log", "drift_of_rows", "fit_drift"),
         "window_step": ("WindowStep", "WindowStepModel"),
+        "frame_predictor": (
+            "FramePredictor",
+            "FramePredictorConfig",
+            "FramePredictorFit",
+            "copy_last_error",
+            "fit_frame_predictor",
+            "frame_surprise",
+        ),
         "cnn_family": ("FAMILY",),
     },
     globals(),
