@@ -117,5 +117,6 @@ def test_a_run_killed_mid_epoch_resumes_from_its_checkpoint(logs_session: Path, 
 def test_only_the_predictor_trains_under_torchrun(logs_session: Path, tmp_path: Path) -> None:
     out = run(["train", str(copy_of(logs_session, tmp_path / "s")), "--stage", "classifier"], procs=2)
     assert out.returncode != 0
-    assert out.stderr.count("error: under torchrun only the predictor trains (--stage predictor)") == 2  # per process
+    # each process refuses with the line; torchrun stops the other when the first exits, so that one may not print
+    assert 1 <= out.stderr.count("error: under torchrun only the predictor trains (--stage predictor)") <= 2
     assert "cli_model.py" not in out.stderr  # one line each, no traceback of ours (torchrun prints its own summary)

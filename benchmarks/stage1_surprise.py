@@ -2,8 +2,8 @@
 frame predictor (next spectral frame from the frames before) against the paper's LSTM predictor (next sample), both
 trained without labels on the same logs, as stage 1 is.
 
-    python benchmarks/bench_surprise.py --data demo --lstm-epochs 30
-    python benchmarks/bench_surprise.py --data borealtc --lstm-epochs 0
+    python benchmarks/stage1_surprise.py --data demo --lstm-epochs 30
+    python benchmarks/stage1_surprise.py --data borealtc --lstm-epochs 0
 
 ``demo``: generated walks (22 channels at 100 Hz, terrain patches inside each walk, each walk a run of its own).
 ``borealtc``: the BorealTC runs joined end to end in a shuffled order, one log per terrain mix (a change where two runs
@@ -100,7 +100,7 @@ def main() -> None:
     parser.add_argument("--lstm-epochs", type=int, default=30, help="the paper predictor's epochs (0: not trained)")
     args = parser.parse_args()
     if args.data == "borealtc" and not DATA.is_dir():
-        print(f"bench_surprise: skipped: no BorealTC data at {DATA}")
+        print(f"stage1_surprise: skipped: no BorealTC data at {DATA}")
         return
     arrays, changes = demo_logs(args.walks, args.seconds) if args.data == "demo" else borealtc_logs(DATA, args.logs)
     minutes = sum(len(a) for a in arrays) / RATE / 60
