@@ -127,7 +127,8 @@ def fit_frame_predictor(
     """Train the predictor on every log's frames, no labels.
 
     Args:
-        logs: Per log, ``(N, F)`` frames (``spectra.log_frames``; memory-mapped arrays are read a crop at a time).
+        logs: Per log, ``(N, F)`` frames (``spectra.log_frames``; memory-mapped arrays are read a log at a time for
+            the standardisation, a crop at a time while training).
         config: Sizes; default from the frames' width.
         fit: Training settings.
         progress: Called every 50 steps.
