@@ -29,7 +29,7 @@ from ..estimates import terrain_estimate
 from ..fitting import ClassifierFit, Segment
 from ..metrics import classification_metrics
 from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
-from .spectra import SpectralConfig, SpectralSteps
+from .spectra import SpectralConfig, SpectralSteps, frame_moments
 from .window_augment import augment_rows
 from .window_calibration import fit_temperature, scale_head
 from .window_classifier import WindowClassifier, WindowClassifierConfig
@@ -58,20 +58,6 @@ def frame_rows(features: SpectralSteps, start: int, stop: int) -> np.ndarray:
         return np.zeros((0, features.shape[1]), np.float32)
     block = features[int(steps[0]) : int(steps[-1]) + 1]
     return block[steps - steps[0]]
-
-
-def _moments(features: Sequence[SpectralSteps]) -> tuple[np.ndarray, np.ndarray]:
-    """Per-feature mean and spread of a frame over every frame of every log, summed a log at a time: a fleet's
-    frames never sit in memory together."""
-    n, total, total_sq = 0, 0.0, 0.0
-    for f in features:
-        rows = np.asarray(f.frames, np.float64)  # (N, F) of one log
-        n += len(rows)
-        total = total + rows.sum(0)
-        total_sq = total_sq + np.square(rows).sum(0)
-    mean = total / max(n, 1)
-    std = np.sqrt(np.maximum(total_sq / max(n, 1) - np.square(mean), 0.0))
-    return np.asarray(mean, np.float32), np.asarray(std, np.float32)
 
 
 def train_rows(
@@ -247,7 +233,7 @@ def fit_window_classifier(
     config = config or WindowFitConfig()
     k = len(classes)
     t0 = time.monotonic()
-    mean, std = _moments(features)
+    mean, std = frame_moments([f.frames for f in features])
     front = features[0].config
     model_config = WindowClassifierConfig(features[0].shape[1], k, window=front.window, hidden=config.hidden)
     use_stretches = config.self_training and len(stretches) > 0

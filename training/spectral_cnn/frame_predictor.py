@@ -23,6 +23,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from .spectra import frame_moments
 
 FRAME_PREDICTOR_KIND = "next-frame"  # the ``kind`` a bundle's predictor config carries for this module
 RESIDUAL_FRAMES = 4096  # frames of each log that measure the features' residuals after training
@@ -108,14 +109,6 @@ class FramePredictor(nn.Module):
         self.in_scale.copy_(torch.as_tensor(1.0 / std, dtype=torch.float32))
 
 
-def _moments(logs: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    n = sum(len(x) for x in logs)
-    total = sum(np.asarray(x, np.float64).sum(0) for x in logs)
-    total_sq = sum(np.square(np.asarray(x, np.float64)).sum(0) for x in logs)
-    mean = total / max(n, 1)
-    return mean.astype(np.float32), np.sqrt(np.maximum(total_sq / max(n, 1) - mean**2, 0.0)).astype(np.float32)
-
-
 def fit_frame_predictor(
     logs: Sequence[np.ndarray],
     *,
@@ -144,7 +137,7 @@ def fit_frame_predictor(
     config = config or FramePredictorConfig(usable[0].shape[1])
     torch.manual_seed(fit.seed)
     model = FramePredictor(config)
-    model.set_standardisation(*_moments(usable))
+    model.set_standardisation(*frame_moments(usable))
     rng = np.random.default_rng(fit.seed)
     lengths = np.asarray([len(x) for x in usable], np.float64)
     opt = torch.optim.AdamW(model.parameters(), lr=fit.lr, weight_decay=0.0)  # the elastic net is the penalty

@@ -130,6 +130,20 @@ def frame_features(x: np.ndarray, config: SpectralConfig) -> np.ndarray:
     return out
 
 
+def frame_moments(logs: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Per-feature mean and spread ``(F,)`` of the frames ``(N, F)`` of every log, summed a log at a time: a fleet's
+    frames never sit in memory together."""
+    n, total, total_sq = 0, 0.0, 0.0
+    for frames in logs:
+        rows = np.asarray(frames, np.float64)  # (N, F) of one log
+        n += len(rows)
+        total = total + rows.sum(0)
+        total_sq = total_sq + np.square(rows).sum(0)
+    mean = total / max(n, 1)
+    std = np.sqrt(np.maximum(total_sq / max(n, 1) - np.square(mean), 0.0))
+    return np.asarray(mean, np.float32), np.asarray(std, np.float32)
+
+
 @functools.lru_cache(maxsize=8)
 def _spectrum_matrix(frame: int) -> np.ndarray:
     """``(L, 2·bins)`` float32: a frame's samples -> real and imaginary parts of its Hamming-windowed spectrum. One
