@@ -73,6 +73,8 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "spectral_cnn": (
             "DRIFTED",
             "DriftReference",
+            "FRAME_PREDICTOR_KIND",
+            "FrameOutputs",
             "FramePredictor",
             "FramePredictorConfig",
             "FramePredictorFit",
@@ -80,6 +82,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "SpectralConfig",
             "SpectralSteps",
             "SpectralStream",
+            "StepRows",
             "Stretch",
             "WindowClassifier",
             "WindowClassifierConfig",

@@ -17,7 +17,7 @@ from torch import nn
 from .normalizer import Normalizer
 from .paper_lstm import FeatureMode, Predictor, PredictorConfig
 from .registry import Family, family_of_kind
-from .spectral_cnn import DriftReference, SpectralConfig
+from .spectral_cnn import FRAME_PREDICTOR_KIND, DriftReference, FramePredictor, FramePredictorConfig, SpectralConfig
 from .training_errors import BundleError
 
 BUNDLE_SCHEMA = 1
@@ -32,8 +32,10 @@ class ModelBundle:
     """Stage 1 (always) and the stage-2 ensemble (once trained), with what is needed to use them.
 
     Attributes:
-        predictor: The frozen stage-1 model (today every family's is the paper family's LSTM predictor).
-        normalizer: Input normalisation of stage 1.
+        predictor: The frozen stage-1 model: the paper family's LSTM predictor of the raw samples, or the default
+            family's predictor of the next spectral frame (``stage1_kind``; bundles of the default family saved
+            before it hold the LSTM).
+        normalizer: Input normalisation of the raw samples (stage 1's and the front end's).
         channels: Names of the input channels, in order.
         rate_hz: Sample rate the model was trained at.
         classifiers: The k fold models of the family's stage 2 (empty for a predictor-only bundle).
@@ -41,12 +43,13 @@ class ModelBundle:
         feature_mode: What stage 1 hands stage 2.
         metrics: Out-of-fold metrics of the classifier.
         info: Free-form description: training data summary, versions, dates.
-        spectral: The default family's front end (``feature_mode == "spectral"``); ``None`` for the paper family.
+        spectral: The default family's front end (``feature_mode == "spectral"``, and the frames a next-frame
+            predictor reads); ``None`` for the paper family.
         drift: What the drift score compares a step with (the default family's, from the labelled frames); ``None``
             for the paper family and bundles trained before it existed.
     """
 
-    predictor: Predictor
+    predictor: Predictor | FramePredictor
     normalizer: Normalizer
     channels: tuple[str, ...]
     rate_hz: float
@@ -59,10 +62,17 @@ class ModelBundle:
     drift: DriftReference | None = None
 
     @property
+    def stage1_kind(self) -> str:
+        """``"lstm"`` (the paper's predictor of the next sample) or ``"next-frame"`` (of the next spectral frame)."""
+        return FRAME_PREDICTOR_KIND if isinstance(self.predictor, FramePredictor) else "lstm"
+
+    @property
     def family(self) -> str:
-        """The name of the model family whose classifier this is (``"paper"`` for a predictor-only bundle: its
-        stage 1 is the paper family's predictor)."""
-        return self.stage2_family().name if self.classifiers else "paper"
+        """The name of the model family whose classifier this is; for a predictor-only bundle, the family whose
+        stage 1 it is (``"default"`` for the next-frame predictor, ``"paper"`` for the LSTM)."""
+        if self.classifiers:
+            return self.stage2_family().name
+        return "default" if self.stage1_kind == FRAME_PREDICTOR_KIND else "paper"
 
     def stage2_family(self) -> Family:
         """The registry's entry for the family of the classifier (found by its config's ``kind``)."""
@@ -92,6 +102,19 @@ class ModelBundle:
 def _kind(cfg: dict) -> str:
     """The family ``kind`` a classifier config names: bundles saved before the paper family named its own lack it."""
     return str(cfg.get("kind", "lstm"))
+
+
+def _frame_kind(cfg: dict) -> bool:
+    """``model.json``'s predictor is the next-frame predictor."""
+    return isinstance(cfg.get("predictor"), dict) and cfg["predictor"].get("kind") == FRAME_PREDICTOR_KIND
+
+
+def _predictor(cfg: dict) -> Predictor | FramePredictor:
+    """An untrained stage-1 module of the kind and sizes ``cfg`` (a bundle's ``predictor`` entry) names: the LSTM's
+    config has no ``kind`` (bundles saved before the frame predictor)."""
+    if cfg.get("kind", "lstm") == FRAME_PREDICTOR_KIND:
+        return FramePredictor(FramePredictorConfig(**cfg))
+    return Predictor(PredictorConfig(**cfg))
 
 
 def _classifier(cfg: dict, directory: Path) -> nn.Module:
@@ -150,7 +173,7 @@ def load_bundle(directory: str | Path) -> ModelBundle:
     try:
         _check_shapes(directory, cfg)  # before any module is built: model.json's sizes allocate memory
         spectral = _spectral(directory, cfg)
-        predictor = Predictor(PredictorConfig(**cfg["predictor"]))
+        predictor = _predictor(cfg["predictor"])
         predictor.load_state_dict(load_file(directory / PREDICTOR_FILE))
         classifiers = []
         if cfg.get("classifier"):
@@ -199,6 +222,8 @@ def _drift(directory: Path, cfg: dict) -> DriftReference | None:
 def _spectral(directory: Path, cfg: dict) -> SpectralConfig | None:
     """The front end of ``model.json``, refused when its sizes disagree with the channels and the classifier."""
     if not cfg.get("spectral"):
+        if _frame_kind(cfg):
+            raise BundleError(f"{directory}: model.json has a next-frame predictor but no spectral front end")
         return None
     spectral = SpectralConfig.from_dict(cfg["spectral"])
     n = len(cfg["channels"])
@@ -207,6 +232,7 @@ def _spectral(directory: Path, cfg: dict) -> SpectralConfig | None:
         and 0 < spectral.window <= 1 << 12
         and all(0 <= c < n for c in (*spectral.fast, *spectral.slow))
         and (not cfg.get("classifier") or cfg["classifier"]["n_features"] == spectral.step_width)
+        and (not _frame_kind(cfg) or cfg["predictor"]["n_features"] == spectral.width)
     )
     if not sane:
         raise BundleError(f"{directory}: model.json's spectral front end does not fit its channels and classifier")
@@ -238,7 +264,7 @@ def _check_shapes(directory: Path, cfg: dict) -> None:
 
     with torch.device("meta"):
         try:
-            predictor = Predictor(PredictorConfig(**cfg["predictor"]))
+            predictor = _predictor(cfg["predictor"])
         except RuntimeError as exc:  # sizes past what any tensor can hold
             raise BundleError(f"{directory}: model.json's predictor sizes are impossible ({exc})") from None
         compare(predictor.state_dict(), _header_shapes(directory / PREDICTOR_FILE))

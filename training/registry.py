@@ -62,6 +62,9 @@ class Family:
             config, progress, cancel)`` -> ``ClassifierFit`` of the fold models fine-tuned on new labels; ``None``
             where the family has none (the paper family warm-starts inside ``fit``).
         retired_kinds: Kinds an older workbench saved for this family that no longer load, and what to do.
+        stage1: Its stage 1: ``"lstm"`` (the paper's predictor of the next raw sample, whose outputs the paper's
+            stage 2 reads) or ``"next-frame"`` (the default family's predictor of the next spectral frame, which
+            draws the surprise highlight and the suggestions' embeddings; stage 2 reads the frames).
     """
 
     name: str
@@ -82,6 +85,7 @@ class Family:
     fine_tune: Callable[..., Any] | None = None
     after_first: tuple[str, ...] = ()
     retired_kinds: Mapping[str, str] = field(default_factory=dict)
+    stage1: Literal["lstm", "next-frame"] = "lstm"
 
 
 def family_names() -> tuple[str, ...]:

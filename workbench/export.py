@@ -325,12 +325,15 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
     if arrays:
         from .cycle import in_memory_features, score_logs
 
-        outs = run_predictor(bundle.predictor, bundle.normalizer, arrays)
         if bundle.stage2_family().stage2_inputs == "frames":
+            # the predictions file holds no surprise: a frames family's stage 2 never reads stage 1, so it is skipped
             features = in_memory_features(arrays, bundle, bundle.spectral)
+            surprise = [np.zeros(len(a), np.float32) for a in arrays]
         else:
+            outs = run_predictor(bundle.predictor, bundle.normalizer, arrays)
             features = [o.lazy(bundle.feature_mode) for o in outs]
-        scored = score_logs(bundle.classifiers, features, [o.surprise() for o in outs], drift=bundle.drift)
+            surprise = [o.surprise() for o in outs]
+        scored = score_logs(bundle.classifiers, features, surprise, drift=bundle.drift)
         frames = [
             prediction_frame(name, s.probs, bundle.classes, bundle.rate_hz, s.drift)
             for name, s in zip(names, scored, strict=True)

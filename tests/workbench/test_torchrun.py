@@ -63,6 +63,8 @@ def train_args(session: Path) -> list[str]:
         str(session),
         "--stage",
         "predictor",
+        "--model",
+        "paper",
         "--hidden",
         "8",
         "--batch-size",
@@ -120,3 +122,6 @@ def test_only_the_predictor_trains_under_torchrun(logs_session: Path, tmp_path: 
     # each process refuses with the line; torchrun stops the other when the first exits, so that one may not print
     assert 1 <= out.stderr.count("error: under torchrun only the predictor trains (--stage predictor)") <= 2
     assert "cli_model.py" not in out.stderr  # one line each, no traceback of ours (torchrun prints its own summary)
+    default = run(["train", str(copy_of(logs_session, tmp_path / "d")), "--stage", "predictor"], procs=2)
+    assert default.returncode != 0  # the default family's stage 1 trains in one process, in seconds
+    assert 1 <= default.stderr.count("error: under torchrun only the paper family's LSTM predictor trains") <= 2

@@ -6,13 +6,14 @@ a step's last 7 frames (1.6 s): a 1x1 convolution, a 3-frame convolution, their 
 k fold models form the ensemble. It is fitted on the labelled segments and, by self-training, on unlabelled
 stretches whose frames agree (:mod:`.fit_window`); the UI's quick Retrain fine-tunes the fold models on new labels
 (:mod:`.window_finetune`). :mod:`.window_step` runs it one sample at a time (NumPy for the robot, PyTorch for ONNX).
-Its stage 1 (the surprise highlight, the suggestions' embeddings) is still the paper family's LSTM predictor.
+Its stage 1 (:mod:`.frame_predictor`: the surprise highlight, the suggestions' embeddings) predicts the next frame
+from the ones before, trained on all logs without labels; :mod:`.frame_outputs` reads its per-frame outputs per step.
 
 Modules: ``spectra`` (the front end), ``window_config`` (fit settings), ``window_augment`` (run-to-run changes
 drawn on training rows), ``window_classifier`` (the network), ``fit_window`` / ``window_finetune`` (the fits),
 ``window_calibration`` (the ensemble's temperature), ``window_drift`` (how unlike the labelled frames a step is),
 ``window_step`` (one sample at a time), ``frame_predictor`` (a stage 1 over the frames: the next frame from the
-ones before), ``cnn_family`` (what the registry reads).
+ones before), ``frame_outputs`` (its outputs per sample step), ``cnn_family`` (what the registry reads).
 """
 
 from ..lazy_names import lazy_exports
@@ -49,7 +50,9 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "window_calibration": ("fit_temperature", "scale_head"),
         "window_drift": ("DRIFTED", "DriftReference", "drift_of_log", "drift_of_rows", "fit_drift"),
         "window_step": ("WindowStep", "WindowStepModel"),
+        "frame_outputs": ("FrameOutputs", "StepRows"),
         "frame_predictor": (
+            "FRAME_PREDICTOR_KIND",
             "FramePredictor",
             "FramePredictorConfig",
             "FramePredictorFit",

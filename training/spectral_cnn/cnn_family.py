@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from ..registry import Family
+from .frame_predictor import FramePredictor
 from .window_classifier import OLD_WINDOW_KINDS, WINDOW_KIND, WindowClassifier, WindowClassifierConfig
 from .window_step import INPUTS, OUTPUTS, WindowStep, WindowStepModel, zero_state
 
@@ -21,13 +22,23 @@ def _stream_step(bundle: ModelBundle, *, streams: int, precision: str) -> Window
     return WindowStep(bundle, streams=streams)
 
 
+def _stage1(bundle: ModelBundle) -> str:
+    p = bundle.predictor
+    if isinstance(p, FramePredictor):
+        return (
+            f"causal convolutions of {p.config.hidden} channels predicting each short-time frame from the "
+            f"{p.context} before it"
+        )
+    return f"an LSTM of {p.config.hidden} units predicting each sample"  # sessions trained before the frame predictor
+
+
 def _describe(bundle: ModelBundle) -> str:
     f, c, members = bundle.spectral, bundle.classifiers[0].config, len(bundle.classifiers)
     assert f is not None  # a default-family bundle always holds its front end (checked on load)
     return (
-        f"Default family: short-time spectra and a small convolutional network. A predictor (stage 1, an LSTM of "
-        f"{bundle.predictor.config.hidden} units) trained without labels on all logs, then frozen; it draws the "
-        f"surprise highlights. The classifier (stage 2) reads the last {f.window} short-time frames ({f.frame} "
+        f"Default family: short-time spectra and a small convolutional network. A predictor (stage 1, "
+        f"{_stage1(bundle)}) trained without labels on all logs, then frozen; it draws the surprise highlights. "
+        f"The classifier (stage 2) reads the last {f.window} short-time frames ({f.frame} "
         f"samples every {f.hop}): log power spectra of {len(f.fast)} fast channels and the level and range of "
         f"{len(f.slow)} slow ones, {c.frame_width} features a frame; a 1x1 convolution and a 3-frame convolution of "
         f"{c.hidden} channels, their mean and spread over the frames, a linear layer. Fitted on the labelled "
@@ -74,6 +85,7 @@ FAMILY = Family(
     onnx_usage=_onnx_usage,
     fit=_fit,
     fine_tune=_fine_tune,
+    stage1="next-frame",
     retired_kinds={
         k: "a default-family classifier from an older workbench (a linear model on window summaries); train it "
         "again (workbench train SESSION): labels are kept"

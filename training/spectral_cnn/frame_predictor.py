@@ -177,7 +177,19 @@ def fit_frame_predictor(
             running = []
             if progress:
                 progress(
-                    Progress("predictor", step, fit.steps, 1, 1, 1, 1, history[-1], None, None, time.monotonic() - t0)
+                    Progress(
+                        "predictor",
+                        fold=0,
+                        folds=1,
+                        epoch=1,
+                        max_epochs=1,
+                        step=step,
+                        steps=fit.steps,
+                        train_loss=history[-1],
+                        val_loss=None,
+                        best_val_loss=None,
+                        elapsed_s=time.monotonic() - t0,
+                    )
                 )
             if cancel():
                 raise Cancelled("frame predictor training cancelled")
@@ -196,7 +208,7 @@ def fit_frame_predictor(
 @torch.inference_mode()
 def _squared_errors(model: FramePredictor, frames: np.ndarray) -> np.ndarray:
     """``(N, F)`` squared standardised error of each frame's estimate from the frames before it (row 0: zeros)."""
-    x = torch.from_numpy(np.asarray(frames, np.float32))[None]  # (1, N, F)
+    x = torch.from_numpy(np.array(frames, np.float32))[None]  # (1, N, F) a copy: frames may be a read-only map
     estimate, _ = model(x)
     out = np.zeros(x.shape[1:], np.float32)
     out[1:] = (estimate[0, :-1] - model.standardise(x[0, 1:])).pow(2).numpy()
@@ -220,7 +232,7 @@ def frame_surprise(
     hidden = np.zeros((n, model.config.hidden), np.float32)
     for a in range(0, n, chunk):
         lo, hi = max(0, a - ctx), min(n, a + chunk)
-        x = torch.from_numpy(np.asarray(frames[lo:hi], np.float32))[None]  # (1, L, F)
+        x = torch.from_numpy(np.array(frames[lo:hi], np.float32))[None]  # (1, L, F) a copy of a read-only map
         estimate, h = model(x)
         hidden[a:hi] = h[0, a - lo :].numpy()
         sq = (estimate[0, :-1] - model.standardise(x[0, 1:])).pow(2)  # (L - 1, F) row j: frame lo + j + 1
@@ -233,7 +245,7 @@ def copy_last_error(model: FramePredictor, frames: np.ndarray) -> np.ndarray:
     """The baseline the predictor must beat: each frame estimated as the one before it, ``(N,)`` squared error in
     the predictor's standardised units (as ``frame_surprise(..., raw=True)``; the first frame: 0)."""
     with torch.inference_mode():
-        z = model.standardise(torch.from_numpy(np.asarray(frames, np.float32))).numpy()  # (N, F)
+        z = model.standardise(torch.from_numpy(np.array(frames, np.float32))).numpy()  # (N, F)
     out = np.zeros(len(z), np.float32)
     out[1:] = np.square(z[1:] - z[:-1]).mean(axis=1)
     return out

@@ -257,10 +257,11 @@ def demo(
         minutes: Typical length of each walk.
         seed: Seed of the generator.
         seed_labels: Fraction of the time labelled from the demo's ground truth (0: a blank start, no training).
-        epochs: Most epochs of stage 1: a quick start; `workbench train` does the full run.
-        hidden: LSTM width of both stages. Smaller than the paper's 200 so that training, scoring and a retrain
-            from the page take seconds to minutes on a laptop's CPU; `workbench train --hidden 200` gives the
-            paper's model.
+        epochs: Most epochs of the paper family's LSTM stage 1, when the session uses it: a quick start;
+            `workbench train` does the full run. The default family's stage 1 trains a fixed number of steps.
+        hidden: Width of the paper family's LSTMs, when the session uses them: smaller than the paper's 200 so that
+            training, scoring and a retrain from the page take minutes on a laptop's CPU (`workbench train --model
+            paper --hidden 200` gives the paper's width). The default family's sizes are its own.
         serve_ui: Serve the UI when ready (--no-serve: prepare the session and exit).
     """
     from ..demo import generate_demo_logs

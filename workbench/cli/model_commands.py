@@ -38,7 +38,8 @@ class _Bar:
         )
 
     def __call__(self, p) -> None:
-        post = f"epoch {p.epoch} loss {p.train_loss:.4f}"
+        # a loss not yet known (NaN): the logs are being read, as the next-frame predictor computes its frames
+        post = f"epoch {p.epoch} loss {p.train_loss:.4f}" if p.train_loss == p.train_loss else "reading the logs"
         if p.folds > 1:
             post = f"fold {p.fold}/{p.folds} " + post
         if p.val_loss is not None:
@@ -97,16 +98,18 @@ def train(
 ) -> None:
     """Train the predictor (stage 1, all logs, no labels) and/or the classifier (stage 2, labelled segments).
 
-    Stage 1 runs unchanged under `torchrun --nproc-per-node N [--nnodes M ...] $(which workbench) train SESSION
-    --stage predictor`: every process trains on its share of each batch (gloo on CPU, nccl on CUDA). It keeps a
-    checkpoint in the session: run the same command again after a kill and it goes on from there.
+    The paper family's stage 1 runs unchanged under `torchrun --nproc-per-node N [--nnodes M ...] $(which workbench)
+    train SESSION --model paper --stage predictor`: every process trains on its share of each batch (gloo on CPU,
+    nccl on CUDA). It keeps a checkpoint in the session: run the same command again after a kill and it goes on from
+    there. The default family's stage 1 trains in seconds in one process.
 
     Args:
         session: The session folder (on storage every process can read, for several machines).
         stage: Which stage; "all" trains stage 1, then stage 2 if there are labels of two terrains or more.
-        model: Stage 2's family: "default" (a small convolutional network over the last few short-time spectra of
-            the signals, with self-training on the unlabelled logs) or "paper" (the paper's LSTM on stage-1 features;
-            the options below are its settings). Unset: the active classifier's family, "default" for the first.
+        model: The family of both stages: "default" (stage 1 predicts each short-time spectrum of the signals from
+            the ones before, in seconds; stage 2 is a small convolutional network over the last few spectra, with
+            self-training on the unlabelled logs) or "paper" (the paper's two LSTMs; the options below are their
+            settings). Unset: the active classifier's family, "default" for the first.
         device: Where to train.
         max_epochs: Upper bound on epochs (early stopping on validation loss usually ends sooner).
         patience: Epochs without improvement before stopping.
@@ -137,6 +140,11 @@ def train(
         bf16=bf16,
         consistency=consistency,
     )
+    if distributed.launched() and model != "paper":
+        raise WorkbenchError(
+            "under torchrun only the paper family's LSTM predictor trains (--model paper --stage predictor); the "
+            "default family's stage 1 trains in seconds in one process: run `workbench train SESSION` without torchrun"
+        )
     world = distributed.join(device)
     try:
         if not world.main:  # another torchrun process: it reads log files, never the session's database
@@ -144,7 +152,7 @@ def train(
         else:
             with Session.open(session) as s:
                 if stage in ("predictor", "all"):
-                    _train_predictor(s, config, hidden)
+                    _train_predictor(s, config, hidden, model)
                 if stage in ("classifier", "all"):
                     _train_classifier(s, config, hidden, feature_mode, stage, model)
     finally:
@@ -159,8 +167,21 @@ def train(
         os._exit(0)
 
 
-def _train_predictor(s: Session, config: TrainConfig, hidden: int) -> None:
+def _train_predictor(s: Session, config: TrainConfig, hidden: int, model: str | None) -> None:
     from .. import cycle
+
+    if cycle.stage1_family(s, model).stage1 == "next-frame":
+        bar = _Bar("predictor")
+        try:
+            v = cycle.train_frame_predictor(s, progress=bar)
+        finally:
+            bar.close()
+        m = v.metrics
+        print(
+            f"predictor v{v.id} (next spectral frame): error {m['train_mse']:.3f} against {m['copy_last_mse']:.3f} "
+            "for copying the last frame (standardised units)"
+        )
+        return
 
     def resumed(epoch: int, batch: int) -> None:
         where = f"epoch {epoch}" + (f", batch {batch}" if batch else "")

@@ -3,22 +3,25 @@ every log along one path, keep the last scoring, rank what to label next. The UI
 evaluation call it; it composes ``sessions`` (data, labels, versions), ``training`` (models, arrays only) and
 ``labeling`` (suggestions).
 
-Modules: ``train_stages`` (stage 1 and stage 2 of any family, versions, the active models), ``stage_inputs`` (stage
+Modules: ``train_stages`` (stage 1 and stage 2 of any family, versions, the active models), ``frame_stage1`` (the
+default family's stage 1, and which stage 1 a family trains), ``stage_inputs`` (stage
 1's cache per predictor version, the paper family's stage-2 features, change points), ``front_end`` (the spectral
 frames per log, the unlabelled stretches self-training reads), ``scores`` (the one scoring path), ``score_store``
 (the last scoring kept in the session), ``suggestions`` (the queue).
 """
 
+from .frame_stage1 import train_frame_predictor, train_stage1
 from .front_end import (
     STRETCH_S,
     choose_front_end,
     free_stretches,
     in_memory_features,
+    log_frame_files,
     spectral_features,
     unlabelled_stretches,
 )
 from .score_store import StoredScores, queue_key, store_queue, store_scores, stored_queue, stored_scores
-from .scores import EMBEDDING_MODE, SessionScores, compute_scores, score_logs, score_session
+from .scores import EMBEDDING_MODE, SessionScores, compute_scores, score_logs, score_session, stage1_embedding
 from .stage_inputs import (
     consistency_pairs,
     log_change_points,
@@ -35,7 +38,10 @@ from .train_stages import (
     active_predictor,
     classifier_family,
     follow_predictor_training,
+    front_end_of,
     model_logs,
+    require_lstm,
+    stage1_family,
     train_classifier,
     train_predictor,
 )
@@ -56,15 +62,20 @@ __all__ = [
     "consistency_pairs",
     "follow_predictor_training",
     "free_stretches",
+    "front_end_of",
     "in_memory_features",
     "log_change_points",
+    "log_frame_files",
     "model_logs",
     "queue_key",
+    "require_lstm",
     "score_logs",
     "score_session",
     "signal_change_points",
     "spectral_features",
     "stage1_cached",
+    "stage1_embedding",
+    "stage1_family",
     "stage1_outputs",
     "stage2_features",
     "store_queue",
@@ -74,6 +85,8 @@ __all__ = [
     "suggest_for_session",
     "suggestion_lengths",
     "train_classifier",
+    "train_frame_predictor",
     "train_predictor",
+    "train_stage1",
     "unlabelled_stretches",
 ]

@@ -1,5 +1,5 @@
 """The default family's inputs in a session: the spectral front end's frames of every log, computed once
-per predictor version and front end and cached in the session folder, and the unlabelled stretches self-training
+per input normalisation and front end and cached in the session folder, and the unlabelled stretches self-training
 reads.
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 
 import labeling
 from sessions import LogInfo, Segment, Session
-from training import ModelBundle, SpectralConfig, SpectralSteps, log_frames
+from training import ModelBundle, Normalizer, SpectralConfig, SpectralSteps, log_frames
 
 SAMPLE_S = 600.0  # seconds of each of the first logs read to tell fast channels from slow ones
 STRETCH_S = 5.0  # longest unlabelled stretch self-training judges as one (BorealTC's partition, where it was measured)
@@ -29,29 +29,58 @@ def choose_front_end(session: Session, logs: Sequence[LogInfo]) -> SpectralConfi
     return SpectralConfig.for_log(sample, rate)
 
 
-def _digest(config: SpectralConfig) -> str:
-    return hashlib.sha256(json.dumps(config.to_dict(), sort_keys=True).encode()).hexdigest()[:10]
+def _digest(normalizer: Normalizer, config: SpectralConfig) -> str:
+    text = json.dumps({"normalizer": normalizer.to_dict(), "front": config.to_dict()}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def log_frame_files(
+    session: Session,
+    normalizer: Normalizer,
+    logs: Sequence[LogInfo],
+    config: SpectralConfig,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+    cancel: Callable[[], bool] = lambda: False,
+) -> list[np.ndarray]:
+    """Per log, its ``(N, F)`` frames, memory-mapped from the session's cache (computed once and kept).
+
+    The cache is keyed by what the frames depend on, the input normalisation and the front end, not by a model
+    version: the next-frame predictor trains on them before its version exists, and every classifier over the same
+    predictor reads them again. Each log's file appears whole or not at all, so a stopped run goes on from the logs
+    already done.
+
+    Args:
+        progress: Called after each log computed with ``(done, to do)``.
+        cancel: Polled between logs; when it returns True, ``Cancelled`` is raised.
+    """
+    from training import Cancelled
+
+    cache = session.cache_dir(f"frames-{_digest(normalizer, config)}")
+    paths = [cache / f"{x.id:06d}.npy" for x in logs]
+    todo = [(x, p) for x, p in zip(logs, paths, strict=True) if not p.exists()]
+    for done, (x, path) in enumerate(todo, start=1):
+        if cancel():
+            raise Cancelled("computing the frames was cancelled")
+        frames = log_frames(session.rows(x.id), config, transform=normalizer)
+        tmp = cache / f".{x.id:06d}.{uuid.uuid4().hex[:8]}.npy"  # another process may fill the same cache
+        np.save(tmp, frames)
+        os.replace(tmp, path)
+        if progress:
+            progress(done, len(todo))
+    return [np.load(p, mmap_mode="r") for p in paths]
 
 
 def spectral_features(
-    session: Session, predictor_version: int, bundle: ModelBundle, logs: Sequence[LogInfo], config: SpectralConfig
+    session: Session, bundle: ModelBundle, logs: Sequence[LogInfo], config: SpectralConfig
 ) -> list[SpectralSteps]:
     """Per log, its per-step inputs (``(T, W·F)`` rows stacked from 5 Hz frames on demand).
 
-    The frames are written once per predictor version (its input normalisation) and front end, as ``.npy`` files
+    The frames are written once per input normalisation and front end (:func:`log_frame_files`), as ``.npy`` files
     memory-mapped on read: a 10-hour log at 100 Hz holds 180,000 rows, never its 3.6 million steps.
     """
-    cache = session.cache_dir(f"frames-v{predictor_version:04d}-{_digest(config)}")
-    out = []
-    for x in logs:
-        path = cache / f"{x.id:06d}.npy"
-        if not path.exists():
-            frames = log_frames(session.rows(x.id), config, transform=bundle.normalizer)
-            tmp = cache / f".{x.id:06d}.{uuid.uuid4().hex[:8]}.npy"  # another process may fill the same cache
-            np.save(tmp, frames)
-            os.replace(tmp, path)
-        out.append(SpectralSteps(np.load(path, mmap_mode="r"), x.n_samples, config))
-    return out
+    frames = log_frame_files(session, bundle.normalizer, logs, config)
+    return [SpectralSteps(f, x.n_samples, config) for f, x in zip(frames, logs, strict=True)]
 
 
 def in_memory_features(

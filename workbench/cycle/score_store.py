@@ -22,7 +22,7 @@ import numpy as np
 import labeling
 from sessions import Session, Terrain
 
-from .scores import EMBEDDING_MODE, SessionScores
+from .scores import SessionScores, stage1_embedding
 
 STORE_VERSION = 1
 META_FILE = "meta.json"
@@ -152,7 +152,7 @@ def stored_scores(session: Session) -> StoredScores | None:
         tuple(meta.get("classes", ())),
         scores,
         tracks,
-        {x.id: outs[x.id].lazy(EMBEDDING_MODE) for x in logs},
+        {x.id: stage1_embedding(outs[x.id]) for x in logs},
     )
     return StoredScores(result, complete=len(logs) == len(wanted))
 

@@ -17,9 +17,12 @@ from sessions import LogInfo, ModelVersion, Session, WorkbenchError
 from training import (
     Classifier,
     DriftReference,
+    FrameOutputs,
     LazyFeatures,
     ModelBundle,
     SpectralSteps,
+    Stage1Outputs,
+    StepRows,
     WindowClassifier,
     drift_of_log,
     ensemble_pass,
@@ -91,9 +94,8 @@ class SessionScores:
         scores: Per log, ``labeling.LogScores`` (``(T,)`` surprise; ``(T, K)`` probs and ``(T,)`` disagreement
             once a classifier exists).
         tracks: Per log, the session-normalised, smoothed tracks in ``[0, 1]`` by kind.
-        embeddings: Per log, ``(T, H + C)`` stage-1 hidden state and surprise ``|x_t − x̂_t|``, computed from the
-            memory-mapped feature cache for the rows sliced: for typical and diverse suggestions, what the
-            label-efficiency simulation measured them with.
+        embeddings: Per log, the stage-1 embedding per step (:func:`stage1_embedding`), computed from the
+            memory-mapped cache for the rows sliced: what typical and diverse suggestions cluster.
     """
 
     predictor: int | None = None
@@ -101,7 +103,13 @@ class SessionScores:
     classes: tuple[str, ...] = ()
     scores: dict[int, labeling.LogScores] = field(default_factory=dict)
     tracks: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
-    embeddings: dict[int, LazyFeatures] = field(default_factory=dict)
+    embeddings: dict[int, LazyFeatures | StepRows] = field(default_factory=dict)
+
+
+def stage1_embedding(outputs: Stage1Outputs | FrameOutputs) -> LazyFeatures | StepRows:
+    """A log's suggestion embedding per step, computed for the rows sliced: the next-frame predictor's hidden
+    features ``(T, H)``, or the LSTM's hidden state and surprise ``(T, H + C)`` (:data:`EMBEDDING_MODE`)."""
+    return outputs.embedding() if isinstance(outputs, FrameOutputs) else outputs.lazy(EMBEDDING_MODE)
 
 
 def _score_session_logs(
@@ -118,8 +126,8 @@ def _score_session_logs(
     if classifier is None:
         return logs, outs, score_logs((), (), [outs[x.id].surprise() for x in logs])
     if classifier.stage2_family().stage2_inputs == "frames":  # the front end's frames, cached per log
-        features = spectral_features(session, predictor.id, bundle, logs, classifier.spectral)
-    else:
+        features = spectral_features(session, bundle, logs, classifier.spectral)
+    else:  # the paper family's classifier: its predictor is an LSTM (train_classifier saw to it)
         features = [outs[x.id].lazy(classifier.feature_mode) for x in logs]
     surprise = [outs[x.id].surprise() for x in logs]
     return logs, outs, score_logs(classifier.classifiers, features, surprise, drift=classifier.drift)
@@ -153,7 +161,7 @@ def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[in
         dict(zip(ids, scored, strict=True)),
         dict(zip(ids, tracks, strict=True)),
         # rows are computed from the cache only where a suggestion reads them: an hour of them is 1.6 GB
-        {x.id: outs[x.id].lazy(EMBEDDING_MODE) for x in logs},  # (T, H + C) each
+        {x.id: stage1_embedding(outs[x.id]) for x in logs},
     )
 
 

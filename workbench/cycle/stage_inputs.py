@@ -14,34 +14,46 @@ import numpy as np
 import labeling
 from sessions import FileRows, LogInfo, ModelVersion, NpyWriter, Session
 from training import (
+    FRAME_PREDICTOR_KIND,
     FeatureMode,
+    FrameOutputs,
+    FramePredictor,
     LazyFeatures,
     ModelBundle,
     Piece,
     Stage1Outputs,
     TrainConfig,
+    frame_surprise,
     neighbour_pairs,
     predictor_pass,
 )
 
+from .front_end import log_frame_files
+
 PREDICTOR_BATCH = 64  # logs per stage-1 call when filling the cache
+
+
+FRAME_MARK = "frame-surprise"  # the file that completes a log's entry in a next-frame predictor's cache
 
 
 def stage1_cached(session: Session, version: ModelVersion, logs: Sequence[LogInfo]) -> bool:
     """Every one of ``logs`` has its stage-1 outputs of ``version`` in the session's cache."""
     cache = session.cache_dir(f"stage1-v{version.id:04d}")
-    return all((cache / f"{x.id:06d}.error.npy").exists() for x in logs)
+    mark = FRAME_MARK if version.config.get("kind") == FRAME_PREDICTOR_KIND else "error"
+    return all((cache / f"{x.id:06d}.{mark}.npy").exists() for x in logs)
 
 
 def stage1_outputs(
     session: Session, version: ModelVersion, bundle: ModelBundle, logs: Sequence[LogInfo]
-) -> dict[int, Stage1Outputs]:
+) -> dict[int, Stage1Outputs] | dict[int, FrameOutputs]:
     """Stage-1 outputs of ``logs``, computed once per predictor version and cached in the session folder.
 
     Stage 1 is frozen, so every stage-2 retrain reuses these instead of running it again. The outputs are written
     chunk by chunk to files and handed back as rows read on demand (``FileRows``), so a 10-hour log never sits in
-    memory.
+    memory. A next-frame predictor's are per frame (``FrameOutputs``, read per step), an LSTM's per sample.
     """
+    if isinstance(bundle.predictor, FramePredictor):
+        return _frame_outputs(session, version, bundle, logs)
     cache = session.cache_dir(f"stage1-v{version.id:04d}")
     missing = [x for x in logs if not (cache / f"{x.id:06d}.error.npy").exists()]
     if missing:
@@ -92,6 +104,34 @@ def stage1_outputs(
             FileRows.open_npy(f"{base}.estimate.npy"),
         )
     return result
+
+
+def _frame_outputs(
+    session: Session, version: ModelVersion, bundle: ModelBundle, logs: Sequence[LogInfo]
+) -> dict[int, FrameOutputs]:
+    """The next-frame predictor's surprise and hidden features of ``logs``, per frame, cached per version."""
+    assert isinstance(bundle.predictor, FramePredictor) and bundle.spectral is not None  # checked on load
+    cache = session.cache_dir(f"stage1-v{version.id:04d}")
+    missing = [x for x in logs if not (cache / f"{x.id:06d}.{FRAME_MARK}.npy").exists()]
+    if missing:
+        tag = uuid.uuid4().hex[:8]  # another process may fill the same cache: each writes its own files
+        frames = log_frame_files(session, bundle.normalizer, missing, bundle.spectral)
+        for x, f in zip(missing, frames, strict=True):
+            surprise, hidden = frame_surprise(bundle.predictor, f)  # (N,), (N, H): a 10-hour log is 46 MB of it
+            # hidden features go to disk as float16 (the LSTM's cache does the same): half the disk, 1e-3 relative
+            for name, array in (("frame-hidden", hidden.astype(np.float16)), (FRAME_MARK, surprise)):
+                tmp = cache / f".{x.id:06d}.{name}.{tag}.npy"
+                np.save(tmp, array)
+                os.replace(tmp, cache / f"{x.id:06d}.{name}.npy")  # the surprise last: it marks the entry complete
+    return {
+        x.id: FrameOutputs(
+            np.load(cache / f"{x.id:06d}.{FRAME_MARK}.npy", mmap_mode="r"),
+            np.load(cache / f"{x.id:06d}.frame-hidden.npy", mmap_mode="r"),
+            x.n_samples,
+            bundle.spectral,
+        )
+        for x in logs
+    }
 
 
 FEATURE_CACHE_BYTES = 2 << 30  # stage-2 inputs kept in memory between retrains when they fit (QCAT scale: 1 GB)

@@ -22,6 +22,7 @@ from training import (
     FeatureMode,
     ModelBundle,
     ProgressFn,
+    SpectralConfig,
     TrainConfig,
     WindowFitConfig,
     assign_folds,
@@ -56,7 +57,7 @@ def model_logs(session: Session, channels: Sequence[str] | None = None) -> list[
     return [log for log in logs if log.channel_names == tuple(channels)]
 
 
-def _save_version(session: Session, stage: str, bundle: ModelBundle, extra: dict) -> ModelVersion:
+def save_version(session: Session, stage: str, bundle: ModelBundle, extra: dict) -> ModelVersion:
     path = session.next_model_dir()
     if path.exists():  # a crashed save that got as far as the rename but not the catalog
         shutil.rmtree(path)
@@ -74,7 +75,7 @@ def _save_version(session: Session, stage: str, bundle: ModelBundle, extra: dict
 
 
 @contextlib.contextmanager
-def _recorded_run(session: Session, kind: str, params: dict) -> Iterator[dict]:
+def recorded_run(session: Session, kind: str, params: dict) -> Iterator[dict]:
     """Record a training run in the session: "done" with the result the block fills in, else why it ended."""
     run = session.start_run(kind, params)
     result: dict = {}
@@ -100,7 +101,8 @@ def train_predictor(
     on_other: Callable[[str], None] | None = None,
     checkpoint_every: int = 100,
 ) -> ModelVersion:
-    """Stage 1 on every log of the session's main channel set; saved as a new, active predictor version.
+    """The paper family's stage 1 (its LSTM predictor of the next sample) on every log of the session's main channel
+    set; saved as a new, active predictor version. :func:`train_stage1` picks a family's stage 1.
 
     Resumable: training keeps a checkpoint in the session (every ``checkpoint_every`` batches and every epoch), and
     a run with the same settings on the same logs goes on from it (``on_resume`` hears where). Under ``torchrun``
@@ -115,7 +117,7 @@ def train_predictor(
     # the other processes never open the database (SQLite's WAL needs one machine): they are told the files
     distributed.broadcast_json({"files": [str(session.path / x.file) for x in logs], "checkpoint": str(checkpoint)})
     params = {"config": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs], "processes": world.size}
-    with _recorded_run(session, "predictor", params) as result:
+    with recorded_run(session, "predictor", params) as result:
         fit = fit_predictor(
             rows,
             config=config,
@@ -146,7 +148,7 @@ def train_predictor(
             },
             info=info,
         )
-        version = _save_version(
+        version = save_version(
             session, "predictor", bundle, {"train": to_dict(config), "hidden": hidden, "logs": [x.id for x in logs]}
         )
         result["version"] = version.id
@@ -155,6 +157,30 @@ def train_predictor(
             fit.checkpoint.unlink()  # the version holds the result now
     distributed.broadcast_json({"version": version.id})
     return version
+
+
+def stage1_family(session: Session, model: str | None) -> Family:
+    """The family ``model`` names, or the active classifier's (``"default"`` before any)."""
+    try:
+        return family(model or classifier_family(session))
+    except KeyError as exc:
+        raise WorkbenchError(str(exc.args[0])) from None
+
+
+def front_end_of(session: Session, bundle: ModelBundle, logs: Sequence[LogInfo]) -> SpectralConfig:
+    """The default family's front end: the next-frame predictor's (its frames are what it learned), else chosen
+    from the logs (a session whose stage 1 is the LSTM)."""
+    return bundle.spectral if bundle.spectral is not None else choose_front_end(session, logs)
+
+
+def require_lstm(session: Session, version: ModelVersion, bundle: ModelBundle) -> None:
+    """Refuse the paper family's stage 2 over a next-frame predictor, in one line with what to run."""
+    if bundle.stage1_kind != "lstm":
+        raise WorkbenchError(
+            f"{session.path}: the paper family reads the LSTM predictor's outputs, and the active predictor "
+            f"v{version.id} is the default family's (next spectral frame); run `workbench train {session.path} "
+            "--model paper` to train both stages of the paper family (labels are kept)"
+        )
 
 
 def follow_predictor_training(
@@ -240,10 +266,7 @@ def train_classifier(
         progress: Called after every optimiser step (paper) or fold (default).
         cancel: Polled after every step (paper) or fit (default).
     """
-    try:
-        fam = family(model or classifier_family(session))
-    except KeyError as exc:
-        raise WorkbenchError(str(exc.args[0])) from None
+    fam = stage1_family(session, model)
     if fam.stage2_inputs == "frames":
         settings = window or RETRAIN.window
         if warm_start and warm_epochs is not None and fam.fine_tune is not None:
@@ -253,6 +276,7 @@ def train_classifier(
         return _train_window(session, fam, settings, progress=progress, cancel=cancel)
     config = config or TrainConfig()
     p_version, bundle = active_predictor(session)
+    require_lstm(session, p_version, bundle)
     logs = model_logs(session, bundle.channels)
     classes, used, segments = _labelled(session, logs)
     features = stage2_features(session, p_version, bundle, logs, feature_mode)
@@ -271,7 +295,7 @@ def train_classifier(
         fits = config.context + 2 * config.label_piece  # a log shorter holds no pair: skip its change points
         cps = [signal_change_points(session, x) if x.n_samples >= fits else np.zeros(0, np.int64) for x in logs]
         pairs = consistency_pairs([x.n_samples for x in logs], cps, config)
-    with _recorded_run(session, "classifier", {"config": to_dict(config), "segments": len(segments)}) as result:
+    with recorded_run(session, "classifier", {"config": to_dict(config), "segments": len(segments)}) as result:
         fit = fit_classifier(  # the paper family's fit: its warm start, replayed labels and consistency pairs
             features,
             segments,
@@ -315,13 +339,13 @@ def _train_window(
     p_version, bundle = active_predictor(session)
     logs = model_logs(session, bundle.channels)
     classes, used, segments = _labelled(session, logs)
-    front = choose_front_end(session, logs)
-    features = spectral_features(session, p_version.id, bundle, logs, front)
+    front = front_end_of(session, bundle, logs)
+    features = spectral_features(session, bundle, logs, front)
     stretches = []
     if settings.self_training:
         stretches = unlabelled_stretches(logs, used, lambda x: signal_change_points(session, x), shortest=front.span)
     params = {"model": fam.name, "window": to_dict(settings), "segments": len(segments)}
-    with _recorded_run(session, "classifier", params) as result:
+    with recorded_run(session, "classifier", params) as result:
         fit = fam.fit(
             features, segments, classes, config=settings, stretches=stretches, progress=progress, cancel=cancel
         )
@@ -375,9 +399,9 @@ def _fine_tune_window(
     # only labelled logs' frames are read: a fine-tune never looks at the rest (thousands of trials at QCAT scale)
     needed = sorted({s[0] for s in segments})
     at = {i: j for j, i in enumerate(needed)}
-    features = spectral_features(session, p_version.id, bundle, [logs[i] for i in needed], old.spectral)
+    features = spectral_features(session, bundle, [logs[i] for i in needed], old.spectral)
     params = {"model": fam.name, "quick": True, "steps": RETRAIN.window_steps, "segments": len(segments)}
-    with _recorded_run(session, "classifier", params) as result:
+    with recorded_run(session, "classifier", params) as result:
         fit = fam.fine_tune(
             features,
             [(at[segments[i][0]], a, b, segments[i][3]) for i, a, b in pieces],
@@ -443,7 +467,7 @@ def _save_classifier(
         info={**bundle.info, "predictor_version": recipe["predictor"], "history": fit.history},
         **stage2,
     )
-    return _save_version(session, "classifier", full, {**recipe, "labels": labels_record(fit, used, segments)})
+    return save_version(session, "classifier", full, {**recipe, "labels": labels_record(fit, used, segments)})
 
 
 def active_bundle(session: Session) -> tuple[ModelVersion, ModelBundle]:

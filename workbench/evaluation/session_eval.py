@@ -23,9 +23,10 @@ from training import Family, TrainConfig, classification_metrics, family, fit_cl
 from ..cycle import (
     PAPER_FEATURES,
     active_predictor,
-    choose_front_end,
     classifier_family,
+    front_end_of,
     model_logs,
+    require_lstm,
     score_logs,
     signal_change_points,
     spectral_features,
@@ -75,10 +76,11 @@ def evaluate_session(
     feature_mode = recipe.get("feature_mode", PAPER_FEATURES)
     config = replace(config or RETRAIN.classifier, seed=seed)
     window = replace(RETRAIN.window, seed=seed)
-    front = choose_front_end(session, logs) if fam.stage2_inputs == "frames" else None
+    front = front_end_of(session, bundle, logs) if fam.stage2_inputs == "frames" else None
     if front is not None:
-        features = spectral_features(session, p_version.id, bundle, logs, front)
+        features = spectral_features(session, bundle, logs, front)
     else:
+        require_lstm(session, p_version, bundle)
         features = stage2_features(session, p_version, bundle, logs, feature_mode)
     outs = stage1_outputs(session, p_version, bundle, logs)
     index = {x.id: i for i, x in enumerate(logs)}

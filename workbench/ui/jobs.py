@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 from sessions import WorkbenchError
 from training import Cancelled, Progress, TrainConfig
 
-from ..cycle import train_classifier, train_predictor
+from ..cycle import train_classifier, train_stage1
 from ..retrain import RETRAIN
 from ..user_errors import USER_ERRORS, one_line
 from .state import SharedState
@@ -143,7 +143,7 @@ class TrainJob:
         try:
             if "predictor" in stages:
                 LANE.run(
-                    train_predictor,
+                    train_stage1,  # the family of the active classifier (the default family's before any)
                     self.state.session,
                     config=self.predictor_config,
                     hidden=self.hidden,

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,18 +15,10 @@ from workbench import cycle
 from workbench.cycle import score_session, signal_change_points, unlabelled_stretches
 from workbench.demo import seed_labels
 from workbench.export import classify_files, export_all
-from workbench.retrain import RETRAIN
 
 from .test_cycle import TINY
 
-
-@pytest.fixture(scope="module", autouse=True)
-def fast_fits():
-    """These tests check what the fits do (families, folds, fine-tunes), not how well: a third of the passes."""
-    with pytest.MonkeyPatch.context() as mp:
-        fast = replace(RETRAIN.window, epochs=20, refit_epochs=10)
-        mp.setattr("workbench.cycle.train_stages.RETRAIN", replace(RETRAIN, window=fast))
-        yield
+pytestmark = pytest.mark.usefixtures("fast_window_fits")  # what the fits do, not how well
 
 
 @pytest.fixture(scope="module")
