@@ -36,6 +36,7 @@ def evaluate(
     warm_start: bool = False,
     segment_s: float | None = None,
     members: int = 3,
+    stage1: Literal["own", "lstm"] = "own",
     device: Literal["cpu", "cuda"] = "cpu",
     reference: Path | None = None,
 ) -> None:
@@ -74,6 +75,8 @@ def evaluate(
         segment_s: With --simulate: length of one suggestion in seconds (default: the UI's 1 s on demo logs, a whole
             5 s partition on borealtc, which then labels 5 / segment_s equal pieces of a partition).
         members: With --simulate: stage-2 ensemble members per retrain (the UI's Retrain trains 5).
+        stage1: With --simulate, default family: the stage 1 drawing the surprise and the suggestions' embeddings,
+            its own next-frame predictor or the paper's LSTM (as sessions trained before it), to compare the two.
         device: Where both stages train and run.
         reference: With session: a label file (the columns of `workbench labels export`) stored as the reference
             labels of the logs it names before scoring.
@@ -104,6 +107,7 @@ def evaluate(
                 warm_start=warm_start,
                 segment_s=segment_s,
                 members=members,
+                stage1=stage1,
                 device=device,
             )
         )

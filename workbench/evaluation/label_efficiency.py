@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from sklearn.model_selection import StratifiedKFold
@@ -17,9 +18,8 @@ from sklearn.model_selection import StratifiedKFold
 import labeling
 from training import (
     FeatureMode,
+    Normalizer,
     Piece,
-    SpectralConfig,
-    SpectralSteps,
     TrainConfig,
     classification_metrics,
     fit_classifier,
@@ -34,6 +34,7 @@ from ..retrain import RETRAIN
 from .curves_plot import plot_curves
 from .evaluate_spectral import window_inputs
 from .evaluate_windows import partitions, windows
+from .sim_stage1 import frame_stage1, log_spectra, unit_spectra
 from .window_learner import WindowLearner
 
 
@@ -61,6 +62,9 @@ class SimSettings:
     # partition on BorealTC (the protocol's unit; 5 / segment_s equal pieces of each when given).
     segment_s: float | None = None
     device: str = "cpu"  # where both stages train and run ("cuda": every fit and pass on the GPU)
+    # Default family: the stage 1 drawing the surprise and the suggestions' embeddings: its own next-frame predictor
+    # ("own", as `workbench train` trains it) or the paper's LSTM (as sessions trained before it had), to compare.
+    stage1: Literal["own", "lstm"] = "own"
 
 
 class FeatureLearner:
@@ -167,12 +171,6 @@ def report(curves, *, total: int, rate_hz: float, title: str, out: Path | None) 
     return "\n".join(lines)
 
 
-def _log_spectra(logs, normalizer, rate_hz) -> list[SpectralSteps]:
-    """Every log's per-step spectral inputs, as a session caches them (computed once per simulation)."""
-    front = SpectralConfig.for_log(np.concatenate(list(logs[:5])), rate_hz)
-    return [SpectralSteps(log_frames(x, front, transform=normalizer), len(x), front) for x in logs]
-
-
 def _default_learner(spectra, pool, test, truth, errors, cps, classes, rate_hz, seed) -> WindowLearner:
     """The default family's learner on demo-style logs."""
 
@@ -206,19 +204,27 @@ def simulate_logs(
 ) -> str:
     """Demo-style logs with per-sample truth: a third of the logs held out, suggestions on the rest as long as the
     UI's (half to all of ``segment_s``)."""
-    cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, device=settings.device)
-    pfit = fit_predictor(list(logs), config=cfg1, hidden=settings.hidden)
-    stage2 = "the default family" if settings.model == "default" else f"{settings.feature_mode} features"
-    log(f"stage 1 on {len(logs)} logs (no labels): {len(pfit.history)} epochs; stage 2 on {stage2}")
-    outs = run_predictor(pfit.model, pfit.normalizer, list(logs), device=settings.device)
-    feats = [o.features(settings.feature_mode) for o in outs]
-    errors = [np.square(o.error).mean(1) for o in outs]
+    if settings.model == "default" and settings.stage1 == "own":
+        normalizer = Normalizer.fit(list(logs))
+        spectra = log_spectra(logs, normalizer, rate_hz)
+        errors, feats = frame_stage1([s.frames for s in spectra], spectra, spectra[0].config)
+        log(f"stage 1 on {len(logs)} logs (no labels): the next-frame predictor; stage 2 on the default family")
+    else:
+        cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, device=settings.device)
+        pfit = fit_predictor(list(logs), config=cfg1, hidden=settings.hidden)
+        normalizer = pfit.normalizer
+        stage2 = "the default family" if settings.model == "default" else f"{settings.feature_mode} features"
+        log(f"stage 1 on {len(logs)} logs (no labels): {len(pfit.history)} epochs of the LSTM; stage 2 on {stage2}")
+        outs = run_predictor(pfit.model, normalizer, list(logs), device=settings.device)
+        feats = [o.features(settings.feature_mode) for o in outs]
+        errors = [np.square(o.error).mean(1) for o in outs]
+        spectra = log_spectra(logs, normalizer, rate_hz) if settings.model == "default" else []
     order = np.random.default_rng(0).permutation(len(logs))
     test = np.sort(order[: max(1, len(logs) // 3)])
     pool = np.sort(order[len(test) :])
     pool_truth = [truth[i] for i in pool]
     # change points on the signals and the surprise together, as the UI computes them
-    cps = [labeling.change_points(np.column_stack([pfit.normalizer(logs[i]), errors[i]]), block=25) for i in pool]
+    cps = [labeling.change_points(np.column_stack([normalizer(logs[i]), errors[i]]), block=25) for i in pool]
     cfg2 = TrainConfig(
         max_epochs=settings.stage2_epochs,
         patience=settings.stage2_patience,
@@ -240,8 +246,6 @@ def simulate_logs(
     if settings.consistency > 0:
         pairs = consistency_pairs([len(f) for f in pool_feats], cps, cfg2)
         log(f"consistency {settings.consistency:g}: {len(pairs)} pairs of unlabelled neighbouring windows in the pool")
-
-    spectra = _log_spectra(logs, pfit.normalizer, rate_hz) if settings.model == "default" else []
 
     def learner(seed: int) -> FeatureLearner | WindowLearner:
         if settings.model == "default":
@@ -302,17 +306,30 @@ def simulate_partitions(
     size, win = round(5 * rate_hz), round(1.7 * rate_hz)
     pieces = max(1, round(5 / settings.segment_s)) if settings.segment_s else 1
     parts, y, run_of = partitions(runs, labels, size)
-    cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, piece=size, device=settings.device)
-    pfit = fit_predictor(parts, config=cfg1, hidden=settings.hidden)
-    stage2 = "the default family" if settings.model == "default" else f"{settings.feature_mode} features"
-    log(f"stage 1 on all {len(parts)} partitions (no labels): {len(pfit.history)} epochs; stage 2 on {stage2}")
     cuts = labeling.spans(size, np.zeros(0, np.int64), max_len=-(-size // pieces))
     units = [(i, a, b) for i in range(len(parts)) for a, b in cuts]  # the pool's "logs": pieces of partitions
-    outs = run_predictor(
-        pfit.model, pfit.normalizer, [parts[i][a:b] for i, a, b in units], batch=512, device=settings.device
-    )
-    feats = [o.features(settings.feature_mode) for o in outs]
-    errors = [np.square(o.error).mean(1) for o in outs]
+    spectral_cache: dict = {}
+    if settings.model == "default" and settings.stage1 == "own":
+        # as a session of these runs would: the predictor trains on whole runs, each piece is read from a fresh start
+        normalizer = Normalizer.fit(parts)
+        front = unit_spectra(parts, units, normalizer, rate_hz, spectral_cache)
+        whole = [log_frames(r, front, transform=normalizer) for r in runs]
+        errors, feats = frame_stage1(whole, spectral_cache["units"], front)
+        log(f"stage 1 on all {len(runs)} runs (no labels): the next-frame predictor; stage 2 on the default family")
+    else:
+        cfg1 = TrainConfig(max_epochs=settings.stage1_epochs, patience=5, seed=0, piece=size, device=settings.device)
+        pfit = fit_predictor(parts, config=cfg1, hidden=settings.hidden)
+        normalizer = pfit.normalizer
+        stage2 = "the default family" if settings.model == "default" else f"{settings.feature_mode} features"
+        log(
+            f"stage 1 on all {len(parts)} partitions (no labels): {len(pfit.history)} epochs of the LSTM; "
+            f"stage 2 on {stage2}"
+        )
+        outs = run_predictor(
+            pfit.model, normalizer, [parts[i][a:b] for i, a, b in units], batch=512, device=settings.device
+        )
+        feats = [o.features(settings.feature_mode) for o in outs]
+        errors = [np.square(o.error).mean(1) for o in outs]
     folds = list(StratifiedKFold(5, shuffle=True, random_state=0).split(np.zeros(len(y)), y))
     in_fold = [np.isin([i for i, _, _ in units], folds[f][0]).nonzero()[0] for f in range(len(folds))]
     cfg2 = TrainConfig(
@@ -332,7 +349,7 @@ def simulate_partitions(
         if (u, a, b) not in window_cache:
             i, start, _ = units[u]
             w, _ = windows([parts[i][start + a : start + b]], min(win, b - a), round(0.5 * rate_hz))
-            outs_w = run_predictor(pfit.model, pfit.normalizer, w, device=settings.device)
+            outs_w = run_predictor(pfit.model, normalizer, w, device=settings.device)
             window_cache[u, a, b] = [o.features(settings.feature_mode) for o in outs_w]
         return window_cache[u, a, b]
 
@@ -342,7 +359,7 @@ def simulate_partitions(
         # every strategy of a seed shares the fold: its test windows go through stage 1 once
         if fold not in test_cache:
             test_w, owner = windows([parts[i] for i in folds[fold][1]], win, round(0.5 * rate_hz))
-            outs_w = run_predictor(pfit.model, pfit.normalizer, test_w, batch=512, device=settings.device)
+            outs_w = run_predictor(pfit.model, normalizer, test_w, batch=512, device=settings.device)
             test_cache[fold] = [o.features(settings.feature_mode) for o in outs_w], y[folds[fold][1]][owner]
         return test_cache[fold]
 
@@ -354,7 +371,7 @@ def simulate_partitions(
         if fold not in neighbour_cache:
             pool_parts = folds[fold][0]
             w, owner = windows([parts[i] for i in pool_parts], win, round(0.5 * rate_hz))
-            outs_w = run_predictor(pfit.model, pfit.normalizer, w, batch=512, device=settings.device)
+            outs_w = run_predictor(pfit.model, normalizer, w, batch=512, device=settings.device)
             at = {int(p): np.flatnonzero(owner == k) for k, p in enumerate(pool_parts)}
             pairs = [
                 (Piece(int(i), 0, win, 0), Piece(int(j), 0, win, 0))
@@ -366,22 +383,13 @@ def simulate_partitions(
             neighbour_cache[fold] = [o.features(settings.feature_mode) for o in outs_w], pairs
         return neighbour_cache[fold]
 
-    spectral_cache: dict = {}
-
     def default_learner(seed: int) -> WindowLearner:
         # the default family: each pool piece's frames as the session computes them; test windows on their own
         fold = seed % len(folds)
-        if "front" not in spectral_cache:
-            front = SpectralConfig.for_log(np.concatenate(parts[:50]), rate_hz)
-            spectral_cache["front"] = front
-            spectral_cache["units"] = [
-                SpectralSteps(log_frames(parts[i][a:b], front, transform=pfit.normalizer), b - a, front)
-                for i, a, b in units
-            ]
-        front = spectral_cache["front"]
+        front = unit_spectra(parts, units, normalizer, rate_hz, spectral_cache)
         if fold not in spectral_cache:
             test_parts = [parts[i] for i in folds[fold][1]]
-            spectral_cache[fold] = window_inputs(test_parts, win, round(0.5 * rate_hz), front, pfit.normalizer)
+            spectral_cache[fold] = window_inputs(test_parts, win, round(0.5 * rate_hz), front, normalizer)
         x_test, owner = spectral_cache[fold]
         y_test = y[folds[fold][1]][owner]
 

@@ -308,6 +308,7 @@ def simulate(
     warm_start: bool = False,
     segment_s: float | None = None,
     members: int = 3,
+    stage1: str = "own",
     device: str = "cpu",
 ) -> str:
     """The label-efficiency simulation on ``folder`` (see :mod:`workbench.evaluation.label_efficiency`)."""
@@ -330,6 +331,7 @@ def simulate(
         warm_start=warm_start,
         segment_s=segment_s,
         folds=members,
+        stage1=stage1,
         device=device,
     )
     recs, notes = load_recordings(folder)

@@ -25,8 +25,8 @@ TINY = SimSettings(
 )
 
 
-@pytest.mark.parametrize("model", ["default", "paper"])
-def test_simulate_logs_reports_both_strategies(tmp_path: Path, model: str) -> None:
+@pytest.mark.parametrize(("model", "stage1"), [("default", "own"), ("default", "lstm"), ("paper", "own")])
+def test_simulate_logs_reports_both_strategies(tmp_path: Path, model: str, stage1: str) -> None:
     rng = np.random.default_rng(0)
     logs, truth = [], []
     for _ in range(3):
@@ -34,9 +34,12 @@ def test_simulate_logs_reports_both_strategies(tmp_path: Path, model: str) -> No
         logs.append((rng.normal(size=(300, 2)) * (1 + y[:, None])).astype(np.float32))
         truth.append(y)
     lines: list[str] = []
-    settings = replace(TINY, model=model)
+    settings = replace(TINY, model=model, stage1=stage1)
     text = simulate_logs(logs, truth, ["a", "b", "c"], rate_hz=20.0, settings=settings, out=tmp_path, log=lines.append)
     assert ("stage 2 on the default family" in lines[0]) == (model == "default")
+    # the default family's own stage 1 unless the LSTM is asked for; the paper family's is always the LSTM
+    assert ("the next-frame predictor" in lines[0]) == (model == "default" and stage1 == "own"), lines[0]
+    assert ("of the LSTM" in lines[0]) == (model == "paper" or stage1 == "lstm"), lines[0]
     assert "| round | random: labelled s (%)" in text
     assert re.search(r"`combined` (reaches|does not reach) random's final accuracy", text)
     assert sum("round 2" in s for s in lines) == 2  # both strategies ran both rounds
@@ -61,6 +64,7 @@ def test_simulate_partitions_labels_whole_partitions(tmp_path: Path, model: str)
         _runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=settings, out=tmp_path, log=lines.append
     )
     assert "BorealTC" in text
+    assert ("the next-frame predictor" in lines[0]) == (model == "default"), lines[0]
     # two partitions of 5 s (100 samples at 20 Hz) per round
     assert any("random seed 0 round 2: 400 samples labelled" in s for s in lines)
     assert (tmp_path / "simulate-borealtc.png").exists()
