@@ -49,15 +49,36 @@ def block_and_guard(front: SpectralConfig) -> tuple[int, int]:
     return BLOCK_GUARDS * guard, guard
 
 
-def frame_rows(features: SpectralSteps, start: int, stop: int) -> np.ndarray:
-    """The distinct inputs of steps ``[start, stop)``: one per completed frame (the last step when none)."""
-    steps = features.frame_rows(start, stop)
-    if len(steps) == 0 and stop - 1 >= features.config.frame - 1:
-        steps = np.asarray([stop - 1])
+def frame_rows(features: SpectralSteps, start: int, stop: int, *, stride: int = 1) -> np.ndarray:
+    """The distinct inputs of steps ``[start, stop)``: one per completed frame (the last step when none); with
+    ``stride``, every ``stride``-th of them."""
+    steps = _row_steps(features, start, stop, stride)
     if len(steps) == 0:
         return np.zeros((0, features.shape[1]), np.float32)
     block = features[int(steps[0]) : int(steps[-1]) + 1]
     return block[steps - steps[0]]
+
+
+def _row_steps(features: SpectralSteps, start: int, stop: int, stride: int) -> np.ndarray:
+    steps = features.frame_rows(start, stop)
+    if len(steps) == 0 and stop - 1 >= features.config.frame - 1:
+        steps = np.asarray([stop - 1])
+    return steps[::stride]
+
+
+def stretch_pool(
+    features: Sequence[SpectralSteps], stretches: Sequence[Stretch], stride: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every ``stride``-th frame row of each stretch in one array ``(N, W·F)``, and where each stretch's rows begin
+    and end in it ``(S + 1,)``. One array filled in place: per-stretch arrays (or strided views of all rows) held
+    three times the memory on 10 hours of logs."""
+    counts = [len(_row_steps(features[i], a, b, stride)) for i, a, b in stretches]
+    bounds = np.concatenate([[0], np.cumsum(counts, dtype=np.int64)])
+    pool = np.empty((int(bounds[-1]), features[0].shape[1] if features else 0), np.float32)
+    for j, (i, a, b) in enumerate(stretches):
+        if counts[j]:
+            pool[bounds[j] : bounds[j + 1]] = frame_rows(features[i], a, b, stride=stride)
+    return pool, bounds
 
 
 def train_rows(
@@ -70,26 +91,31 @@ def train_rows(
     cancel: CancelFn,
     *,
     front: SpectralConfig | None = None,
+    more: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> WindowClassifier:
     """``epochs`` passes of AdamW over rows ``x (N, W·F)`` with classes ``y (N,)`` (at most ``config.max_steps``);
-    ``config.augment``'s draws need the frames' layout, ``front``."""
+    ``config.augment``'s draws need the frames' layout, ``front``. ``more``: rows ``pool[index]`` after ``x`` (``y``
+    covers both), read where they are: the batches of ``x`` and ``pool[index]`` concatenated, without the copy."""
     gen = torch.Generator().manual_seed(seed)
-    xt, yt = torch.from_numpy(np.ascontiguousarray(x, np.float32)), torch.from_numpy(np.asarray(y, np.int64))
+    augment = config.augment if front is not None and config.augment.active else None
+    if more is not None and augment is not None:  # its draws mix rows of the whole set
+        x, more = np.concatenate([x, more[0][more[1]]]), None
+    rows = _Rows(torch.from_numpy(np.ascontiguousarray(x, np.float32)), more)
+    yt = torch.from_numpy(np.asarray(y, np.int64))
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
-    per_epoch = -(-len(xt) // config.batch)
+    per_epoch = -(-len(rows) // config.batch)
     epochs = max(1, min(epochs, config.max_steps // max(per_epoch, 1)))
     noise_scale = config.noise / model.in_scale.repeat(model.config.window)  # (W·F,) standardised units, raw scale
-    augment = config.augment if front is not None and config.augment.active else None
     model.train()
     left = config.max_steps  # an epoch longer than the budget (a huge label set) stops part-way
     for _ in range(epochs):
         if cancel():
             raise Cancelled("classifier training cancelled")
-        for idx in torch.randperm(len(xt), generator=gen).split(config.batch)[:left]:
+        for idx in torch.randperm(len(rows), generator=gen).split(config.batch)[:left]:
             left -= 1
-            xb = xt[idx]
+            xb = rows.take(idx)
             if augment is not None:
-                xb = augment_rows(xb, yt[idx], (xt, yt), front, model.in_mean, augment, gen)
+                xb = augment_rows(xb, yt[idx], (rows.x, yt), front, model.in_mean, augment, gen)
             xb = xb + torch.randn(xb.shape, generator=gen) * noise_scale
             loss = F.cross_entropy(model.logits(xb), yt[idx])
             opt.zero_grad()
@@ -98,6 +124,29 @@ def train_rows(
         if not torch.isfinite(loss):
             raise ValueError("the window classifier's training diverged (a non-finite loss)")
     return model.eval()
+
+
+class _Rows:
+    """Rows ``x (N, D)`` followed by ``pool[index]``, read as one array without building it."""
+
+    def __init__(self, x: torch.Tensor, more: tuple[np.ndarray, np.ndarray] | None) -> None:
+        self.x = x
+        self.pool = None if more is None else torch.from_numpy(more[0])
+        self.index = None if more is None else torch.from_numpy(np.asarray(more[1], np.int64))
+
+    def __len__(self) -> int:
+        return len(self.x) + (0 if self.index is None else len(self.index))
+
+    def take(self, idx: torch.Tensor) -> torch.Tensor:
+        """Rows ``idx`` in that order."""
+        if self.pool is None:
+            return self.x[idx]
+        n = len(self.x)
+        own = idx < n
+        out = torch.empty((len(idx), self.x.shape[1]), dtype=self.x.dtype)
+        out[own] = self.x[idx[own]]
+        out[~own] = self.pool[self.index[idx[~own] - n]]
+        return out
 
 
 @torch.inference_mode()
@@ -125,18 +174,24 @@ def _predict_rows(model: WindowClassifier, x: np.ndarray) -> np.ndarray:
 
 
 def _pseudo_labels(
-    model: WindowClassifier, stretch_rows: Sequence[np.ndarray], agree: float
-) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    xs, ys = [], []
+    model: WindowClassifier, pool: np.ndarray, bounds: np.ndarray, stretches: Sequence[int], agree: float
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """The pool rows of the ``stretches`` (indices into ``bounds``) whose rows agree on a class, that class per row,
+    and how many stretches were taken."""
+    index, ys, taken = [], [], 0
     k = model.config.n_classes
-    for rows in stretch_rows:
-        if len(rows) == 0:
+    for j in stretches:
+        a, b = int(bounds[j]), int(bounds[j + 1])
+        if b == a:
             continue
-        counts = np.bincount(_predict_rows(model, rows), minlength=k)
-        if counts.max() >= agree * len(rows):
-            xs.append(rows)
-            ys.append(np.full(len(rows), counts.argmax()))
-    return xs, ys
+        counts = np.bincount(_predict_rows(model, pool[a:b]), minlength=k)
+        if counts.max() >= agree * (b - a):
+            index.append(np.arange(a, b))
+            ys.append(np.full(b - a, counts.argmax()))
+            taken += 1
+    if not index:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), 0
+    return np.concatenate(index), np.concatenate(ys), taken
 
 
 LOG_FOLD_DRAWS = 20  # shuffles of the folds over logs tried; the one that measures the most labelled time is kept
@@ -239,7 +294,7 @@ def fit_window_classifier(
     use_stretches = config.self_training and len(stretches) > 0
     # consecutive frames' windows share all but one frame: every PSEUDO_STRIDE-th row of a stretch carries nearly
     # all it holds, and the refits (most of a fit's time) read a third of the rows
-    stretch_rows = [frame_rows(features[i], a, b)[::PSEUDO_STRIDE] for i, a, b in stretches] if use_stretches else []
+    pool, bounds = stretch_pool(features, stretches if use_stretches else [], PSEUDO_STRIDE)
 
     def fit_on(
         train: Sequence[Segment], skip_logs: set[int], seed: int
@@ -260,12 +315,14 @@ def fit_window_classifier(
         y = np.concatenate([np.full(len(r), s[3]) for r, s in zip(rows, train, strict=True)])
         model = train_rows(fresh(), x, y, config.epochs, config, seed, cancel, front=front)
         seen = {int(c) for c in np.unique(y)}
-        kept = [r for r, s in zip(stretch_rows, stretches, strict=False) if s[0] not in skip_logs]
-        px, py = _pseudo_labels(model, kept, config.agree) if use_stretches else ([], [])
-        if px:
-            x, y = np.concatenate([x, *px]), np.concatenate([y, *py])
-            model = train_rows(fresh(), x, y, config.refit_epochs, config, seed, cancel, front=front)
-        return model, len(px), seen, labelled
+        kept = [j for j, s in enumerate(stretches) if s[0] not in skip_logs] if use_stretches else []
+        index, py, taken = _pseudo_labels(model, pool, bounds, kept, config.agree)
+        if taken:  # the pseudo-labelled rows are read in the pool, not copied beside the labelled ones
+            y = np.concatenate([y, py])
+            model = train_rows(
+                fresh(), x, y, config.refit_epochs, config, seed, cancel, front=front, more=(pool, index)
+            )
+        return model, taken, seen, labelled
 
     def predict(held: Sequence[Segment], model: WindowClassifier) -> tuple[np.ndarray, np.ndarray]:
         """Truth and prediction at every step of ``held``, as the passes score them."""
