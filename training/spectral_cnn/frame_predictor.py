@@ -219,12 +219,15 @@ def _squared_errors(model: FramePredictor, frames: np.ndarray) -> np.ndarray:
 def frame_surprise(
     model: FramePredictor, frames: np.ndarray, *, raw: bool = False, chunk: int = 8192
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per frame of one log ``(N, F)``: how badly the frames before it predicted it ``(N,)`` (the first frame: 0),
-    and the hidden features after it ``(N, H)``.
+    """Per frame of one log ``(N, F)``: how badly the frames before it predicted it ``(N,)``, and the hidden
+    features after it ``(N, H)``.
 
     The surprise is the mean over features of the squared standardised error, each feature's divided by its mean
-    on the training logs (``raw``: not divided, the loss's own units). The log is read in chunks that overlap by
-    the predictor's context, so a 10-hour log never goes through the network at once and the numbers equal one pass.
+    on the training logs, and 0 for the log's first ``FramePredictor.context`` frames: predicted from zeros before
+    the log began, they were the highest of every log and drew a "predictor surprised" highlight at each start.
+    ``raw``: the loss's own units, not divided, and only the first frame 0 (what the fit's reported error and the
+    copy-last-frame baseline are measured on). The log is read in chunks that overlap by the predictor's context, so
+    a 10-hour log never goes through the network at once and the numbers equal one pass.
     """
     n, ctx = len(frames), FramePredictor.context
     weight = torch.ones_like(model.residual_inv) if raw else model.residual_inv
@@ -238,6 +241,8 @@ def frame_surprise(
         sq = (estimate[0, :-1] - model.standardise(x[0, 1:])).pow(2)  # (L - 1, F) row j: frame lo + j + 1
         first = max(a, 1)
         error[first:hi] = (sq * weight).mean(dim=1).numpy()[first - lo - 1 :]
+    if not raw:
+        error[:ctx] = 0.0
     return error, hidden
 
 
