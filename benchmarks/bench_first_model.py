@@ -1,0 +1,182 @@
+"""Time to a first model, as a new user meets it: `workbench train SESSION` (both stages, the default family) on a
+new session of 1 hour and of 10 hours of 22-channel 100 Hz logs (demo walks as ROS 2 MCAP) with 5 % of the time
+labelled; and `workbench demo`'s first start to a served page.
+
+Each step runs in a fresh interpreter, as a person runs the command, and reports its wall time and peak resident set
+(``ru_maxrss``). Writing, ingesting and labelling the logs are set-up, timed but not part of the figure.
+
+References, measured in the same run on the same session:
+
+- for `workbench train`: reading the logs and computing the default family's spectral frames from them (fitting the
+  input normalisation over every log, choosing the front end, the frames of every log), in a fresh interpreter
+  too. No stage 1 over the frames can take less; the figure says what training adds to it.
+- for the demo: writing its six walks and ingesting them (`generate_demo_logs` and `workbench ingest`), the part
+  of its first start that has no model in it.
+"""
+
+from __future__ import annotations
+
+import json
+import resource
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+from pathlib import Path
+
+from common import Row, parse_args, record
+
+LABELLED = 0.05
+
+
+def child(step: str, *args: str) -> dict:
+    """Run one step of this file in a fresh interpreter; what it printed last (JSON: its peak RSS and seconds)."""
+    out = subprocess.run([sys.executable, __file__, "--child", step, *args], capture_output=True, text=True)
+    if out.returncode != 0:
+        raise RuntimeError(f"{step} failed:\n{out.stdout[-2000:]}\n{out.stderr[-3000:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def run_child(step: str, args: list[str]) -> None:
+    t = time.perf_counter()
+    extra: dict = {}
+    if step == "setup":  # write the walks, ingest them, label 5 % of the time
+        from sessions import Session
+        from workbench.demo import generate_demo_logs, seed_labels
+
+        folder, n_logs, minutes = Path(args[0]), int(args[1]), float(args[2])
+        files = generate_demo_logs(folder / "logs", n_logs=n_logs, minutes=minutes, seed=0)
+        with Session.create(folder / "session") as s:
+            logs = s.ingest(files)
+            for name in {t for x in logs for _, _, t in s.reference(x.id)} - {t.name for t in s.terrains()}:
+                s.add_terrain(name)
+            added = seed_labels(s, LABELLED, seed=0)
+            steps = sum(x.n_samples for x in logs)
+            extra = {
+                "logs": len(logs),
+                "hours": steps / logs[0].rate_hz / 3600,
+                "channels": len(logs[0].channel_names),
+                "labelled": sum(g.stop - g.start for g in added) / steps,
+            }
+    elif step == "frames":  # the reference: read the logs, fit the normalisation, compute every log's frames
+        from sessions import Session
+        from training import Normalizer, log_frames
+        from workbench.cycle import choose_front_end
+
+        with Session.open(Path(args[0])) as s:
+            logs = s.logs()
+            normalizer = Normalizer.fit([s.rows(x.id) for x in logs])
+            front = choose_front_end(s, logs)
+            extra = {"frames": sum(len(log_frames(s.rows(x.id), front, transform=normalizer)) for x in logs)}
+    elif step == "train":  # what `workbench train SESSION` runs, in this interpreter so that its peak is this one's
+        from workbench.cli import main as workbench
+
+        if workbench(["train", args[0]]) != 0:
+            raise SystemExit("workbench train failed")
+        from sessions import Session
+
+        with Session.open(Path(args[0])) as s:
+            v = s.active_model("classifier")
+            extra = {"classifier": v.id if v else None, "stage1": s.active_model("predictor").config.get("kind")}
+    else:
+        raise SystemExit(f"unknown step {step}")
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # kB on Linux
+    print(json.dumps({"peak": peak, "seconds": time.perf_counter() - t, **extra}))
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def demo_first_start(folder: Path, *, quick: bool) -> tuple[float, float]:
+    """Seconds from `workbench demo` to its page answering, and the reference: writing and ingesting its logs."""
+    size = ["--logs", "2", "--minutes", "1"] if quick else []
+    workbench = str(Path(sys.executable).with_name("workbench"))
+    port = free_port()
+    t = time.perf_counter()
+    proc = subprocess.Popen(
+        [workbench, "demo", "--session", str(folder / "demo"), "--port", str(port), *size],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        while True:
+            if proc.poll() is not None:
+                raise RuntimeError(f"workbench demo exited with {proc.returncode}:\n{proc.stdout.read()[-3000:]}")
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=2) as r:
+                    if r.status == 200:
+                        break
+            except OSError:
+                time.sleep(0.25)
+        served = time.perf_counter() - t
+    finally:
+        proc.terminate()
+        proc.wait(30)
+    t = time.perf_counter()
+    n_logs, minutes = ("2", "1") if quick else ("6", "5")
+    code = (
+        "import sys; from pathlib import Path; from workbench.demo import generate_demo_logs; "
+        f"generate_demo_logs(Path(sys.argv[1]), n_logs={n_logs}, minutes={minutes}, seed=0)"
+    )
+    subprocess.run([sys.executable, "-c", code, str(folder / "ref-logs")], check=True)
+    subprocess.run([workbench, "new", str(folder / "ref")], check=True, capture_output=True)
+    subprocess.run(
+        [workbench, "ingest", str(folder / "ref"), str(folder / "ref-logs")], check=True, capture_output=True
+    )
+    return served, time.perf_counter() - t
+
+
+def main() -> None:
+    if "--child" in sys.argv:
+        i = sys.argv.index("--child")
+        run_child(sys.argv[i + 1], sys.argv[i + 2 :])
+        return
+    args = parse_args(__doc__)
+    sizes = ((2, 3.0, 60.0), (4, 6.0, 600.0)) if args.quick else ((6, 10.0, 60.0), (20, 30.0, 600.0))
+    rows = []
+    for n_logs, minutes, target in sizes:
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = Path(tmp)
+            setup = child("setup", str(folder), str(n_logs), str(minutes))
+            print(f"set-up {setup}", flush=True)
+            session = str(folder / "session")
+            ref = child("frames", session)
+            print(f"reference {ref}", flush=True)
+            train = child("train", session)
+            print(f"train {train}", flush=True)
+        hours, gb = setup["hours"], train["peak"] / 2**30
+        rows.append(
+            Row(
+                f"`workbench train` (both stages, default family), new session of {setup['logs']} logs, "
+                f"{hours:.1f} h of {setup['channels']}-channel 100 Hz logs, {setup['labelled']:.1%} labelled",
+                f"{train['seconds']:.0f} s, peak {gb:.2f} GiB RSS ({train['peak'] / 1e9:.2f} GB)",
+                f"reading the logs + computing the frames: {ref['seconds']:.0f} s, peak {ref['peak'] / 2**30:.2f} GiB",
+                f"{train['seconds'] / ref['seconds']:.1f}× the reference",
+                f"≤ {target:.0f} s" + (", ≤ 2 GiB" if target > 60 else ""),
+                bool(train["seconds"] <= target and (target <= 60 or gb <= 2.0)),
+                f"stage 1: {train['stage1']}; classifier v{train['classifier']}",
+            )
+        )
+    with tempfile.TemporaryDirectory() as tmp:
+        served, reference = demo_first_start(Path(tmp), quick=args.quick)
+    rows.append(
+        Row(
+            "`workbench demo` first start to a served page (writes, ingests, labels 2 %, trains both stages, scores)",
+            f"{served:.0f} s",
+            f"writing and ingesting its logs: {reference:.0f} s",
+            f"{served / reference:.1f}× the reference",
+            "≤ 60 s",
+            bool(served <= 60),
+        )
+    )
+    record("first_model", rows, device=args.device)
+
+
+if __name__ == "__main__":
+    main()
