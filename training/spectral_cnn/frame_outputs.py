@@ -8,12 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .spectra import SpectralConfig
-
-
-def last_frame(steps: np.ndarray, config: SpectralConfig) -> np.ndarray:
-    """``(L,)`` index of the last frame complete at or before each step (``-1`` before the first frame)."""
-    return np.where(steps >= config.frame - 1, (steps - (config.frame - 1)) // config.hop, -1)
+from .spectra import SpectralConfig, last_frame
 
 
 class StepRows:

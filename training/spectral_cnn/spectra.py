@@ -287,6 +287,11 @@ def stacked_frames(frames: np.ndarray, which: np.ndarray, window: int) -> np.nda
     return np.asarray(frames[idx.reshape(-1)], np.float32).reshape(len(idx), -1)
 
 
+def last_frame(steps: np.ndarray, config: SpectralConfig) -> np.ndarray:
+    """``(L,)`` index of the last frame complete at or before each step (``-1`` before the first frame)."""
+    return np.where(steps >= config.frame - 1, (steps - (config.frame - 1)) // config.hop, -1)
+
+
 class SpectralSteps:
     """A log's per-step stage-2 inputs from its frames: each step holds the last ``config.window`` frames complete at
     or before it (zeros before the first), computed for the rows sliced only.
@@ -309,7 +314,7 @@ class SpectralSteps:
         stop = max(start, stop)
         cfg = self.config
         steps = np.arange(start, stop)
-        which = np.where(steps >= cfg.frame - 1, (steps - (cfg.frame - 1)) // cfg.hop, -1)  # (L,) last frame
+        which = last_frame(steps, cfg)  # (L,)
         out = np.zeros((stop - start, self.shape[1]), np.float32)
         known = which >= 0
         if known.any():
