@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+import threading
 
 import numpy as np
 import pytest
+import torch
 
 from training import (
     HELD_OUT,
@@ -29,6 +31,7 @@ from training import (
     run_classifiers,
     save_bundle,
 )
+from training.progress import Cancelled
 
 RATE = 100.0
 
@@ -118,6 +121,62 @@ def test_the_ensemble_learns_terrains_it_was_not_shown_on_other_stretches(fitted
     for p, k in zip(probs, terrains, strict=True):
         unseen = p.mean(0)[1600:2400]  # never labelled, never a self-training stretch
         assert (unseen.argmax(1) == k).mean() > 0.9
+
+
+def test_fits_side_by_side_in_threads_give_the_fit_one_after_the_other_gives(logs) -> None:
+    arrays, terrains = logs
+    normalizer = Normalizer.fit(arrays)
+    config = SpectralConfig.for_log(arrays[0], RATE)
+    feats = _features(arrays, normalizer, config)
+    segments = [(i, 300, 900, k) for i, k in enumerate(terrains)]
+    stretches = [(i, 1000, 1500) for i in range(len(arrays))]
+    settings = WindowFitConfig(k_folds=2, epochs=8, refit_epochs=4)
+    threads = torch.get_num_threads()
+    fits, reports = {}, {}
+    for workers in (1, 2):
+        torch.set_num_threads(1)  # one thread per fit either way: the same arithmetic, only the order differs
+        seen: list[tuple[int, int, str]] = []
+        try:
+            fits[workers] = fit_window_classifier(
+                feats,
+                segments,
+                ("a", "b", "c"),
+                config=settings,
+                stretches=stretches,
+                workers=workers,
+                progress=lambda p, seen=seen: seen.append((p.fold, p.folds, threading.current_thread().name)),
+            )
+        finally:
+            torch.set_num_threads(threads)
+        reports[workers] = seen
+        assert torch.get_num_threads() == threads  # the workers' one-thread setting does not leak out
+    one, two = fits[1], fits[2]
+    for a, b in zip(one.models, two.models, strict=True):
+        for (name, x), y in zip(a.state_dict().items(), b.state_dict().values(), strict=True):
+            assert torch.equal(x, y), name
+    assert one.metrics == two.metrics and one.metrics["held_out_logs"]["folds"] == 2
+    total = len(one.models) + 2  # the members and the folds over logs
+    for seen in reports.values():  # every fit reported, counted in order, from the calling thread
+        assert [(f, n) for f, n, _ in seen] == [(i, total) for i in range(1, total + 1)]
+        assert {name for _, _, name in seen} == {threading.current_thread().name}
+
+
+def test_a_failing_fit_among_threads_raises_and_the_thread_count_comes_back(logs) -> None:
+    arrays, terrains = logs
+    config = SpectralConfig.for_log(arrays[0], RATE)
+    feats = _features(arrays, Normalizer.fit(arrays), config)
+    threads = torch.get_num_threads()
+    calls = {"n": 0}
+
+    def cancel() -> bool:  # the third poll, from whichever thread, cancels
+        calls["n"] += 1
+        return calls["n"] >= 3
+
+    with pytest.raises(Cancelled):
+        fit_window_classifier(
+            feats, [(i, 300, 900, k) for i, k in enumerate(terrains)], ("a", "b", "c"), cancel=cancel, workers=2
+        )
+    assert torch.get_num_threads() == threads
 
 
 def test_a_class_missing_from_a_fold_never_wins_and_two_classes_work(logs) -> None:

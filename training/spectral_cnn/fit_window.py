@@ -18,6 +18,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Sequence
+from functools import partial
 
 import numpy as np
 import torch
@@ -26,15 +27,17 @@ from torch.nn import functional as F
 
 from ..blocking import blocked_folds
 from ..estimates import terrain_estimate
+from ..fit_threads import INIT_LOCK, fit_workers, run_fits
 from ..fitting import ClassifierFit, Segment
 from ..metrics import classification_metrics
 from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from .row_draws import RowDraws
 from .spectra import SpectralConfig, SpectralSteps, frame_moments
 from .window_augment import augment_rows
 from .window_calibration import fit_temperature, scale_head
 from .window_classifier import WindowClassifier, WindowClassifierConfig
 from .window_config import WindowFitConfig
-from .window_drift import fit_drift
+from .window_drift import REFERENCE_ROWS, fit_drift
 
 BLOCK_GUARDS = 4  # a block is four guards long: a fold's guard never takes more than half of a block next to it
 PSEUDO_STRIDE = 3  # rows of a stretch self-training reads: every third frame
@@ -52,11 +55,7 @@ def block_and_guard(front: SpectralConfig) -> tuple[int, int]:
 def frame_rows(features: SpectralSteps, start: int, stop: int, *, stride: int = 1) -> np.ndarray:
     """The distinct inputs of steps ``[start, stop)``: one per completed frame (the last step when none); with
     ``stride``, every ``stride``-th of them."""
-    steps = _row_steps(features, start, stop, stride)
-    if len(steps) == 0:
-        return np.zeros((0, features.shape[1]), np.float32)
-    block = features[int(steps[0]) : int(steps[-1]) + 1]
-    return block[steps - steps[0]]
+    return features.at(_row_steps(features, start, stop, stride))
 
 
 def _row_steps(features: SpectralSteps, start: int, stop: int, stride: int) -> np.ndarray:
@@ -97,15 +96,15 @@ def train_rows(
     ``config.augment``'s draws need the frames' layout, ``front``. ``more``: rows ``pool[index]`` after ``x`` (``y``
     covers both), read where they are: the batches of ``x`` and ``pool[index]`` concatenated, without the copy."""
     gen = torch.Generator().manual_seed(seed)
+    draws = RowDraws(seed, dropout=model.config.dropout)
     augment = config.augment if front is not None and config.augment.active else None
     if more is not None and augment is not None:  # its draws mix rows of the whole set
         x, more = np.concatenate([x, more[0][more[1]]]), None
     rows = _Rows(torch.from_numpy(np.ascontiguousarray(x, np.float32)), more)
     yt = torch.from_numpy(np.asarray(y, np.int64))
-    opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay, fused=True)
     per_epoch = -(-len(rows) // config.batch)
     epochs = max(1, min(epochs, config.max_steps // max(per_epoch, 1)))
-    noise_scale = config.noise / model.in_scale.repeat(model.config.window)  # (W·F,) standardised units, raw scale
     model.train()
     left = config.max_steps  # an epoch longer than the budget (a huge label set) stops part-way
     for _ in range(epochs):
@@ -113,11 +112,13 @@ def train_rows(
             raise Cancelled("classifier training cancelled")
         for idx in torch.randperm(len(rows), generator=gen).split(config.batch)[:left]:
             left -= 1
-            xb = rows.take(idx)
+            xb, idx = rows.take(idx)
             if augment is not None:
                 xb = augment_rows(xb, yt[idx], (rows.x, yt), front, model.in_mean, augment, gen)
-            xb = xb + torch.randn(xb.shape, generator=gen) * noise_scale
-            loss = F.cross_entropy(model.logits(xb), yt[idx])
+            frames = model.standardise(xb)  # (B, W, F)
+            noise, keep = draws(frames.shape)  # (B, W, F) each
+            frames = frames.add_(noise, alpha=config.noise)  # in standardised units
+            loss = F.cross_entropy(model.frame_logits(frames, keep=keep), yt[idx])
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -137,16 +138,18 @@ class _Rows:
     def __len__(self) -> int:
         return len(self.x) + (0 if self.index is None else len(self.index))
 
-    def take(self, idx: torch.Tensor) -> torch.Tensor:
-        """Rows ``idx`` in that order."""
+    def take(self, idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Rows ``idx``, and ``idx`` reordered as the rows are: those of ``x`` first, then the pool's (a batch's
+        order does not matter to its mean loss, and two gathers into place beat masked writes)."""
         if self.pool is None:
-            return self.x[idx]
+            return self.x[idx], idx
         n = len(self.x)
         own = idx < n
+        mine, theirs = idx[own], idx[~own]
         out = torch.empty((len(idx), self.x.shape[1]), dtype=self.x.dtype)
-        out[own] = self.x[idx[own]]
-        out[~own] = self.pool[self.index[idx[~own] - n]]
-        return out
+        torch.index_select(self.x, 0, mine, out=out[: len(mine)])
+        torch.index_select(self.pool, 0, self.index[theirs - n], out=out[len(mine) :])
+        return out, torch.cat([mine, theirs])
 
 
 @torch.inference_mode()
@@ -257,6 +260,7 @@ def fit_window_classifier(
     groups: Sequence[int] | None = None,
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
+    workers: int | None = None,
 ) -> ClassifierFit:
     """Fit the k fold models on labelled segments (and unlabelled stretches, with self-training).
 
@@ -268,8 +272,10 @@ def fit_window_classifier(
         stretches: Unlabelled spans ``(log index, start, stop)`` for self-training (ignored when it is off).
         groups: The recording (run) each log belongs to, for the held-out figures and the calibration; default:
             every log is its own (a session's logs are runs; a protocol that cuts runs into pieces passes the runs).
-        progress: Called after each fold.
-        cancel: Polled between fits.
+        progress: Called after each fit, on the calling thread.
+        cancel: Polled between epochs.
+        workers: Fits run side by side (:mod:`training.fit_threads`); default: one per torch thread. The result
+            does not depend on it.
 
     Returns:
         The ensemble (one model per blocked fold, :mod:`training.blocking`) and its out-of-fold metrics: each
@@ -303,8 +309,9 @@ def fit_window_classifier(
         classes it saw and the labelled rows it trained on."""
 
         def fresh() -> WindowClassifier:
-            torch.manual_seed(seed)
-            model = WindowClassifier(model_config)
+            with INIT_LOCK:  # the initial weights come from torch's global generator
+                torch.manual_seed(seed)
+                model = WindowClassifier(model_config)
             model.set_standardisation(mean, std)
             return model
 
@@ -348,35 +355,59 @@ def fit_window_classifier(
     shared = any(n >= 2 for n in logs_per_class.values())  # a terrain in two logs: held-out logs can measure it
     by_log = _log_folds(segments, config.k_folds, group_of) if config.held_out and shared else []
     total = blocked.k + len(by_log)
-    models, histories, oof_true, oof_pred, pseudo = [], [], [], [], []
-    trained_rows, oof_rows, oof_logits, oof_classes = [], [], [], []  # per member: for the drift and calibration
-    for f in range(blocked.k):
-        if cancel():
-            raise Cancelled("classifier training cancelled")
+
+    def member(f: int) -> tuple[WindowClassifier, int, set[int], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Blocked fold ``f``'s model, the stretches it took, the classes it saw, the labelled rows the drift
+        reference keeps (``REFERENCE_ROWS`` of those it trained on), and its held-out block's rows, their classes
+        and their steps' truth and prediction."""
         held = [pieces[j] for j in blocked.held_out(f)]
         train = blocked.training(f) if blocked.k > 1 else pieces
         if not any(b > a and b >= front.frame for _, a, b, _ in train):  # a piece has rows once it reaches a frame
             # tiny labels close together: the guards took every other piece; this one fold trains on them whole
             train = [pieces[j] for j, g in enumerate(blocked.fold_of) if g != f] or pieces
         model, taken, seen, labelled = fit_on(train, set(), config.seed + f + 1)
+        if len(labelled) > REFERENCE_ROWS:  # what the drift reference keeps of them; the rest is not held meanwhile
+            pick = np.random.default_rng([config.seed, f]).choice(len(labelled), REFERENCE_ROWS, replace=False)
+            labelled = labelled[np.sort(pick)]
+        rows, rows_y = held_rows(held, seen) if blocked.k > 1 else held_rows([], seen)
+        return model, taken, seen, labelled, rows, rows_y, *predict(held, model)
+
+    def log_fit(f_i: int, train_idx: np.ndarray, val_idx: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Truth, prediction, logits and classes of a fold over logs' held-out segments, by a model fitted without
+        any label or stretch of their logs (not an ensemble member)."""
+        held_groups = {group_of[segments[i][0]] for i in val_idx}
+        held_logs = {j for j, g in enumerate(group_of) if g in held_groups}
+        model, _, seen, _ = fit_on([segments[i] for i in train_idx], held_logs, config.seed + f_i)
+        true, pred = predict([segments[i] for i in val_idx], model)
+        measurable = {c for c in seen if logs_per_class[c] >= 2}  # a one-log terrain has no other log to learn
+        keep = np.isin(true, list(measurable))
+        rows, rows_y = held_rows([segments[i] for i in val_idx], measurable)
+        return true[keep], pred[keep], row_logits(model, rows), rows_y
+
+    def reported(done: int) -> None:
+        if progress:
+            progress(Progress("classifier", done, total, 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
+
+    jobs = [partial(member, f) for f in range(blocked.k)]
+    jobs += [partial(log_fit, f_i, tr, va) for f_i, (tr, va) in enumerate(by_log, blocked.k + 1)]
+    results = run_fits(jobs, workers=fit_workers(total) if workers is None else workers, done=reported)
+    models, histories, oof_true, oof_pred, pseudo = [], [], [], [], []
+    trained_rows, oof_rows, oof_logits, oof_classes = [], [], [], []  # per member: for the drift and calibration
+    for model, taken, seen, labelled, rows, rows_y, true, pred in results[: blocked.k]:
         pseudo.append(taken)
         models.append(model)
-        rows, rows_y = held_rows(held, seen) if blocked.k > 1 else held_rows([], seen)
         trained_rows.append(labelled)
         oof_rows.append(rows)
         oof_logits.append(row_logits(model, rows))
         oof_classes.append(rows_y)
-        true, pred = predict(held, model)
-        oof_true.append(true)
-        oof_pred.append(pred)
         histories.append(
             [{"epoch": config.epochs, "pseudo_stretches": taken, "val_accuracy": float((true == pred).mean())}]
         )
         if blocked.k > 1:  # a terrain this fold never trained on cannot be right: its steps are not measured
             keep = np.isin(true, list(seen))
-            oof_true[-1], oof_pred[-1] = true[keep], pred[keep]
-        if progress:
-            progress(Progress("classifier", f + 1, total, 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
+            true, pred = true[keep], pred[keep]
+        oof_true.append(true)
+        oof_pred.append(pred)
     same_true, same_pred = np.concatenate(oof_true), np.concatenate(oof_pred)
     metrics = classification_metrics(same_true, same_pred, classes)
     metrics["out_of_fold"] = blocked.k > 1
@@ -387,24 +418,7 @@ def fit_window_classifier(
     held_out = None
     calibration = (np.concatenate(oof_logits), np.concatenate(oof_classes), "same run")
     if by_log:
-        held_true, held_pred, held_logits, held_classes = [], [], [], []
-        for f_i, (train_idx, val_idx) in enumerate(by_log, start=blocked.k + 1):
-            if cancel():
-                raise Cancelled("classifier training cancelled")
-            held_groups = {group_of[segments[i][0]] for i in val_idx}
-            held_logs = {j for j, g in enumerate(group_of) if g in held_groups}
-            # a held-out log lends no stretch: unseen
-            model, _, seen, _ = fit_on([segments[i] for i in train_idx], held_logs, config.seed + f_i)
-            true, pred = predict([segments[i] for i in val_idx], model)
-            measurable = {c for c in seen if logs_per_class[c] >= 2}  # a one-log terrain has no other log to learn
-            keep = np.isin(true, list(measurable))
-            held_true.append(true[keep])
-            held_pred.append(pred[keep])
-            rows, rows_y = held_rows([segments[i] for i in val_idx], measurable)
-            held_logits.append(row_logits(model, rows))
-            held_classes.append(rows_y)
-            if progress:
-                progress(Progress("classifier", f_i, total, 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
+        held_true, held_pred, held_logits, held_classes = (list(c) for c in zip(*results[blocked.k :], strict=True))
         held_out = np.concatenate(held_true), np.concatenate(held_pred)
         if sum(len(c) for c in held_classes):
             calibration = (np.concatenate(held_logits), np.concatenate(held_classes), "held-out logs")

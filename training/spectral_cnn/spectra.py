@@ -311,11 +311,13 @@ class SpectralSteps:
         if not isinstance(key, slice) or key.step not in (None, 1):
             raise TypeError("SpectralSteps supports [start:stop] slices only")
         start, stop, _ = key.indices(self.shape[0])
-        stop = max(start, stop)
+        return self.at(np.arange(start, max(start, stop)))
+
+    def at(self, steps: np.ndarray) -> np.ndarray:
+        """The inputs of ``steps`` (ascending), ``(len(steps), window·F)``, without those of the steps between."""
         cfg = self.config
-        steps = np.arange(start, stop)
-        which = last_frame(steps, cfg)  # (L,)
-        out = np.zeros((stop - start, self.shape[1]), np.float32)
+        which = last_frame(np.asarray(steps, np.int64), cfg)  # (L,)
+        out = np.zeros((len(which), self.shape[1]), np.float32)
         known = which >= 0
         if known.any():
             lo = max(int(which[known][0]) - cfg.window + 1, 0)

@@ -19,7 +19,6 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
-import torch
 
 from ..fitting import ClassifierFit, Segment
 from ..metrics import classification_metrics
@@ -119,7 +118,6 @@ def fine_tune_window_classifier(
                 take = rng.choice(len(x_old), min(len(x_old), max(len(x_new), config.batch)), replace=False)
                 x_new, y_new = np.concatenate([x_new, x_old[take]]), np.concatenate([y_new, y_old[take]])
             if len(x_new):
-                torch.manual_seed(config.seed + m + 1)
                 model = train_rows(model, x_new, y_new, steps, tune, config.seed + m + 1, cancel)
         models.append(model)
         if progress:

@@ -197,7 +197,8 @@ def signal_change_points(session: Session, log: LogInfo) -> np.ndarray:
     with _cache_lock:
         hit = _CHANGE_POINTS.get(key)
     if hit is None:  # computed outside the lock: seconds on a long log; two threads at once compute the same
-        hit = log_change_points(session.array(log.id), None, rate_hz=log.rate_hz)
+        # read, not mapped: a map keeps every page it read resident (10 h of logs: 0.3 GiB of a training's peak)
+        hit = log_change_points(session.rows(log.id)[:], None, rate_hz=log.rate_hz)
         with _cache_lock:
             _CHANGE_POINTS[key] = hit
     return hit
