@@ -9,6 +9,7 @@ from .ingest import (
     AlignedLog,
     IngestOptions,
     Mapping,
+    TimeColumn,
     align,
     load_mapping,
     plan_sources,
@@ -20,11 +21,11 @@ from .label_files import write_frame
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import ModelVersion
 from .rowfiles import FileRows, NpyWriter
-from .schema import DEFAULT_TERRAINS, SCHEMA_VERSION
+from .schema import KNOWN_TERRAIN_COLORS, SCHEMA_VERSION
 from .store import Session
 
 __all__ = [
-    "DEFAULT_TERRAINS",
+    "KNOWN_TERRAIN_COLORS",
     "SCHEMA_VERSION",
     "AlignedLog",
     "CameraFrame",
@@ -44,6 +45,7 @@ __all__ = [
     "Session",
     "SessionError",
     "Terrain",
+    "TimeColumn",
     "WorkbenchError",
     "align",
     "load_mapping",

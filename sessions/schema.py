@@ -14,14 +14,16 @@ from .errors import SessionError
 
 Migration = Callable[[sqlite3.Connection], None]
 
-DEFAULT_TERRAINS: tuple[tuple[str, str], ...] = (
-    ("concrete", "#9e9e9e"),
-    ("grass", "#4caf50"),
-    ("gravel", "#795548"),
-    ("mulch", "#ff9800"),
-    ("dirt", "#8d6e63"),
-    ("sand", "#fdd835"),
-)
+# Colours for terrains people often name, used when one of these is added (a new session has no terrains: they come
+# from the person, their label files or reference names, not from a dataset we once read)
+KNOWN_TERRAIN_COLORS: dict[str, str] = {
+    "concrete": "#9e9e9e",
+    "grass": "#4caf50",
+    "gravel": "#795548",
+    "mulch": "#ff9800",
+    "dirt": "#8d6e63",
+    "sand": "#fdd835",
+}
 
 
 def _run_script(conn: sqlite3.Connection, script: str) -> None:
@@ -137,10 +139,6 @@ def _v1(conn: sqlite3.Connection) -> None:
             result TEXT NOT NULL DEFAULT '{}'
         );
         """,
-    )
-    conn.executemany(
-        "INSERT INTO terrains (name, color, position) VALUES (?, ?, ?)",
-        [(name, color, i) for i, (name, color) in enumerate(DEFAULT_TERRAINS)],
     )
 
 

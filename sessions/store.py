@@ -22,7 +22,7 @@ from .log_ingest import LOGS_DIR, LogIngest
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import CACHE_DIR, ModelRegistry
 from .rowfiles import FileRows
-from .schema import SCHEMA_VERSION, migrate
+from .schema import KNOWN_TERRAIN_COLORS, SCHEMA_VERSION, migrate
 
 DB_NAME = "session.sqlite"
 _STALE_TMP_S = 600.0  # leftovers older than this are from a crashed ingest, not one in progress
@@ -235,7 +235,8 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         return [Terrain(*r) for r in self._read("SELECT id, name, color, position FROM terrains ORDER BY position")]
 
     def add_terrain(self, name: str, *, color: str | None = None) -> Terrain:
-        """Add a terrain class at the end of the list (colour: the next of a palette unlike the defaults').
+        """Add a terrain class at the end of the list (colour: a usual one for a usual name, else the next of a
+        palette).
 
         Raises:
             LabelError: The name is empty or taken, or the colour is not ``#rrggbb``.
@@ -425,8 +426,13 @@ def _insert_terrain(conn, name: str, color: str | None) -> None:
     pos = conn.execute("SELECT COALESCE(MAX(position) + 1, 0) FROM terrains").fetchone()[0]
     if color is None:
         taken = {r[0] for r in conn.execute("SELECT color FROM terrains")}
-        color = next(
-            (c for c in NEW_TERRAIN_COLORS if c not in taken), NEW_TERRAIN_COLORS[pos % len(NEW_TERRAIN_COLORS)]
+        known = KNOWN_TERRAIN_COLORS.get(name.lower())
+        color = (
+            known
+            if known is not None and known not in taken
+            else next(
+                (c for c in NEW_TERRAIN_COLORS if c not in taken), NEW_TERRAIN_COLORS[pos % len(NEW_TERRAIN_COLORS)]
+            )
         )
     conn.execute("INSERT INTO terrains (name, color, position) VALUES (?, ?, ?)", (name, color, pos))
 

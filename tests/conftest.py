@@ -40,9 +40,28 @@ def snapshot(session_path: Path) -> tuple:
     return rows, files
 
 
+TEST_TERRAINS = ("concrete", "grass", "gravel", "mulch", "dirt", "sand")
+
+
+def add_terrains(s: Session, names: tuple[str, ...] = TEST_TERRAINS) -> Session:
+    """Add the terrains a test labels with (those the session lacks)."""
+    have = {t.name for t in s.terrains()}
+    for name in names:
+        if name not in have:
+            s.add_terrain(name)
+    return s
+
+
+def new_session(path: Path, terrains: tuple[str, ...] = TEST_TERRAINS) -> Session:
+    """``Session.create`` with the terrains a test labels with."""
+    return add_terrains(Session.create(path), terrains)
+
+
 @pytest.fixture
 def session(tmp_path: Path) -> Session:
+    """A new session with the demo's six terrains, the names these tests label with (a new session has none)."""
     s = Session.create(tmp_path / "session")
+    add_terrains(s)
     yield s
     s.close()
 

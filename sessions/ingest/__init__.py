@@ -5,6 +5,7 @@ from .base import ChannelSpec, IngestOptions, Mapping, ParsedLog, Stream, load_m
 from .csv_reader import sniff_csv
 from .mcap_reader import TopicReport, read_mcap
 from .sources import Source, plan_sources, read_source
+from .time_columns import TimeColumn
 
 __all__ = [
     "AlignedLog",
@@ -14,6 +15,7 @@ __all__ = [
     "ParsedLog",
     "Source",
     "Stream",
+    "TimeColumn",
     "TopicReport",
     "align",
     "load_mapping",

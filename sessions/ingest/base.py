@@ -9,6 +9,7 @@ import numpy as np
 
 from ..rowfiles import FileRows
 from .image_topics import CameraStream
+from .time_columns import TimeColumn
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,7 @@ class ParsedLog:
     reference: tuple[tuple[float, float, str], ...] = ()
     notes: tuple[str, ...] = ()
     cameras: tuple[CameraStream, ...] = ()  # camera frames, kept beside the arrays
+    found_time: TimeColumn | None = None  # a CSV's time column when the reader found it itself
 
 
 @dataclass(frozen=True)
@@ -67,7 +69,8 @@ class Mapping:
         ignore: MCAP topics or CSV columns never used.
         rate_hz: Rate of the aligned time base (default: the fastest stream's median rate).
         time_column: CSV time column, by name or 0-based index.
-        time_unit: Unit of the CSV time column: "s", "ms", "us" or "ns".
+        time_unit: Unit of the CSV time column: "s", "ms", "us" or "ns"; ``None``: judged by its first value (an
+            epoch time in the unit that reads as a date since 2001, else seconds).
         header: Whether the CSV has a header row (None: detect).
         columns: CSV column names when it has no header.
         sample_rate_hz: Rate of CSV files with no time column (QCAT files without one).
@@ -77,7 +80,7 @@ class Mapping:
     ignore: tuple[str, ...] = ()
     rate_hz: float | None = None
     time_column: str | int | None = None
-    time_unit: str = "s"
+    time_unit: str | None = None
     header: bool | None = None
     columns: tuple[str, ...] = ()
     sample_rate_hz: float | None = None
@@ -137,8 +140,8 @@ def load_mapping(path: str | Path) -> Mapping:
             )
             for c in raw.get("channels", [])
         )
-        time_unit = str(csv.get("time_unit", "s"))
-        if time_unit not in TIME_UNITS:
+        time_unit = csv.get("time_unit")
+        if time_unit is not None and time_unit not in TIME_UNITS:
             raise ValueError(f"csv.time_unit must be one of {', '.join(TIME_UNITS)}, not {time_unit!r}")
         rate = raw.get("rate_hz")
         sample_rate = csv.get("sample_rate_hz")

@@ -12,6 +12,7 @@ import pandas as pd
 from ..errors import IngestError
 from ..limits import MAX_CSV_LINE_BYTES
 from .base import TIME_UNITS, IngestOptions, ParsedLog, Stream
+from .time_columns import PROBE_ROWS, TimeColumn, find_time_columns, judge_unit
 
 # QCAT (CSIRO, DyRET robot): `{terrain}_{speed}_legSensors_{raw|imu}.csv`, the terrain given as an index.
 QCAT_TERRAINS = ("concrete", "grass", "gravel", "mulch", "dirt", "sand")
@@ -55,11 +56,15 @@ def _first_line(path: Path) -> str:
 
 
 def is_borealtc(path: Path) -> bool:
+    """A file named as BorealTC's (``imu_N.csv``, ``pro_N.csv``) whose header has a ``time`` column and at least half
+    of its kind's channels, in any order: read by name, so a missing channel is refused by name rather than the
+    file read as a generic CSV."""
     m = BOREAL_RE.match(path.name)
     if not m:
         return False
-    header = [h.strip() for h in _first_line(path).strip().split(",")]
-    return header == BOREAL_HEADERS[m["kind"]]
+    header = {h.strip() for h in next(csv.reader([_first_line(path)]), [])}
+    expected = BOREAL_HEADERS[m["kind"]]
+    return "time" in header and 2 * len(header & set(expected[1:])) >= len(expected) - 1
 
 
 def is_qcat(path: Path) -> bool:
@@ -193,6 +198,7 @@ def _stream(
 def read_borealtc(paths: list[Path], options: IngestOptions) -> ParsedLog:
     """One BorealTC run: ``imu_NN.csv`` and/or ``pro_NN.csv`` from one terrain folder."""
     streams = []
+    notes: list[str] = []
     run = ""
     for path in sorted(paths, key=lambda p: p.name):
         m = BOREAL_RE.match(path.name)
@@ -200,9 +206,17 @@ def read_borealtc(paths: list[Path], options: IngestOptions) -> ParsedLog:
         kind, run = m["kind"], m["run"]
         frame = _read_frame(path, header=True)
         expected = BOREAL_HEADERS[kind]
-        if list(frame.columns) != expected:
-            raise IngestError(path, f"expected columns {','.join(expected)}, found {','.join(frame.columns)}")
-        cols = expected[1:]
+        missing = [c for c in expected if c not in frame.columns]
+        if missing:
+            raise IngestError(
+                path,
+                f"missing column{'s' * (len(missing) > 1)} {', '.join(missing)} (a BorealTC {kind} file has "
+                f"{', '.join(expected)}, in any order)",
+            )
+        extra = [str(c) for c in frame.columns if c not in expected]
+        if extra:
+            notes.append(f"{path.name}: column{'s' * (len(extra) > 1)} {', '.join(extra)} not read (not BorealTC's)")
+        cols = expected[1:]  # by name: the session's channels keep BorealTC's order whatever the file's
         times = _times(path, frame, "time", 1.0)
         values = _numeric(path, frame, cols, allow_gaps=options.allow_gaps)
         streams.append(
@@ -224,6 +238,7 @@ def read_borealtc(paths: list[Path], options: IngestOptions) -> ParsedLog:
         format="borealtc",
         streams=tuple(streams),
         reference_terrain=terrain.lower(),
+        notes=tuple(notes),
     )
 
 
@@ -266,7 +281,7 @@ def read_qcat(paths: list[Path], options: IngestOptions) -> list[ParsedLog]:
         for k in np.unique(trial):
             rows = np.flatnonzero(trial == k)
             if time_col is not None:
-                times = _times(path, frame.iloc[rows], time_col, TIME_UNITS[options.mapping.time_unit])
+                times = _times(path, frame.iloc[rows], time_col, TIME_UNITS[options.mapping.time_unit or "s"])
                 times = times - times[0]
             else:
                 times = np.arange(len(rows), dtype=np.float64) / rate
@@ -313,14 +328,33 @@ def _guessed_time(path: Path, frame: pd.DataFrame, column: str, scale: float) ->
         ) from None
 
 
+def _coerced(column: pd.Series) -> np.ndarray:
+    return pd.to_numeric(column.str.strip(), errors="coerce").to_numpy(dtype=np.float64)
+
+
+def _found_time(frame: pd.DataFrame, cols: list[str]) -> list[TimeColumn]:
+    head = frame.iloc[:PROBE_ROWS]
+    return find_time_columns([(str(c), _coerced(head[c])) for c in cols], lambda i: _coerced(frame[cols[i]]))
+
+
+def _unit_of(frame: pd.DataFrame, column: str) -> str:
+    """The unit of a time column nobody gave one for: an epoch unit when its first value reads as one, else s."""
+    first = _coerced(frame[column].iloc[:1])
+    return (judge_unit(float(first[0])) if len(first) and np.isfinite(first[0]) else None) or "s"
+
+
 def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
     """A time column (or rows at ``sample_rate_hz``) plus numeric channels; names, time column and unit from the
-    mapping where given."""
+    mapping where given. With none named, a column called time (``TIME_NAMES``) or one that steps like a clock
+    (:mod:`.time_columns`) is the time; with neither, the first column is tried."""
     mapping = options.mapping
     frame = _read_frame(path, header=mapping.header, names=mapping.columns)
     cols = list(frame.columns)
     time_col: str | None
     guessed = False
+    found: TimeColumn | None = None
+    not_read: list[str] = []  # other columns that step like a clock: a ramp is no terrain signal
+    notes: list[str] = []
     if mapping.time_column is not None:
         tc = mapping.time_column
         if isinstance(tc, int):
@@ -334,7 +368,20 @@ def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
     else:
         time_col = next((c for c in cols if str(c).lower() in TIME_NAMES), None)
         if time_col is None and mapping.sample_rate_hz is None:
-            time_col, guessed = cols[0], True
+            clocks = [t for t in _found_time(frame, cols) if t.name not in mapping.ignore]
+            if clocks:
+                found, time_col = clocks[0], cols[clocks[0].index]
+                not_read = [cols[t.index] for t in clocks[1:]]
+                if not_read:
+                    notes.append(
+                        f"{len(clocks)} columns could be time: {'; '.join(t.describe() for t in clocks)}. Read "
+                        f"{found.name!r} as time and not the others; name one with [csv] time_column to choose"
+                    )
+                else:
+                    notes.append(f"time: {found.describe()}, found by its steady steps")
+            else:
+                time_col, guessed = cols[0], True
+    unit = mapping.time_unit or (found.unit if found else _unit_of(frame, time_col) if time_col else "s")
     if mapping.channels:
         missing = [s.source for s in mapping.channels if s.source not in cols]
         if missing:
@@ -343,16 +390,17 @@ def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
         names = tuple(s.name or s.source for s in mapping.channels)
         units = tuple(s.unit for s in mapping.channels)
     else:
-        chans = [c for c in cols if c != time_col and c not in mapping.ignore]
+        skip = {time_col, *not_read, *mapping.ignore}
+        chans = [c for c in cols if c not in skip]
         names, units = tuple(str(c) for c in chans), ("",) * len(chans)
     if not chans:
         raise IngestError(path, "no channel columns besides the time column")
     if time_col is None:  # rows evenly sampled at the mapping's rate
         times = np.arange(len(frame), dtype=np.float64) / float(mapping.sample_rate_hz or 1.0)
     elif guessed:
-        times = _guessed_time(path, frame, time_col, TIME_UNITS[mapping.time_unit])
+        times = _guessed_time(path, frame, time_col, TIME_UNITS[unit])
     else:
-        times = _times(path, frame, time_col, TIME_UNITS[mapping.time_unit])
+        times = _times(path, frame, time_col, TIME_UNITS[unit])
     values = _numeric(path, frame, chans, allow_gaps=options.allow_gaps)
     return ParsedLog(
         name=path.stem,
@@ -360,4 +408,6 @@ def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
         files=(str(path),),
         format="csv",
         streams=(_stream(path, path.stem, times, values, chans, names, units),),
+        notes=tuple(notes),
+        found_time=found,
     )

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from sessions import Session
+from tests.conftest import new_session
 from workbench.cli import main
 
 from .conftest import open_tab, save_screenshot
@@ -19,7 +19,7 @@ def test_page_lists_logs_and_refreshes_when_a_log_is_ingested(tmp_path: Path, se
 
     logs = generate_demo_logs(tmp_path / "logs", n_logs=3, minutes=0.3, seed=2)
     session = tmp_path / "s"
-    Session.create(session).close()
+    new_session(session).close()
     assert main(["ingest", str(session), str(logs[0]), str(logs[1])]) == 0
     server = serve(session)
     page.goto(server.url)
@@ -53,7 +53,7 @@ def _listeners(port: int) -> set[str]:
 def test_serve_binds_loopback_by_default(tmp_path: Path, serve) -> None:
     if not Path("/proc/net/tcp").exists():
         pytest.skip("needs Linux /proc/net/tcp to see which address a socket listens on")
-    Session.create(tmp_path / "s").close()
+    new_session(tmp_path / "s").close()
     server = serve(tmp_path / "s")
     listeners = _listeners(server.port)
     assert listeners, "nothing listens on the server's port"

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from sessions import Session
+from tests.conftest import new_session
 from training import TrainConfig
 
 from .conftest import open_tab, save_screenshot
@@ -28,7 +29,7 @@ def tiny_trained_session(root: Path, *, seed: int, labelled: float) -> Path:
 
     logs = generate_demo_logs(root / "logs", n_logs=2, minutes=0.6, seed=seed)
     path = root / "base"
-    with Session.create(path) as s:
+    with new_session(path) as s:
         s.ingest(logs)
         seed_labels(s, labelled, seed=0, segment_s=2.0)
         train_predictor(s, config=TrainConfig(max_epochs=2, piece=256), hidden=8)

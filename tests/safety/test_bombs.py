@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from sessions import Session
-from tests.conftest import REPO
+from tests.conftest import REPO, new_session
 
 from .bomb_files import (
     camera_log,
@@ -61,7 +61,7 @@ def fingerprint(folder: Path) -> dict[str, str]:
 
 @pytest.fixture
 def session(tmp_path: Path) -> Path:
-    Session.create(tmp_path / "s").close()
+    new_session(tmp_path / "s").close()
     return tmp_path / "s"
 
 
@@ -208,7 +208,7 @@ def test_a_bomb_uploaded_through_the_page_ends_in_one_line_and_the_server_stays_
     from workbench.ui import MAX_UPLOAD_MB, WorkbenchApp
 
     bomb = chunk_bomb(tmp_path / "zstd-bomb.mcap").read_bytes()
-    with Session.create(tmp_path / "s") as s:
+    with new_session(tmp_path / "s") as s:
         app = WorkbenchApp(s, port=0, hidden=8)
         client = ViserClient(app.url)
         try:

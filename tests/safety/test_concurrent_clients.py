@@ -16,6 +16,7 @@ import pytest
 
 from sessions import Session
 from tests.browser.conftest import free_port
+from tests.conftest import new_session
 from tests.safety.viser_client import ViserClient
 
 SEGMENT = re.compile(r"segment (\d+)")
@@ -106,7 +107,7 @@ def trained(tmp_path: Path) -> Path:
     from workbench.demo import generate_walk, write_walk
 
     mcap = write_walk(generate_walk(6, 800.0), tmp_path / "walk.mcap", seed=6)
-    with Session.create(tmp_path / "s") as s:
+    with new_session(tmp_path / "s") as s:
         (log,) = s.ingest([mcap])
         s.add_segment(log.id, 100, 300, "grass", author="seed")
         s.add_segment(log.id, 500, 700, "concrete", author="seed")

@@ -16,13 +16,13 @@ import pytest
 
 from sessions import Session, SessionError, WorkbenchError
 from tests.browser.conftest import free_port
-from tests.conftest import snapshot
+from tests.conftest import new_session, snapshot
 from tests.safety.viser_client import ViserClient
 
 
 @pytest.fixture
 def labelled(tmp_path: Path, demo_mcap: Path) -> tuple[Session, int]:
-    s = Session.create(tmp_path / "s")
+    s = new_session(tmp_path / "s")
     (log,) = s.ingest([demo_mcap])
     for i in range(5):
         s.add_segment(log.id, 100 + 300 * i, 200 + 300 * i, "grass", author="me")
@@ -109,7 +109,7 @@ def _cli(*argv: str) -> subprocess.CompletedProcess:
 
 def test_the_cli_says_one_line_on_a_full_and_a_read_only_disk(small_disk: Path, demo_mcap: Path, tmp_path: Path):
     path = small_disk / "s"
-    with Session.create(path) as s:
+    with new_session(path) as s:
         (log,) = s.ingest([demo_mcap])
         s.add_segment(log.id, 100, 400, "grass", author="me")
         s.add_segment(log.id, 1000, 1400, "dirt", author="me")

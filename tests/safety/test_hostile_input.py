@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from sessions import Session
-from tests.conftest import REPO, SHARED_DATA, snapshot
+from tests.conftest import REPO, SHARED_DATA, new_session, snapshot
 
 TIME_LIMIT_S = 60.0
 PEAK_LIMIT_MB = 1500.0
@@ -171,7 +171,7 @@ def summary(counts: dict[str, int]) -> str:
 
 
 def test_a_short_hostile_corpus(tmp_path: Path, demo_mcap: Path, promise) -> None:
-    Session.create(tmp_path / "s").close()
+    new_session(tmp_path / "s").close()
     counts = run_corpus(corpus(tmp_path, demo_mcap, long=False), tmp_path / "s")
     assert counts["refused"] >= 20 and counts["ingested"] >= 3, counts
     promise(summary(counts))
@@ -198,6 +198,6 @@ def test_label_files_with_unknown_terrains_are_refused_whole(session: Session, d
 def test_the_long_hostile_corpus(tmp_path: Path, demo_mcap: Path, promise) -> None:
     if os.statvfs(tmp_path).f_bavail * os.statvfs(tmp_path).f_frsize < (3 << 30):
         pytest.skip("the 2 GB-line file needs 3 GB of free disk")
-    Session.create(tmp_path / "s").close()
+    new_session(tmp_path / "s").close()
     counts = run_corpus(corpus(tmp_path, demo_mcap, long=True), tmp_path / "s")
     promise(summary(counts))

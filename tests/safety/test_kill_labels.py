@@ -23,6 +23,7 @@ import pytest
 
 from sessions import Session
 from tests.browser.conftest import Server
+from tests.conftest import new_session
 from tests.safety.viser_client import ViserClient
 
 WIDTH_S, STEP_S = 0.1, 0.15  # each label 0.1 s, the next one 0.15 s later: never overlapping
@@ -90,7 +91,7 @@ def run_kills(tmp_path: Path, walk_s: float, kills: int, seed: int) -> tuple[int
 
     mcap = write_walk(generate_walk(seed, walk_s), tmp_path / "walk.mcap", seed=seed)
     path = tmp_path / "session"
-    with Session.create(path) as s:
+    with new_session(path) as s:
         (log,) = s.ingest([mcap])
     rng = np.random.default_rng(seed)
     ledger = Ledger()

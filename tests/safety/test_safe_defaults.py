@@ -21,6 +21,7 @@ import pytest
 from sessions import Session, SessionError
 from sessions.schema import SCHEMA_VERSION
 from tests.browser.conftest import free_port
+from tests.conftest import new_session
 from tests.safety.viser_client import ViserClient
 from workbench.cli import serve
 from workbench.ui import MAX_UPLOAD_MB, safe_name
@@ -100,7 +101,7 @@ def test_models_load_without_unpickling(tmp_path: Path, monkeypatch) -> None:
 
 
 def test_a_session_from_a_newer_version_is_refused(tmp_path: Path) -> None:
-    Session.create(tmp_path / "s").close()
+    new_session(tmp_path / "s").close()
     conn = sqlite3.connect(tmp_path / "s" / "session.sqlite")
     conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION + 1}")
     conn.commit()

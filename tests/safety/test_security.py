@@ -25,6 +25,7 @@ from websockets.sync.client import connect
 
 from sessions import LabelError, Session
 from tests.browser.conftest import open_tab
+from tests.conftest import new_session
 from tests.safety.viser_client import ViserClient
 from workbench.cli import main
 from workbench.ui import MAX_UPLOAD_MB, WorkbenchApp
@@ -153,7 +154,7 @@ def _long_session(path: Path, samples: int) -> tuple[Session, str]:
     t = np.arange(samples) / 100.0
     csv = path.parent / "long.csv"
     pd.DataFrame({"time": t, "a": np.sin(t), "b": np.cos(t)}).to_csv(csv, index=False)
-    s = Session.create(path)
+    s = new_session(path)
     s.ingest([csv])
     return s, s.logs()[0].name
 
@@ -204,7 +205,7 @@ def test_exported_csv_runs_no_formula_and_imports_back(tmp_path: Path) -> None:
     t = np.arange(500) / 100.0
     csv = tmp_path / "=HYPERLINK(1).csv"
     pd.DataFrame({"time": t, "a": np.sin(t)}).to_csv(csv, index=False)
-    s = Session.create(tmp_path / "s")
+    s = new_session(tmp_path / "s")
     s.ingest([csv])
     log = s.logs()[0]
     s.add_segment(log.id, 0, 100, "grass", author="@SUM(1+1)")
@@ -214,7 +215,7 @@ def test_exported_csv_runs_no_formula_and_imports_back(tmp_path: Path) -> None:
     assert not [c for c in cells if c.strip('"').startswith(("=", "+", "@"))], cells
     assert not [c for c in cells if c.startswith("-") and not c[1:2].isdigit()], cells
     assert "'=HYPERLINK(1)" in (tmp_path / "labels.csv").read_text()
-    other = Session.create(tmp_path / "other")
+    other = new_session(tmp_path / "other")
     other.ingest([csv])
     back = other.import_labels(tmp_path / "labels.csv", author="x")
     assert sorted(x.author for x in back) == ["-2+3", "@SUM(1+1)"]
@@ -276,7 +277,7 @@ def test_hostile_names_run_no_script_in_chromium(tmp_path: Path, serve, page) ->
     name = "<img src=x onerror=window.__xss=1>"
     csv = tmp_path / f"{name}.csv"
     pd.DataFrame({"time": t, "imu/acc.x": np.sin(t), "imu/acc.y": np.cos(t)}).to_csv(csv, index=False)
-    s = Session.create(tmp_path / "s")
+    s = new_session(tmp_path / "s")
     s.ingest([csv])
     terrain = "<img src=y onerror=window.__xss=2>"
     s.add_terrain(terrain, color="#123456")

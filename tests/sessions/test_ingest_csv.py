@@ -46,6 +46,22 @@ def test_bom_crlf_and_a_timestamp_column(session: Session, tmp_path: Path) -> No
     assert log.channel_names == ("sample", "fz") and log.rate_hz == 100.0
 
 
+def test_a_named_time_column_in_epoch_nanoseconds_is_read_in_its_unit(session: Session, tmp_path: Path) -> None:
+    stamps = 1_700_000_000_000_000_000 + np.arange(200) * 5_000_000  # 200 Hz
+    path = write(tmp_path / "ns.csv", "timestamp,fz\n" + "".join(f"{t},{i}\n" for i, t in enumerate(stamps)))
+    (log,) = session.ingest([path])
+    assert log.rate_hz == 200.0 and log.channel_names == ("fz",) and abs(log.t0 - 1.7e9) < 1e-3
+
+
+def test_a_row_counter_is_no_time_and_steps_that_wander_are_no_clock(session: Session, tmp_path: Path) -> None:
+    rng = np.random.default_rng(1)
+    wander = np.cumsum(rng.uniform(0.001, 0.05, 300))  # increasing, but not in steady steps
+    text = "n,w,v\n" + "".join(f"{i},{w:.5f},{rng.normal():.4f}\n" for i, w in enumerate(wander))
+    path = write(tmp_path / "counter.csv", text)
+    (log,) = session.ingest([path])  # neither column is a clock: the first is tried as before, and it counts
+    assert log.channel_names == ("w", "v") and log.rate_hz == 1.0
+
+
 def qcat_fixture(folder: Path, *, terrain: str = "2", speed: int = 3, trials: int = 2, rows: int = 120) -> list[Path]:
     """Files in the QCAT layout: 4 bookkeeping columns (the 4th the trial), then 12 forces / 10 IMU values."""
     rng = np.random.default_rng(0)
@@ -110,6 +126,41 @@ def test_borealtc_run_pairs_imu_and_wheel_files(session: Session) -> None:
 def test_borealtc_run_without_imu_ingests_its_wheel_data(session: Session) -> None:
     (log,) = session.ingest([shared_data("borealtc", "FLOORING", "pro_04.csv")])
     assert log.channel_names == ("pro/curL", "pro/curR", "pro/velL", "pro/velR")
+
+
+def borealtc_like(folder: Path, imu_header: str, pro_header: str, rows: int = 400) -> Path:
+    """A run in BorealTC's format, written by someone else: ``CLASS/imu_00.csv`` at 100 Hz and ``pro_00.csv`` at
+    10 Hz, each column filled with its own name's index so that a reordering shows."""
+    (folder / "ICE").mkdir(parents=True)
+    for name, header, rate in (("imu_00.csv", imu_header, 100.0), ("pro_00.csv", pro_header, 10.0)):
+        cols = header.split(",")
+        n = rows if rate == 100.0 else rows // 10
+        lines = [header] + [
+            ",".join(f"{i / rate:.3f}" if c == "time" else str(float(len(c) + ord(c[-1]))) for c in cols)
+            for i in range(n)
+        ]
+        write(folder / "ICE" / name, "\n".join(lines) + "\n")
+    return folder / "ICE" / "imu_00.csv"
+
+
+def test_a_borealtc_format_run_is_read_by_column_name_in_any_order(session: Session, tmp_path: Path) -> None:
+    imu = borealtc_like(tmp_path, "time,ax,ay,az,wx,wy,wz,temp", "time,velL,velR,curL,curR")
+    (log,) = session.ingest([imu])
+    assert log.format == "borealtc" and log.name == "ICE_00" and log.reference_terrain == "ice"
+    names = ("wx", "wy", "wz", "ax", "ay", "az", "curL", "curR", "velL", "velR")
+    assert log.channel_names == tuple(f"{'imu' if i < 6 else 'pro'}/{c}" for i, c in enumerate(names))
+    values = session.samples(log.id, 0, 1)[0]
+    np.testing.assert_allclose(values, [float(len(c) + ord(c[-1])) for c in names])  # each column under its name
+    assert log.info["notes"] == ["imu_00.csv: column temp not read (not BorealTC's)"]
+
+
+def test_a_borealtc_format_run_missing_a_column_is_refused_by_name(session: Session, tmp_path: Path) -> None:
+    imu = borealtc_like(tmp_path, "time,wx,wy,wz,ax,ay,az", "time,velL,curL,curR")
+    with pytest.raises(IngestError) as err:
+        session.ingest([imu])
+    assert Path(err.value.path).name == "pro_00.csv"
+    assert "missing column velR (a BorealTC pro file has time, curL, curR, velL, velR, in any order)" in str(err.value)
+    assert session.logs() == []
 
 
 BAD_CSV = {

@@ -17,6 +17,7 @@ def test_create_then_open_round_trip(tmp_path: Path, demo_mcap: Path) -> None:
     path = tmp_path / "s"
     with Session.create(path) as s:
         (log,) = s.ingest([demo_mcap])
+        s.add_terrain("grass")
         seg = s.add_segment(log.id, 100, 400, "grass", author="ana")
         data = s.samples(log.id)
     with Session.open(path) as s:
@@ -118,7 +119,15 @@ def test_a_failing_migration_changes_nothing() -> None:
     assert conn.execute("SELECT name FROM sqlite_master WHERE name = 'half_done'").fetchone() is None
 
 
-def test_default_terrains_and_editing_them(session: Session, demo_mcap: Path) -> None:
+def test_a_new_session_has_no_terrains_and_a_usual_name_gets_its_usual_colour(tmp_path: Path) -> None:
+    with Session.create(tmp_path / "s") as s:
+        assert s.terrains() == []  # nothing imposed: the robot may walk on ice and wet floors
+        ice, grass = s.add_terrain("ice"), s.add_terrain("Grass")
+        assert grass.color == "#4caf50" and ice.color not in {"#4caf50"}
+        assert s.add_terrain("grass ").name == "grass" and s.terrains()[-1].color != grass.color  # taken: the next
+
+
+def test_terrains_and_editing_them(session: Session, demo_mcap: Path) -> None:
     assert [t.name for t in session.terrains()] == ["concrete", "grass", "gravel", "mulch", "dirt", "sand"]
     session.add_terrain("snow", color="#ffffff")
     session.rename_terrain("dirt", "soil")

@@ -14,6 +14,7 @@ import pytest
 
 from sessions import Session
 from tests.browser.conftest import free_port
+from tests.conftest import new_session
 from training import load_bundle
 
 EPOCHS = 3
@@ -29,7 +30,7 @@ def logs_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     tmp = tmp_path_factory.mktemp("ddp")
     logs = generate_demo_logs(tmp / "logs", n_logs=3, minutes=1.0, seed=8)
-    with Session.create(tmp / "s") as s:
+    with new_session(tmp / "s") as s:
         s.ingest(logs)
     return tmp / "s"
 

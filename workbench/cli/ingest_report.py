@@ -7,7 +7,7 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 
-from sessions import IngestError, IngestOptions, Mapping, align, plan_sources, read_source, sniff_csv
+from sessions import IngestError, IngestOptions, Mapping, TimeColumn, align, plan_sources, read_source, sniff_csv
 
 
 def _toml_str(text: str) -> str:
@@ -24,17 +24,26 @@ def _toml_value(value: object) -> str:
     return repr(value)
 
 
-def _csv_section(mapping: Mapping, sniffed: tuple[bool, int] | None, no_time: bool) -> list[str]:
-    """The ``[csv]`` table: what the mapping given says, what the first generic CSV looked like, and, when it has
-    no time column, the two ways to say how it is timed (commented out: the user picks one)."""
+def _csv_section(
+    mapping: Mapping, sniffed: tuple[bool, int] | None, no_time: bool, found: TimeColumn | None
+) -> list[str]:
+    """The ``[csv]`` table: what the mapping given says, what the first generic CSV looked like (its time column
+    when the reader found it, said outright so the mapping ingests as is), and, when it has no time column, the two
+    ways to say how it is timed (commented out: the user picks one)."""
     keys: dict[str, object] = {}
     if sniffed is not None and mapping.header is None and not sniffed[0]:
         keys["header"] = False  # said outright, so the file reads the same when detection would guess otherwise
     for key in ("header", "columns", "time_column", "time_unit", "sample_rate_hz"):
         value = getattr(mapping, key)
-        if value not in (None, (), "s"):
+        if value not in (None, ()):
             keys[key] = list(value) if isinstance(value, tuple) else value
-    lines = [f"{k} = {_toml_value(v)}" for k, v in keys.items()]
+    lines = []
+    if found is not None and mapping.time_column is None:
+        headerless = keys.get("header") is False and not mapping.columns
+        keys["time_column"] = found.index if headerless else found.name
+        keys.setdefault("time_unit", found.unit)
+        lines.append(f"# time: {found.describe()}, found by its steady steps")
+    lines += [f"{k} = {_toml_value(v)}" for k, v in keys.items()]
     if no_time:
         lines += [
             "# the first column is no time: uncomment one of these two lines",
@@ -59,6 +68,8 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
     channel_lines: list[str] = []
     seen: set[tuple[str, str]] = set()
     sniffed: tuple[bool, int] | None = None  # the first generic CSV's header and width
+    found: TimeColumn | None = None  # and its time column, when the reader found it
+    first_csv = True
     no_time = False
     sources, errors = plan_sources(list(files))
     for err in errors:
@@ -75,9 +86,12 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
             aligned = [align(p, options) for p in parsed_logs]
         except IngestError as err:
             ok = False
-            no_time = no_time or (source.format == "csv" and err.reason.startswith("no time column"))
+            no_time = no_time or (source.format == "csv" and first_csv and err.reason.startswith("no time column"))
+            first_csv = first_csv and source.format != "csv"
             lines.append(f"#   REFUSED: {err.reason}" + (f" ({err.where})" if err.where else ""))
             continue
+        if source.format == "csv" and first_csv:
+            found, first_csv = parsed_logs[0].found_time, False
         for report in reports:
             if report.unusable:
                 lines.append(
@@ -99,6 +113,8 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
                 f"({log.data.shape[0] / log.rate_hz:.1f} s), {len(log.channels)} channels, {len(log.gaps)} gaps; "
                 f"streams: {rates}"
             )
+            for note in log.parsed.notes:
+                lines.append(f"#      note: {note}")
             if log.parsed.reference_terrain:
                 lines.append(f"#      reference terrain (evaluation only): {log.parsed.reference_terrain}")
             for gap in log.gaps[:5]:
@@ -120,5 +136,5 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
     if options.mapping.ignore:
         lines.append(f"ignore = {_toml_value(list(options.mapping.ignore))}")
     lines.append("")
-    lines += _csv_section(options.mapping, sniffed, no_time)
+    lines += _csv_section(options.mapping, sniffed, no_time, found)
     return ok, "\n".join(lines + channel_lines)

@@ -27,14 +27,19 @@ def _err(message: str) -> None:
     print(f"error: {message}", file=sys.stderr)
 
 
-def new(session: Pos[Path]) -> None:
-    """Create an empty session folder.
+def new(session: Pos[Path], terrains: tuple[str, ...] = ()) -> None:
+    """Create an empty session folder. It has no terrains until you name them (here, with `workbench terrains`, or
+    from a label file with --create-terrains).
 
     Args:
         session: Folder to create (may exist if empty).
+        terrains: Terrain classes to start with, e.g. --terrains grass gravel ice.
     """
     with Session.create(session) as s:
-        print(f"created session {s.path} (schema {s.schema_version})")
+        for name in terrains:
+            s.add_terrain(name)
+        named = f"; terrains: {', '.join(t.name for t in s.terrains())}" if terrains else "; no terrains yet"
+        print(f"created session {s.path} (schema {s.schema_version}){named}")
 
 
 def ingest(
@@ -94,6 +99,8 @@ def ingest(
         for log in added:
             gaps = f", {len(log.gaps)} gaps" if log.gaps else ""
             print(f"+ {log.name}: {log.duration_s:.1f} s at {log.rate_hz:g} Hz, {log.n_channels} channels{gaps}")
+            for note in log.info.get("notes", ()):  # type: ignore[union-attr]
+                print(f"  note: {note}")
             for cam in log.info.get("cameras", ()):  # type: ignore[union-attr]
                 if cam.get("skipped"):
                     n = cam["skipped"]
@@ -131,7 +138,9 @@ def info(session: Pos[Path]) -> None:
                 f"{log.rate_hz:>7g} Hz  {log.n_channels:>3} ch  {len(log.gaps):>3} gaps  "
                 f"{lab / max(log.n_samples, 1):>6.1%} labelled{ref}"
             )
-        print("terrains: " + ", ".join(t.name for t in s.terrains()))
+        print(
+            "terrains: " + (", ".join(t.name for t in s.terrains()) or "none yet (workbench terrains SESSION add NAME)")
+        )
         print(f"{len(segments)} label segment(s)")
 
 
@@ -176,6 +185,9 @@ def terrains(
                 seconds[seg.terrain] = seconds.get(seg.terrain, 0.0) + seg.length / rates[seg.log_id]
             for t in s.terrains():
                 print(f"  {t.name:<20} {t.color}  {seconds.get(t.name, 0.0):>9.1f} s labelled")
+            if not s.terrains():
+                hint = "or import labels with --create-terrains"
+                print(f"no terrains yet: `workbench terrains {session} add NAME...`, {hint}")
 
 
 def serve(
@@ -264,7 +276,7 @@ def demo(
             paper --hidden 200` gives the paper's width). The default family's sizes are its own.
         serve_ui: Serve the UI when ready (--no-serve: prepare the session and exit).
     """
-    from ..demo import generate_demo_logs
+    from ..demo import TERRAINS, generate_demo_logs
     from ..demo import seed_labels as add_seed_labels
 
     if (session / "session.sqlite").exists():
@@ -278,6 +290,8 @@ def demo(
         if ingest(session, [log_dir]):
             raise WorkbenchError("demo logs failed to ingest")
         with Session.open(session) as s:
+            for name in TERRAINS:  # the demo's own: a new session has none
+                s.add_terrain(name)
             added = add_seed_labels(s, seed_labels, seed=seed)
             print(f"labelled {len(added)} segment(s) from the demo's ground truth ({seed_labels:.0%} of the time)")
         if added:
@@ -338,6 +352,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:  # the reader went away (`... | head`): stop quietly, as a shell pipeline expects
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # Python's own flush at exit would raise again
+        return 141  # 128 + SIGPIPE, what a shell reports for a command its pipe closed
     except Exception as exc:
         if os.environ.get("WORKBENCH_DEBUG"):
             raise

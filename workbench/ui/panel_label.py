@@ -12,6 +12,11 @@ if TYPE_CHECKING:
     from .host import PanelHost
 
 NONE_CHOSEN = "(choose a segment)"
+NO_TERRAINS = "(no terrains yet)"
+NO_TERRAINS_HINT = (  # a new session has none: they are the person's, not ours
+    "<div style='font-size:0.85em;color:#b45309'><b>No terrains yet.</b> Type a name under <b>Terrains</b> below "
+    "and press <b>Add terrain</b> (or import labels with <code>--create-terrains</code>).</div>"
+)
 KEYS_HELP = (
     "<div style='font-size:0.78em;color:#555;line-height:1.5'>"
     "<b>B</b>/<b>E</b> range start/end at cursor · <b>1–9</b> terrain · <b>Enter</b> save · <b>P</b> take snap · "
@@ -37,7 +42,8 @@ class LabelPanel:
             hint="Drag both handles, or press B and E at the cursor",
         )
         self.range.on_update(lambda _: host.guard(self._range_moved))
-        self.terrain = gui.add_dropdown("Terrain", terrains or ("(no terrains)",), hint="Keys 1–9")
+        self.terrain = gui.add_dropdown("Terrain", terrains or (NO_TERRAINS,), hint="Keys 1–9")
+        self.no_terrains = gui.add_html(NO_TERRAINS_HINT, visible=not terrains)
         self.save_button = gui.add_button("Save label (Enter)", icon="device-floppy", color="green")
         self.save_button.on_click(lambda _: host.guard(self.save))
         self.snap_html = gui.add_html("")
@@ -55,7 +61,7 @@ class LabelPanel:
             self.undo_button = gui.add_button("Undo my last change (U)", icon="arrow-back-up")
             self.undo_button.on_click(lambda _: host.guard(self.undo))
         self.summary = gui.add_html("")
-        with gui.add_folder("Terrains", expand_by_default=False):
+        with gui.add_folder("Terrains", expand_by_default=not terrains):  # open where a new session starts
             self.terrain_name = gui.add_text("Name", "", hint="A new terrain, or the new name of the one chosen above")
             self.add_terrain_button = gui.add_button("Add terrain", icon="plus")
             self.add_terrain_button.on_click(lambda _: host.guard(lambda: self._terrains("add")))
@@ -169,6 +175,8 @@ class LabelPanel:
         if log is None or sel is None:
             raise WorkbenchError("mark a range first: B and E at the cursor, or drag the range handles")
         terrain = terrain or self.terrain.value
+        if terrain == NO_TERRAINS:
+            raise WorkbenchError("no terrains yet: type a name under Terrains below and press Add terrain")
         seg = host.state.add_label(log.id, sel[0], sel[1], terrain, author=host.author, source=source)
         host.notify("Saved", f"{(sel[1] - sel[0]) / log.rate_hz:.1f} s of {terrain} on {log.name} (segment {seg.id})")
         self.clear()
@@ -204,8 +212,9 @@ class LabelPanel:
         host, log = self.host, self.host.log
         state = host.state
         terrains = [t.name for t in state.terrains()]
-        if terrains and tuple(terrains) != tuple(self.terrain.options):
-            self.terrain.options = terrains
+        if tuple(terrains or (NO_TERRAINS,)) != tuple(self.terrain.options):
+            self.terrain.options = terrains or (NO_TERRAINS,)
+        self.no_terrains.visible = not terrains
         segs = state.session.segments(log.id) if log is not None else []
         opts = (
             tuple(f"#{s.id} {s.start / log.rate_hz:.1f}–{s.stop / log.rate_hz:.1f} s {s.terrain}" for s in segs)

@@ -19,9 +19,17 @@ def run(*args: str) -> int:
 def test_new_ingest_info(tmp_path: Path, demo_mcap: Path, capsys) -> None:
     s = tmp_path / "s"
     assert run("new", s) == 0
+    assert "no terrains yet" in capsys.readouterr().out  # nothing imposed on a new session
+    assert run("info", s) == 0
+    assert "terrains: none yet" in capsys.readouterr().out
+    assert run("terrains", s) == 0
+    assert "no terrains yet: `workbench terrains" in capsys.readouterr().out
+    assert run("new", tmp_path / "t", "--terrains", "ice", "wet floor") == 0
+    assert "terrains: ice, wet floor" in capsys.readouterr().out
     assert run("ingest", s, demo_mcap) == 0
     out = capsys.readouterr().out
     assert "+ walk: 90.0 s at 100 Hz, 22 channels" in out and "ingested 1 log(s)" in out
+    assert run("terrains", s, "add", "concrete", "grass", "gravel", "mulch", "dirt", "sand") == 0
     assert run("ingest", s, demo_mcap) == 0
     assert "ingested 0 log(s), 1 already in the session" in capsys.readouterr().out
     assert run("info", s) == 0

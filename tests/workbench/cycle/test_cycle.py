@@ -12,6 +12,7 @@ import pytest
 import torch
 
 from sessions import LabelError, Session, WorkbenchError
+from tests.conftest import TEST_TERRAINS, new_session
 from training import TrainConfig, load_bundle
 from workbench.cli import main
 from workbench.cycle import score_session, stage_inputs
@@ -33,7 +34,7 @@ def build_trained(path: Path, logs: list[Path], *, classifier: bool = True, mode
 
     The paper family by default: these tests are about its LSTM's warm starts, pieces and refits; retrains follow
     the active classifier's family. ``tests/workbench/test_default_family.py`` covers the default family."""
-    s = Session.create(path)
+    s = new_session(path)
     s.ingest(logs)
     seed_labels(s, 0.15, seed=1)
     cycle.train_predictor(s, config=TINY, hidden=8)
@@ -106,7 +107,7 @@ def test_scores_have_the_documented_shapes(trained: Session) -> None:
 
 
 def test_classifier_needs_two_terrains(tmp_path: Path, demo_logs: list[Path]) -> None:
-    s = Session.create(tmp_path / "s")
+    s = new_session(tmp_path / "s")
     s.ingest(demo_logs[:1])
     with pytest.raises(WorkbenchError, match="no predictor yet"):
         cycle.train_classifier(s, config=TINY, hidden=8)
@@ -150,7 +151,7 @@ def test_export_writes_bundle_card_checked_onnx_and_label_files(trained: Session
 @pytest.mark.parametrize("suffix", [".csv", ".parquet", ".json"])
 def test_label_files_round_trip(trained: Session, tmp_path: Path, demo_logs: list[Path], suffix: str) -> None:
     path = trained.export_labels(tmp_path / f"labels{suffix}")
-    other = Session.create(tmp_path / "other")
+    other = new_session(tmp_path / "other")
     other.ingest(demo_logs)
     imported = other.import_labels(path, author="x")
     key = [(s.start, s.stop, s.terrain, s.author) for s in trained.segments()]
@@ -162,18 +163,18 @@ def test_label_import_is_all_or_nothing(trained: Session, tmp_path: Path, demo_l
     frame = pd.read_csv(trained.export_labels(tmp_path / "l.csv"))
     frame.loc[len(frame) - 1, "terrain"] = "lava"
     frame.to_csv(tmp_path / "bad.csv", index=False)
-    other = Session.create(tmp_path / "other")
+    other = new_session(tmp_path / "other")
     other.ingest(demo_logs)
     with pytest.raises(LabelError, match=rf"row {len(frame) + 1}: unknown terrain 'lava'; nothing was imported"):
         other.import_labels(tmp_path / "bad.csv", author="x")
     assert other.segments() == [] and other.history() == []
     with pytest.raises(LabelError, match="unknown log 'walk_000'"):
-        Session.create(tmp_path / "empty").import_labels(tmp_path / "l.csv", author="x")
+        new_session(tmp_path / "empty").import_labels(tmp_path / "l.csv", author="x")
 
 
 def test_cli_train_export_classify_labels(tmp_path: Path, demo_logs: list[Path], capsys) -> None:
     s = tmp_path / "s"
-    assert main(["new", str(s)]) == 0
+    assert main(["new", str(s), "--terrains", *TEST_TERRAINS]) == 0
     assert main(["ingest", str(s), *map(str, demo_logs)]) == 0
     assert main(["train", str(s), "--model", "paper", "--hidden", "8", "--max-epochs", "1"]) == 0
     assert "classifier: skipped" in capsys.readouterr().out  # the paper's LSTM: both families' classifiers read it

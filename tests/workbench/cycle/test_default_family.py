@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from sessions import Session
+from tests.conftest import new_session
 from training import StreamingClassifier, load_bundle
 from workbench import cycle
 from workbench.cycle import score_session, signal_change_points, unlabelled_stretches
@@ -27,7 +28,7 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Session:
 
     root = tmp_path_factory.mktemp("default")
     logs = generate_demo_logs(root / "logs", n_logs=2, minutes=1.0, seed=5)
-    s = Session.create(root / "s")
+    s = new_session(root / "s")
     s.ingest(logs)
     seed_labels(s, 0.15, seed=1)
     cycle.train_predictor(s, config=TINY, hidden=8)

@@ -10,7 +10,8 @@ import pandas as pd
 import pytest
 
 import labeling
-from sessions import IngestOptions, Session
+from sessions import IngestOptions
+from tests.conftest import new_session
 from workbench import cycle
 from workbench.demo import RunConditions, generate_demo_logs, generate_walk, seed_labels, write_walk
 from workbench.export import classify_files, export_all
@@ -33,7 +34,7 @@ SHIFTED = RunConditions(
 def drifted(tmp_path_factory: pytest.TempPathFactory):
     root = tmp_path_factory.mktemp("drift")
     logs = generate_demo_logs(root / "logs", n_logs=2, minutes=1.0, seed=5)
-    s = Session.create(root / "s")
+    s = new_session(root / "s")
     s.ingest(logs)
     seed_labels(s, 0.15, seed=1)
     cycle.train_predictor(s, config=TINY, hidden=8)

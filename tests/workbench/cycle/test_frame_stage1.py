@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from sessions import IngestOptions, Session, WorkbenchError
+from tests.conftest import new_session
 from training import FRAME_PREDICTOR_KIND, Cancelled, FramePredictor, FramePredictorFit, Predictor, load_bundle
 from workbench import cycle
 from workbench.cli import main
@@ -33,7 +34,7 @@ def demo_logs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
 
 @pytest.fixture(scope="module")
 def session(tmp_path_factory: pytest.TempPathFactory, demo_logs: list[Path]) -> Session:
-    s = Session.create(tmp_path_factory.mktemp("frames") / "s")
+    s = new_session(tmp_path_factory.mktemp("frames") / "s")
     s.ingest(demo_logs)
     seed_labels(s, 0.15, seed=1)
     cycle.train_frame_predictor(s, fit=QUICK)
@@ -94,7 +95,7 @@ def test_the_paper_family_refuses_a_frame_predictor_in_one_line(session: Session
 
 
 def test_a_cancelled_stage1_saves_nothing_and_the_next_run_reuses_the_frames(tmp_path: Path, demo_logs) -> None:
-    s = Session.create(tmp_path / "s")
+    s = new_session(tmp_path / "s")
     s.ingest(demo_logs)
     calls = []
 
@@ -119,7 +120,7 @@ def test_a_cancelled_stage1_saves_nothing_and_the_next_run_reuses_the_frames(tmp
 def test_a_session_whose_stage1_is_the_lstm_keeps_working(tmp_path: Path, demo_logs) -> None:
     """Decision: a default-family session trained before keeps its LSTM stage 1 (its classifier reads only the
     frames); the next stage-1 training replaces it with the frame predictor."""
-    s = Session.create(tmp_path / "s")
+    s = new_session(tmp_path / "s")
     s.ingest(demo_logs)
     seed_labels(s, 0.15, seed=1)
     lstm = cycle.train_predictor(s, config=TINY, hidden=8)

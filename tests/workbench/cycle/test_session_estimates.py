@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from sessions import Session
+from tests.conftest import new_session
 from training import HELD_OUT, MIXED, SAME_RUN
 from workbench import cycle
 from workbench.cli import main
@@ -22,7 +23,7 @@ def one_run_per_terrain(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from workbench.demo import generate_demo_logs
 
     root = tmp_path_factory.mktemp("runs")
-    s = Session.create(root / "s")
+    s = new_session(root / "s")
     s.ingest(generate_demo_logs(root / "logs", n_logs=3, minutes=1.0, seed=11))
     taken: set[str] = set()
     for log in s.logs():

@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 
 from sessions import Session
+from tests.conftest import new_session
 from tests.workbench.cycle.test_cycle import TINY
 from workbench import cycle
 from workbench.cli import main
@@ -19,7 +20,7 @@ from workbench.demo import generate_demo_logs, seed_labels
 def three_logs(tmp_path: Path, request) -> Path:
     """Three demo logs, 30 % labelled, both stages trained; the evaluation retrains the active family per fold."""
     logs = generate_demo_logs(tmp_path / "logs", n_logs=3, minutes=0.7, seed=7)
-    s = Session.create(tmp_path / "s")
+    s = new_session(tmp_path / "s")
     s.ingest(logs)
     seed_labels(s, 0.3, seed=2)
     cycle.train_predictor(s, config=TINY, hidden=8)
@@ -74,7 +75,7 @@ def test_reference_from_a_file_scores_held_out_logs(three_logs: Path, tmp_path: 
 
 def test_without_reference_it_says_what_is_missing(tmp_path: Path, capsys) -> None:
     """Said before anything else is needed: this session has no model either."""
-    with Session.create(tmp_path / "s") as s:
+    with new_session(tmp_path / "s") as s:
         s.ingest(generate_demo_logs(tmp_path / "logs", n_logs=2, minutes=0.3, seed=7))
         with s._write() as conn:
             conn.execute("DELETE FROM reference")

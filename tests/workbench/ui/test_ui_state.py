@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from sessions import Session, WorkbenchError
+from tests.conftest import new_session
 from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
 from workbench.cycle import SUGGESTION_S
 from workbench.demo import seed_labels
@@ -219,7 +220,7 @@ def test_retrain_can_be_cancelled_and_saves_nothing(state: SharedState) -> None:
 
 
 def test_retrain_needs_two_terrains_and_stage1_follows_new_logs(tmp_path: Path, demo_logs) -> None:  # noqa: F811
-    with Session.create(tmp_path / "s") as s:
+    with new_session(tmp_path / "s") as s:
         s.ingest(demo_logs[:1])
         st = SharedState(s)
         try:
