@@ -21,7 +21,7 @@ from common import Row, fmt_s, parse_args, record
 from sessions import Session
 from training import TrainConfig
 from workbench import cycle
-from workbench.demo import generate_walk, write_walk
+from workbench.demo import TERRAINS, generate_walk, write_walk
 from workbench.export import export_all
 
 WORKBENCH = [sys.executable, "-m", "workbench.cli"]
@@ -47,6 +47,8 @@ def main() -> None:
         log = write_walk(generate_walk(7, minutes * 60.0), folder / "hour.mcap", seed=7)
         train_log = write_walk(generate_walk(8, 300.0), folder / "train" / "walk.mcap", seed=8)
         with Session.create(folder / "s") as s:
+            for name in TERRAINS:  # a new session has none
+                s.add_terrain(name)
             s.ingest([train_log])
             for a, b, terrain in s.reference(s.logs()[0].id)[::3]:  # a third of the patches labelled
                 s.add_segment(s.logs()[0].id, a, b, terrain, author="bench", source="manual")

@@ -50,7 +50,11 @@ def run_child(step: str, folder: Path, hours: float) -> None:
         write_walk(generate_walk(0, hours * 3600.0), folder / "long.mcap")
         extra = {}
     elif step == "ingest":
+        from workbench.demo import TERRAINS
+
         with Session.create(session_dir) as s:
+            for name in TERRAINS:  # a new session has none
+                s.add_terrain(name)
             (log,) = s.ingest([folder / "long.mcap"])
             extra = {"samples": log.n_samples, "channels": len(log.channel_names)}
     elif step == "train-default":  # not measured: the default family's stage 2 for the next step to score with

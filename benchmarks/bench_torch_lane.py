@@ -77,11 +77,13 @@ def child_retrain(mode: str, root: Path) -> float:
     from sessions import Session
     from training import TrainConfig
     from workbench import cycle
-    from workbench.demo import generate_demo_logs, seed_labels
+    from workbench.demo import TERRAINS, generate_demo_logs, seed_labels
     from workbench.ui import LANE, SharedState, TrainJob
 
     logs = generate_demo_logs(root / "logs", n_logs=4, minutes=3.0, seed=2)
     s = Session.create(root / "s")
+    for name in TERRAINS:  # a new session has none
+        s.add_terrain(name)
     s.ingest(logs)
     seed_labels(s, 0.05, seed=0, segment_s=1.0)
     cycle.train_predictor(s, config=TrainConfig(max_epochs=2, piece=256), hidden=16)

@@ -22,7 +22,7 @@ from sessions import Session
 from training import TrainConfig
 from workbench import cycle
 from workbench.cli import main
-from workbench.demo import RunConditions, generate_demo_logs
+from workbench.demo import TERRAINS, RunConditions, generate_demo_logs
 from workbench.demo import run_conditions as run_module
 
 STAGE1 = TrainConfig(max_epochs=2, patience=1, chunk=32, piece=256, batch_size=16, label_piece=64, context=32)
@@ -31,6 +31,8 @@ STAGE1 = TrainConfig(max_epochs=2, patience=1, chunk=32, piece=256, batch_size=1
 def one_run_per_terrain(root: Path) -> Path:
     """A session whose three walks each have one whole patch labelled, of three different terrains."""
     with Session.create(root / "s") as s:
+        for name in TERRAINS:  # a new session has none
+            s.add_terrain(name)
         s.ingest(generate_demo_logs(root / "logs", n_logs=3, minutes=1.5, seed=11))
         taken: set[str] = set()
         for log in s.logs():
