@@ -86,7 +86,7 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
             aligned = [align(p, options) for p in parsed_logs]
         except IngestError as err:
             ok = False
-            no_time = no_time or (source.format == "csv" and first_csv and err.reason.startswith("no time column"))
+            no_time = no_time or (source.format == "csv" and err.reason.startswith("no time column"))
             first_csv = first_csv and source.format != "csv"
             lines.append(f"#   REFUSED: {err.reason}" + (f" ({err.where})" if err.where else ""))
             continue
