@@ -23,9 +23,20 @@ from .model_versions import ModelVersion
 from .rowfiles import FileRows, NpyWriter
 from .schema import KNOWN_TERRAIN_COLORS, SCHEMA_VERSION
 from .store import Session
+from .terrain_mcap import (
+    LABEL_TOPIC,
+    PREDICTION_TOPIC,
+    LogClock,
+    TerrainPredictions,
+    per_log_paths,
+    refuse_existing,
+    write_terrain_mcap,
+)
 
 __all__ = [
     "KNOWN_TERRAIN_COLORS",
+    "LABEL_TOPIC",
+    "PREDICTION_TOPIC",
     "SCHEMA_VERSION",
     "AlignedLog",
     "CameraFrame",
@@ -37,6 +48,7 @@ __all__ = [
     "IngestError",
     "IngestOptions",
     "LabelError",
+    "LogClock",
     "LogInfo",
     "Mapping",
     "ModelVersion",
@@ -45,13 +57,17 @@ __all__ = [
     "Session",
     "SessionError",
     "Terrain",
+    "TerrainPredictions",
     "TimeColumn",
     "WorkbenchError",
     "align",
     "load_mapping",
+    "per_log_paths",
     "plan_sources",
     "read_mcap",
     "read_source",
+    "refuse_existing",
     "sniff_csv",
     "write_frame",
+    "write_terrain_mcap",
 ]

@@ -350,6 +350,32 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         logs = {x.id: x for x in self.logs()}
         return write_frame(segments_frame(self.segments(), logs), Path(path))
 
+    def export_labels_mcap(self, path: str | Path) -> list[tuple[Path, LogInfo]]:
+        """Write each labelled log's segments to an MCAP file of its own, on the log's clock (``terrain_mcap``).
+
+        Args:
+            path: The file for one labelled log; for several, each log's name goes before ``.mcap``.
+
+        Returns:
+            The files written and their logs, none when nothing is labelled.
+
+        Raises:
+            WorkbenchError: One of the files exists (checked before any is written).
+        """
+        from .terrain_mcap import LogClock, per_log_paths, refuse_existing, write_terrain_mcap
+
+        segments = self.segments()
+        logs = [x for x in self.logs() if any(s.log_id == x.id for s in segments)]
+        paths = per_log_paths(Path(path), [x.name for x in logs])
+        refuse_existing(paths)
+        for log, out in zip(logs, paths, strict=True):
+            clock = LogClock(log.name, log.t0, log.rate_hz, log.n_samples)
+            mine = [s for s in segments if s.log_id == log.id]
+            write_terrain_mcap(
+                out, clock, labels=mine, about={"source_file": log.source_path, "session": self.path.name}
+            )
+        return list(zip(paths, logs, strict=True))
+
     def import_labels(self, path: str | Path, *, author: str, create_terrains: bool = False) -> list[Segment]:
         """Import a label file in one transaction: every row, or none when any row is refused.
 

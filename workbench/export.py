@@ -12,15 +12,22 @@ import pandas as pd
 
 import labeling
 from sessions import (
+    LABEL_TOPIC,
+    PREDICTION_TOPIC,
     IngestError,
     IngestOptions,
+    LogClock,
     ModelVersion,
     Session,
+    TerrainPredictions,
     WorkbenchError,
     align,
+    per_log_paths,
     plan_sources,
     read_source,
+    refuse_existing,
     write_frame,
+    write_terrain_mcap,
 )
 from training import (
     BundleError,
@@ -36,6 +43,7 @@ ONNX_TOLERANCE = 1e-4
 CHECK_SAMPLES = 1500  # per log, for the ONNX check: a per-sample loop in onnxruntime
 
 
+OUTPUT_TYPES = (".csv", ".parquet", ".json", ".mcap")  # classify's --out
 MOSTLY_DRIFTED = 0.5  # a file with more drifted time than this gets a warning line from classify
 
 
@@ -217,8 +225,10 @@ def model_card(bundle: ModelBundle, *, version: int, session: str, drifted: Mapp
     return "\n".join(lines) + "\n"
 
 
-def export_all(session: Session, out: Path, *, predictions: bool = False) -> list[tuple[Path, str]]:
-    """Write the active model and the labels to a new folder ``out``.
+def export_all(session: Session, out: Path, *, predictions: bool = False, mcap: bool = False) -> list[tuple[Path, str]]:
+    """Write the active model and the labels to a new folder ``out``; with ``predictions``, per-timestep predictions
+    of every log as Parquet; with ``mcap``, an MCAP file per log (the model's terrain and the labels, on the log's
+    clock) in ``out/mcap``.
 
     Returns:
         What was written, one (path, description) per item.
@@ -235,7 +245,7 @@ def export_all(session: Session, out: Path, *, predictions: bool = False) -> lis
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     try:
-        written = _write_export(session, tmp, version, bundle, predictions=predictions)
+        written = _write_export(session, tmp, version, bundle, predictions=predictions, mcap=mcap)
         tmp.rename(out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -244,7 +254,7 @@ def export_all(session: Session, out: Path, *, predictions: bool = False) -> lis
 
 
 def _write_export(
-    session: Session, out: Path, version: ModelVersion, bundle: ModelBundle, *, predictions: bool
+    session: Session, out: Path, version: ModelVersion, bundle: ModelBundle, *, predictions: bool, mcap: bool
 ) -> list[tuple[Path, str]]:
     from training import check_onnx, export_onnx
 
@@ -252,7 +262,7 @@ def _write_export(
 
     written: list[tuple[Path, str]] = []
     shutil.copytree(session.path / version.path, out / "bundle")
-    scored = score_session(session) if predictions or bundle.drift is not None else {}
+    scored = score_session(session) if predictions or mcap or bundle.drift is not None else {}
     drifted = {
         session.log(log_id).name: share
         for log_id, s in scored.items()
@@ -275,6 +285,29 @@ def _write_export(
             for log_id, scores in scored.items()
         ]
         written.append((write_frame(pd.concat(frames), out / "predictions.parquet"), "per-timestep predictions"))
+    if mcap:
+        written += _write_mcaps(session, out / "mcap", version, bundle, scored)
+    return written
+
+
+def _write_mcaps(
+    session: Session, folder: Path, version: ModelVersion, bundle: ModelBundle, scored: Mapping
+) -> list[tuple[Path, str]]:
+    """One MCAP file per log the model reads: its terrain per sample and its labels, on the log's own clock."""
+    folder.mkdir()
+    logs = [session.log(log_id) for log_id in scored]
+    paths = per_log_paths(folder / "terrain.mcap", [x.name for x in logs], each=True)
+    written = []
+    for log, path in zip(logs, paths, strict=True):
+        s = scored[log.id]
+        write_terrain_mcap(
+            path,
+            LogClock(log.name, log.t0, log.rate_hz, log.n_samples),
+            predictions=TerrainPredictions(tuple(bundle.classes), s.probs, s.drift),
+            labels=session.segments(log.id),
+            about={"model_version": str(version.id), "session": session.path.name, "source_file": log.source_path},
+        )
+        written.append((path, f"{log.name}: topics {PREDICTION_TOPIC} and {LABEL_TOPIC} on the log's clock"))
     return written
 
 
@@ -297,13 +330,17 @@ def _arrays_for(bundle: ModelBundle, files: Sequence[Path], options: IngestOptio
             if missing:
                 errors.append(IngestError(src.path, f"lacks channels the model needs: {', '.join(missing[:5])}"))
                 continue
-            yield p.name, a.data[:, [names.index(c) for c in bundle.channels]]
+            yield p.name, (a.data[:, [names.index(c) for c in bundle.channels]], a.t0)
     for err in errors:
         yield None, err
 
 
 def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: IngestOptions):
-    """Per-timestep predictions for log files; returns (exit code, lines to print)."""
+    """Per-timestep predictions for log files; returns (exit code, lines to print).
+
+    ``out`` is a table (.csv, .parquet, .json) of every log, or an ``.mcap`` file per log on the log's own clock
+    (``sessions.terrain_mcap``); an MCAP output that exists is refused before the model runs.
+    """
     try:
         bundle = load_bundle(bundle_dir)
     except BundleError as exc:
@@ -315,13 +352,22 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
             f"error: {bundle_dir}: the model runs at {bundle.rate_hz:g} Hz, so logs are aligned at that rate; "
             f"--rate {options.target_rate:g} would feed it another (leave --rate out)"
         ]
-    names, arrays, lines = [], [], []
+    as_mcap = Path(out).suffix.lower() == ".mcap"
+    if Path(out).suffix.lower() not in OUTPUT_TYPES:
+        return 2, [f"error: {out}: unknown output type {Path(out).suffix!r}; use {', '.join(OUTPUT_TYPES)}"]
+    names, arrays, starts, lines = [], [], [], []
     for name, item in _arrays_for(bundle, files, options):
         if name is None:
             lines.append(f"error: {item}")
         else:
             names.append(name)
-            arrays.append(item)
+            arrays.append(item[0])
+            starts.append(item[1])
+    paths = per_log_paths(Path(out), names) if as_mcap else []
+    try:
+        refuse_existing(paths)
+    except WorkbenchError as exc:
+        return 2, [*lines, f"error: {exc}"]
     if arrays:
         from .cycle import in_memory_features, score_logs
 
@@ -334,11 +380,20 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
             features = [o.lazy(bundle.feature_mode) for o in outs]
             surprise = [o.surprise() for o in outs]
         scored = score_logs(bundle.classifiers, features, surprise, drift=bundle.drift)
-        frames = [
-            prediction_frame(name, s.probs, bundle.classes, bundle.rate_hz, s.drift)
-            for name, s in zip(names, scored, strict=True)
-        ]
-        write_frame(pd.concat(frames), out)
         lines += [w for name, s in zip(names, scored, strict=True) if (w := drift_warning(name, s.drift))]
-        lines.append(f"wrote predictions for {len(arrays)} log(s) to {out}")
+        if as_mcap:
+            for name, s, t0, path in zip(names, scored, starts, paths, strict=True):
+                clock = LogClock(name, t0, bundle.rate_hz, len(s.probs))
+                predictions = TerrainPredictions(tuple(bundle.classes), s.probs, s.drift)
+                write_terrain_mcap(path, clock, predictions=predictions, about={"bundle": str(bundle_dir)})
+                lines.append(
+                    f"wrote {path}: {name}, topic {PREDICTION_TOPIC}, {clock.n_samples} messages, {clock.span()}"
+                )
+        else:
+            frames = [
+                prediction_frame(name, s.probs, bundle.classes, bundle.rate_hz, s.drift)
+                for name, s in zip(names, scored, strict=True)
+            ]
+            write_frame(pd.concat(frames), out)
+            lines.append(f"wrote predictions for {len(arrays)} log(s) to {out}")
     return (2 if any(x.startswith("error:") for x in lines) else 0), lines

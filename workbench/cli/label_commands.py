@@ -7,19 +7,27 @@ from pathlib import Path
 
 import tyro
 
-from sessions import Session
+from sessions import LABEL_TOPIC, LogClock, Session
 
 Pos = tyro.conf.Positional
 
 
 def labels_export(session: Pos[Path], out: Path) -> None:
-    """Write every label segment to a .csv, .parquet or .json file.
+    """Write every label segment to a .csv, .parquet or .json file, or to MCAP (.mcap: one file per labelled log,
+    on the log's own clock, topic /terrain/labels).
 
     Args:
         session: The session folder.
-        out: The label file to write.
+        out: The label file to write; .mcap with several labelled logs gives each file the log's name before .mcap.
     """
     with Session.open(session) as s:
+        if out.suffix.lower() == ".mcap":
+            for path, log in s.export_labels_mcap(out):
+                n, span = len(s.segments(log.id)), LogClock(log.name, log.t0, log.rate_hz, log.n_samples).span()
+                print(f"wrote {path}: {log.name}, topic {LABEL_TOPIC}, {n} segment(s), {span}")
+            if not s.segments():
+                print("no label segments yet: nothing written")
+            return
         s.export_labels(out)
         print(f"wrote {len(s.segments())} segment(s) to {out}")
 

@@ -263,18 +263,20 @@ def _print_estimate(version: int, model: str, m: dict, estimate: dict) -> None:
         print(f"  probabilities calibrated on {cal['on']}: logits divided by {cal['temperature']:.2f}")
 
 
-def export(session: Pos[Path], out: Path, predictions: bool = False) -> None:
+def export(session: Pos[Path], out: Path, predictions: bool = False, mcap: bool = False) -> None:
     """Export the active model (bundle, ONNX, model card) and the label files for the robot.
 
     Args:
         session: The session folder.
         out: Folder to create.
-        predictions: Also write per-timestep predictions of every log.
+        predictions: Also write per-timestep predictions of every log (predictions.parquet).
+        mcap: Also write an MCAP file per log in OUT/mcap: the model's terrain per sample (topic /terrain) and the
+            labels (/terrain/labels) on the log's own clock, to open beside the log in Foxglove.
     """
     from ..export import export_all
 
     with Session.open(session) as s:
-        written = export_all(s, out, predictions=predictions)
+        written = export_all(s, out, predictions=predictions, mcap=mcap)
     for path, what in written:
         print(f"{path}  {what}")
 
@@ -294,7 +296,9 @@ def classify(
     Args:
         bundle: A model bundle folder (from `workbench export`).
         files: Log files (MCAP / CSV) with the channels the model was trained on.
-        out: Output table (.csv, .parquet or .json).
+        out: Output table (.csv, .parquet or .json) of every log; or .mcap: one MCAP file per log (topic /terrain,
+            on the log's own clock, to open beside it in Foxglove); with several logs each file gets the log's name
+            before .mcap. An MCAP output that exists is refused.
         mapping: TOML or JSON file naming topics/columns to read, as for `workbench ingest` (a headerless CSV's
             `[csv]` section included).
         allow_gaps: Accept NaN/inf samples and dropouts, recording them as gaps instead of refusing the file.

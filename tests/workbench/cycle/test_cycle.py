@@ -195,6 +195,57 @@ def test_cli_train_export_classify_labels(tmp_path: Path, demo_logs: list[Path],
     assert main(["train", str(s), "--device", "cuda"]) == 2 or __import__("torch").cuda.is_available()
 
 
+def test_terrain_mcap_lies_on_the_source_logs_clock(trained: Session, tmp_path: Path, demo_logs: list[Path], capsys):
+    from mcap.reader import make_reader
+
+    from tests.sessions.test_terrain_mcap import read_mcap
+
+    def first_times(path: Path) -> dict[str, int]:
+        first: dict[str, int] = {}
+        with open(path, "rb") as f:
+            for _, channel, m in make_reader(f).iter_messages():
+                first.setdefault(channel.topic, m.log_time)
+        return first
+
+    assert main(["export", str(trained.path), "--out", str(tmp_path / "x"), "--mcap"]) == 0
+    logs = trained.logs()
+    for log, source in zip(logs, demo_logs, strict=True):
+        topics = read_mcap(tmp_path / "x" / "mcap" / f"terrain.{log.name}.mcap")
+        times = np.array([t for t, _, _ in topics["/terrain"]])
+        # The log's time base starts when its last sensor starts (here the feet, 3 ms after the IMU; the demo's
+        # stamps are its log times) and steps at the fastest one's rate: 100 Hz, the IMU's.
+        start = max(t for topic, t in first_times(source).items() if not topic.startswith("/camera"))
+        assert len(times) == log.n_samples and abs(times[0] - start) <= 1_000  # float64 seconds: 0.24 µs
+        assert set(np.diff(times)) == {10_000_000}
+        labelled = [m for _, m, _ in topics["/terrain/labels"] if m["terrain"]]
+        mine = trained.segments(log.id)
+        assert [(m["terrain"], m["start_s"]) for m in labelled] == [(s.terrain, s.start / 100.0) for s in mine]
+
+    bundle, out = str(tmp_path / "x" / "bundle"), tmp_path / "run.terrain.mcap"
+    assert main(["classify", bundle, str(demo_logs[0]), "--out", str(out)]) == 0
+    said = f"wrote {out}: {logs[0].name}, topic /terrain, {logs[0].n_samples} messages, 2023-11-19 22:13:20.002 to "
+    assert said in capsys.readouterr().out  # the demo's first walk starts at 1.7e9 s, plus its feet's 3 ms
+    by_classify = [t for t, _, _ in read_mcap(out)["/terrain"]]
+    by_export = [t for t, _, _ in read_mcap(tmp_path / "x" / "mcap" / f"terrain.{logs[0].name}.mcap")["/terrain"]]
+    assert by_classify == by_export
+
+    assert main(["classify", bundle, str(demo_logs[0]), "--out", str(tmp_path / "p.txt")]) == 2
+    assert "unknown output type '.txt'; use .csv, .parquet, .json, .mcap" in capsys.readouterr().err
+    source = demo_logs[0].read_bytes()
+    for target in (out, demo_logs[0]):  # its own output again, and the robot's log itself: both refused, unchanged
+        assert main(["classify", bundle, str(demo_logs[0]), "--out", str(target)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err == f"error: {target}: exists already; choose another name (an MCAP output never replaces a file)"
+    assert demo_logs[0].read_bytes() == source
+
+    assert main(["labels", "export", str(trained.path), "--out", str(tmp_path / "labels.mcap")]) == 0
+    assert f"topic /terrain/labels, {len(trained.segments(logs[0].id))} segment(s)" in capsys.readouterr().out
+    written = sorted(p.name for p in tmp_path.glob("labels*.mcap"))
+    assert written == [f"labels.{log.name}.mcap" for log in logs]  # one file a log: each its own timeline
+    assert main(["labels", "export", str(trained.path), "--out", str(tmp_path / "labels.mcap")]) == 2
+    assert "exists already" in capsys.readouterr().err
+
+
 def test_cli_evaluate_qcat_on_a_generated_fixture(tmp_path: Path, capsys) -> None:
     from tests.sessions.test_ingest_csv import qcat_fixture
 
