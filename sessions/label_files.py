@@ -12,6 +12,7 @@ from pathlib import Path
 import pandas as pd
 
 from .errors import LabelError
+from .label_studio import is_label_studio, label_studio_frame
 from .labels import add_segment
 from .limits import MAX_LABEL_FILE_BYTES, MAX_LABEL_NESTING, MAX_LABEL_ROWS
 from .logs import LogInfo, Segment
@@ -103,8 +104,9 @@ def write_frame(frame: pd.DataFrame, path: Path) -> Path:
     return path
 
 
-def read_frame(path: Path, *, max_rows: int = MAX_LABEL_ROWS) -> pd.DataFrame:
-    """A label file as a table, its size checked before it is decoded (``sessions/limits.py``).
+def read_frame(path: Path, *, max_rows: int = MAX_LABEL_ROWS, logs: list[LogInfo] | None = None) -> pd.DataFrame:
+    """A label file as a table, its size checked before it is decoded (``sessions/limits.py``). With ``logs``, a
+    Label Studio export (JSON) is read too, its regions resolved against them (``label_studio.py``).
 
     Raises:
         LabelError: Unreadable, or over a limit: the file's bytes, a Parquet file's rows or decoded row groups, a
@@ -124,7 +126,9 @@ def read_frame(path: Path, *, max_rows: int = MAX_LABEL_ROWS) -> pd.DataFrame:
             _check_parquet(path, max_rows)
             return pd.read_parquet(path)
         text = path.read_text(encoding="utf-8")
-        _check_json(path, text)
+        data = _check_json(path, text, label_studio=logs is not None)
+        if logs is not None and is_label_studio(data):
+            return label_studio_frame(data, logs, path=path)
         return pd.read_json(io.StringIO(text), orient="records")
     except LabelError:
         raise
@@ -146,14 +150,17 @@ def _check_parquet(path: Path, max_rows: int) -> None:
         )
 
 
-def _check_json(path: Path, text: str) -> None:
-    """Refuse JSON that is not a list of flat records, before pandas reads it (deep nesting included)."""
+def _check_json(path: Path, text: str, *, label_studio: bool = False) -> object:
+    """Refuse JSON that is not a list of flat records (or, when ``label_studio``, a Label Studio export), before
+    pandas reads it (deep nesting included). Returns the parsed JSON."""
     try:
         data = json.loads(text)
     except RecursionError:
         raise LabelError(
             f"{path}: JSON nested deeper than the parser allows; a label file is a list of records"
         ) from None
+    if label_studio and is_label_studio(data):
+        return data
     flat = isinstance(data, list) and all(
         isinstance(r, dict) and not any(isinstance(v, dict | list) for v in r.values()) for r in data
     )
@@ -161,7 +168,9 @@ def _check_json(path: Path, text: str) -> None:
         raise LabelError(
             f"{path}: JSON nested deeper than {MAX_LABEL_NESTING} levels; a label file is a list of records of plain "
             'values ([{"log": ..., "terrain": ..., "start_s": ..., "end_s": ...}])'
+            + (" or a Label Studio export (tasks with data and annotations)" if label_studio else "")
         )
+    return data
 
 
 @dataclass(frozen=True)

@@ -350,6 +350,25 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         logs = {x.id: x for x in self.logs()}
         return write_frame(segments_frame(self.segments(), logs), Path(path))
 
+    def export_label_studio(self, path: str | Path, *, url_prefix: str | None = None) -> list[Path]:
+        """Write Label Studio's time-series import: one task per log with its labels as regions (``label_studio``).
+
+        Args:
+            path: The tasks JSON; the logs' CSVs and the labeling config go to the folder beside it (``NAME-files``).
+            url_prefix: What goes before a CSV's name in a task (default: Label Studio's local-files URL).
+
+        Returns:
+            The files written.
+        """
+        from .label_studio import write_label_studio
+
+        def samples(log: LogInfo) -> np.ndarray:
+            return self.samples(log.id)
+
+        return write_label_studio(
+            Path(path), self.logs(), self.segments(), self.terrains(), samples, url_prefix=url_prefix
+        )
+
     def export_labels_mcap(self, path: str | Path) -> list[tuple[Path, LogInfo]]:
         """Write each labelled log's segments to an MCAP file of its own, on the log's clock (``terrain_mcap``).
 
@@ -391,8 +410,8 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         from .label_files import import_rows, read_frame
 
         path = Path(path)
-        frame = read_frame(path)
         logs = self.logs()
+        frame = read_frame(path, logs=logs)
         with self._write() as conn:
             terrains = self._terrains_for(conn, frame, create_terrains)
             return import_rows(conn, frame, logs, terrains, path=path, author=author)
@@ -417,8 +436,8 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         from .label_files import import_reference_rows, read_frame
 
         path = Path(path)
-        frame = read_frame(path)
         logs = self.logs()
+        frame = read_frame(path, logs=logs)
         with self._write() as conn:
             terrains = self._terrains_for(conn, frame, create_terrains)
             return import_reference_rows(conn, frame, logs, terrains, path=path)

@@ -1,0 +1,227 @@
+"""Label Studio in and out: time-series tasks with ``timeserieslabels`` regions, one task per log.
+
+Out: a tasks JSON (one task per log, the log's labels as an annotation), a CSV of each log's signals with a
+``time`` column on the log's clock, and the project's labeling config. Region ``start``/``end`` are seconds on the
+log's clock (``t0 + i / rate``, as the MCAP files), so a region means the same instant in Label Studio, Foxglove
+and the session.
+
+In: Label Studio's JSON export of such a project (tasks with ``annotations``, each a ``result`` list). A task names
+its log by ``data.log`` (ours), else by the file its time series came from (``walk_001.csv``, also with Label
+Studio's upload prefix ``1a2b3c4d-walk_001.csv``). A region's times are read on the log's clock, else as seconds
+from the log's start, else as milliseconds on its clock (what a project whose time column is a date gives), in that
+order: the first reading that puts the region inside the log.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+import pandas as pd
+
+from .errors import LabelError
+from .logs import LogInfo, Segment, Terrain
+
+CONTROL = "terrain"  # the TimeSeriesLabels control's name in the labeling config we write
+OBJECT = "ts"  # the TimeSeries object's name
+UPLOAD_PREFIX = re.compile(r"^[0-9a-f]{8}-")  # Label Studio renames an uploaded file abc12345-NAME
+
+
+def files_folder(out: Path) -> Path:
+    """Where the signals and the labeling config go, beside the tasks file: ``ls.json`` -> ``ls-files/``."""
+    return out.with_name(f"{out.stem}-files")
+
+
+def log_csv_name(log: LogInfo) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", log.name).strip("._") + ".csv"
+
+
+def labeling_config(terrains: Sequence[Terrain], channels: Sequence[str]) -> str:
+    """The project's labeling config: one label per terrain (in its colour), the channels on a time axis in s."""
+    labels = "\n".join(f"    <Label value={quoteattr(t.name)} background={quoteattr(t.color)}/>" for t in terrains)
+    series = "\n".join(f"    <Channel column={quoteattr(c)} legend={quoteattr(c)}/>" for c in channels)
+    return (
+        "<View>\n"
+        f'  <TimeSeriesLabels name="{CONTROL}" toName="{OBJECT}">\n{labels}\n  </TimeSeriesLabels>\n'
+        f'  <TimeSeries name="{OBJECT}" valueType="url" value="$csv" sep="," timeColumn="time" '
+        'timeDisplayFormat=",.3f" durationDisplayFormat=",.3f">\n'
+        f"{series}\n  </TimeSeries>\n</View>\n"
+    )
+
+
+def region(segment: Segment, log: LogInfo) -> dict:
+    """A segment as a Label Studio ``timeserieslabels`` region, its times in seconds on the log's clock."""
+    return {
+        "id": f"wb{segment.id}",
+        "from_name": CONTROL,
+        "to_name": OBJECT,
+        "type": "timeserieslabels",
+        "origin": "manual",
+        "value": {
+            "start": log.t0 + segment.start / log.rate_hz,
+            "end": log.t0 + segment.stop / log.rate_hz,
+            "instant": False,
+            "timeserieslabels": [segment.terrain],
+        },
+    }
+
+
+def write_label_studio(
+    out: Path,
+    logs: Sequence[LogInfo],
+    segments: Sequence[Segment],
+    terrains: Sequence[Terrain],
+    samples: Callable[[LogInfo], np.ndarray],
+    *,
+    url_prefix: str | None = None,
+) -> list[Path]:
+    """Write Label Studio's import: the tasks file ``out``, and beside it a folder of each log's CSV and the config.
+
+    Args:
+        out: The tasks JSON to write.
+        logs: The logs, one task each (unlabelled ones too, to label there).
+        segments: The labels, as each task's annotation.
+        terrains: The terrains, as the config's labels.
+        samples: A log's ``(T, C)`` samples, read when its CSV is written.
+        url_prefix: What goes before a CSV's name in a task (default: Label Studio's local-files URL for the folder,
+            ``/data/local-files/?d=NAME-files/``, served with its document root at ``out``'s folder).
+
+    Returns:
+        The files written: the tasks file, the config, the CSVs.
+    """
+    folder = files_folder(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    prefix = f"/data/local-files/?d={folder.name}/" if url_prefix is None else url_prefix
+    shared = [c for c in logs[0].channel_names if all(c in x.channel_names for x in logs[1:])] if logs else []
+    config = folder / "labeling-config.xml"
+    config.write_text(labeling_config(terrains, shared))
+    written, tasks = [out, config], []
+    for log in logs:
+        csv = folder / log_csv_name(log)
+        table = pd.DataFrame(samples(log), columns=list(log.channel_names))
+        table.insert(0, "time", log.t0 + np.arange(len(table)) / log.rate_hz)
+        table.to_csv(csv, index=False, float_format="%.9g")
+        written.append(csv)
+        mine = [region(s, log) for s in segments if s.log_id == log.id]
+        tasks.append(
+            {
+                "data": {"csv": prefix + csv.name, "log": log.name, "source_file": log.source_path},
+                "annotations": [{"result": mine}] if mine else [],
+            }
+        )
+    out.write_text(json.dumps(tasks, indent=1))
+    return written
+
+
+def is_label_studio(data: object) -> bool:
+    """Whether parsed JSON is a Label Studio export: a list of tasks, each with ``data`` and its annotations."""
+    return (
+        isinstance(data, list)
+        and bool(data)
+        and all(
+            isinstance(t, dict) and isinstance(t.get("data"), dict) and ("annotations" in t or "completions" in t)
+            for t in data
+        )
+    )
+
+
+def label_studio_frame(tasks: list[dict], logs: Sequence[LogInfo], *, path: Path) -> pd.DataFrame:
+    """The regions of a Label Studio export as label rows: ``log, terrain, start_s, end_s, author``.
+
+    Raises:
+        LabelError: A task naming no log of the session, a region without a terrain, an instant, times that are no
+            numbers or lie outside the log; the message names the task. Nothing is imported then.
+    """
+    rows = []
+    for i, task in enumerate(tasks, start=1):
+        where = f"{path}: task {i}" + (f" (id {task['id']})" if "id" in task else "")
+        log = _task_log(task, logs)
+        if log is None:
+            raise LabelError(
+                f"{where}: names no log of this session (data.log, or a data file named after a log); nothing was "
+                "imported"
+            )
+        annotations = task.get("annotations", task.get("completions")) or []
+        if not isinstance(annotations, list):
+            raise LabelError(f"{where}: annotations is not a list; nothing was imported")
+        for annotation in annotations:
+            if not isinstance(annotation, dict) or not isinstance(annotation.get("result", []), list):
+                raise LabelError(f"{where}: an annotation without a result list; nothing was imported")
+            if annotation.get("was_cancelled"):
+                continue
+            author = _author(annotation.get("completed_by"))
+            for result in annotation.get("result", []):
+                if not isinstance(result, dict) or result.get("type") != "timeserieslabels":
+                    continue  # another control of the project (choices, text...): not a terrain span
+                start_s, end_s, terrain = _span(result.get("value"), log, where=where)
+                rows.append((log.name, terrain, start_s, end_s, author))
+    return pd.DataFrame(rows, columns=["log", "terrain", "start_s", "end_s", "author"])
+
+
+def _task_log(task: dict, logs: Sequence[LogInfo]) -> LogInfo | None:
+    by_name = {x.name: x for x in logs}
+    by_file = {log_csv_name(x)[:-4]: x for x in logs}
+    data = task["data"]
+    if isinstance(data.get("log"), str) and data["log"] in by_name:
+        return by_name[data["log"]]
+    for value in data.values():
+        if not isinstance(value, str):
+            continue
+        stem = re.split(r"[/=\\]", value.split("?")[-1] if "?" in value else value)[-1].rsplit(".", 1)[0]
+        for candidate in (stem, UPLOAD_PREFIX.sub("", stem)):
+            if candidate in by_name:
+                return by_name[candidate]
+            if candidate in by_file:
+                return by_file[candidate]
+    return None
+
+
+def _author(who: object) -> str | None:
+    if isinstance(who, dict):
+        who = who.get("email") or who.get("id")
+    if isinstance(who, str) and who:
+        return who
+    if isinstance(who, int):
+        return f"label-studio user {who}"
+    return None
+
+
+def _span(value: object, log: LogInfo, *, where: str) -> tuple[float, float, str]:
+    """A region's ``(start_s, end_s, terrain)``, its times as seconds from the log's start."""
+    if not isinstance(value, dict):
+        raise LabelError(f"{where}: a region without a value; nothing was imported")
+    names = value.get("timeserieslabels")
+    if not (isinstance(names, list) and len(names) == 1 and isinstance(names[0], str)):
+        raise LabelError(
+            f"{where}: a region needs one terrain in timeserieslabels, not {names!r}; nothing was imported"
+        )
+    if value.get("instant"):
+        raise LabelError(
+            f"{where}: an instant at {value.get('start')!r} labelled {names[0]!r}: a terrain needs a span; nothing "
+            "was imported"
+        )
+    try:
+        a, b = float(value["start"]), float(value["end"])
+    except (KeyError, TypeError, ValueError):
+        raise LabelError(
+            f"{where}: region start/end {value.get('start')!r}/{value.get('end')!r} are no numbers (a project whose "
+            "time column is a date exports milliseconds: numbers); nothing was imported"
+        ) from None
+    if not (math.isfinite(a) and math.isfinite(b)):
+        raise LabelError(f"{where}: region start/end {a}/{b} are not finite; nothing was imported")
+    if b <= a:
+        raise LabelError(f"{where}: a region from {a:g} to {b:g} ends before it starts; nothing was imported")
+    slack, length = 1.0 / log.rate_hz, log.n_samples / log.rate_hz
+    # the log's clock (ours), seconds from its start, milliseconds on its clock (a date time column)
+    for start, end in ((a - log.t0, b - log.t0), (a, b), (a / 1e3 - log.t0, b / 1e3 - log.t0)):
+        if -slack <= start <= end <= length + slack:
+            return max(start, 0.0), min(end, length), names[0]
+    raise LabelError(
+        f"{where}: region {a:g} to {b:g} lies outside log {log.name!r} (its clock runs {log.t0:.3f} to "
+        f"{log.t0 + length:.3f} s; {length:.3f} s long); nothing was imported"
+    )
