@@ -5,6 +5,7 @@ Knows nothing of training, labelling strategies or the UI; ``workbench`` compose
 
 from .cameras import CameraFrame, CameraInfo
 from .errors import IngestError, LabelError, SessionError, WorkbenchError
+from .file_names import safe_file_name
 from .ingest import (
     AlignedLog,
     IngestOptions,
@@ -67,6 +68,7 @@ __all__ = [
     "read_mcap",
     "read_source",
     "refuse_existing",
+    "safe_file_name",
     "sniff_csv",
     "write_frame",
     "write_terrain_mcap",

@@ -8,10 +8,12 @@ they are read.
 
 from __future__ import annotations
 
+import io
 import os
 import shutil
 import threading
 import uuid
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +27,8 @@ from .log_files import checked_in_logs
 from .logs import LogInfo
 
 INDEX_DTYPE = np.dtype([("t", "<f8"), ("offset", "<i8"), ("size", "<i8")])
+THUMB_PX = 112  # a thumbnail's width: the ground's texture at a glance, ~3 KB a picture in a table of twelve
+THUMBS_KEPT = 256  # thumbnails kept in memory, newest first: a table redrawn at every keypress reads none again
 
 
 @dataclass(frozen=True)
@@ -95,6 +99,7 @@ class CameraStore:
     log: Callable[[int], LogInfo]
     _camera_index: dict[tuple[int, int], tuple[np.ndarray, Path]]
     _camera_lock: threading.Lock
+    _thumbs: OrderedDict[tuple[int, int, int, int], bytes]
 
     def cameras(self, log_id: int) -> list[CameraInfo]:
         """The cameras whose frames the session keeps for a log (none for CSV logs and logs without images)."""
@@ -157,10 +162,55 @@ class CameraStore:
     ) -> CameraFrame | None:
         """The frame shown at ``seconds`` into a log (:meth:`camera_frame_number`), with its JPEG bytes."""
         i = self.camera_frame_number(log_id, seconds, camera=camera, within_s=within_s)
-        if i is None:
-            return None
+        return None if i is None else self._read_frame(log_id, camera, i)
+
+    def _read_frame(self, log_id: int, camera: int, i: int) -> CameraFrame:
         index, frames = self._index(log_id, camera)
         with open(frames, "rb") as f:
             f.seek(int(index["offset"][i]))
             data = f.read(int(index["size"][i]))
         return CameraFrame(float(index["t"][i]), data, i, len(index))
+
+    def camera_frames_between(self, log_id: int, start_s: float, stop_s: float, *, camera: int = 0) -> list[int]:
+        """Numbers of a camera's kept frames in ``[start_s, stop_s)`` seconds into a log."""
+        t = self.camera_times(log_id, camera)
+        return list(range(int(np.searchsorted(t, start_s)), int(np.searchsorted(t, stop_s))))
+
+    def camera_frame_by_number(self, log_id: int, number: int, *, camera: int = 0) -> CameraFrame:
+        """A kept frame by its number (:meth:`camera_frames_between`), with its JPEG bytes."""
+        return self._read_frame(log_id, camera, number)
+
+    def camera_thumbnail(
+        self, log_id: int, seconds: float, *, camera: int = 0, within_s: float = 1.0, width: int = THUMB_PX
+    ) -> bytes | None:
+        """A small JPEG of the frame nearest ``seconds`` into a log (``None`` when none is within ``within_s``),
+        ``width`` pixels wide; the last :data:`THUMBS_KEPT` are kept in memory.
+
+        Raises:
+            SessionError: The camera's files are damaged, or a frame is no picture Pillow can read.
+        """
+        from PIL import Image
+
+        i = self.camera_frame_number(log_id, seconds, camera=camera, within_s=within_s)
+        if i is None:
+            return None
+        key = (log_id, camera, i, width)
+        with self._camera_lock:
+            if key in self._thumbs:
+                self._thumbs.move_to_end(key)
+                return self._thumbs[key]
+        frame = self._read_frame(log_id, camera, i)
+        try:
+            with Image.open(io.BytesIO(frame.jpeg)) as picture:
+                picture.draft("RGB", (width, width))  # JPEG: decode at 1/2, 1/4 or 1/8 scale, not whole
+                small = picture.convert("RGB")
+                small.thumbnail((width, 4 * width))
+                out = io.BytesIO()
+                small.save(out, "JPEG", quality=80)
+        except (OSError, ValueError, Image.DecompressionBombError) as exc:
+            raise SessionError(f"{self.path}: log {log_id}'s camera frame {i + 1} is unreadable ({exc})") from None
+        with self._camera_lock:
+            self._thumbs[key] = out.getvalue()
+            while len(self._thumbs) > THUMBS_KEPT:
+                self._thumbs.popitem(last=False)
+        return out.getvalue()

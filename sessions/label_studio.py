@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import LabelError
+from .file_names import safe_file_name
 from .logs import LogInfo, Segment, Terrain
 
 CONTROL = "terrain"  # the TimeSeriesLabels control's name in the labeling config we write
@@ -38,7 +39,7 @@ def files_folder(out: Path) -> Path:
 
 
 def log_csv_name(log: LogInfo) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", log.name).strip("._") + ".csv"
+    return safe_file_name(log.name, empty="log") + ".csv"
 
 
 def labeling_config(terrains: Sequence[Terrain], channels: Sequence[str]) -> str:

@@ -9,6 +9,7 @@ import shutil
 import sqlite3
 import threading
 import time
+from collections import OrderedDict
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -44,6 +45,7 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         self._arrays: dict[int, np.ndarray] = {}
         self._camera_index: dict[tuple[int, int], tuple[np.ndarray, Path]] = {}
         self._camera_lock = threading.Lock()
+        self._thumbs: OrderedDict[tuple[int, int, int, int], bytes] = OrderedDict()
 
     # ----------------------------------------------------------------------------------------------- lifecycle
     @classmethod

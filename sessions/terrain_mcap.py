@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -26,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import WorkbenchError
+from .file_names import safe_file_name
 from .ingest.time_columns import EPOCH_RANGE_S
 from .logs import Segment
 
@@ -112,7 +112,7 @@ def per_log_paths(out: Path, names: Sequence[str], *, each: bool = False) -> lis
     stem = out.name[: -len(".mcap")] if out.name.lower().endswith(".mcap") else out.name
     paths, seen = [], set()
     for name in names:
-        safe = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "log"
+        safe = safe_file_name(name, empty="log")
         while safe in seen:
             safe += "_"
         seen.add(safe)

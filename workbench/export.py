@@ -26,6 +26,7 @@ from sessions import (
     plan_sources,
     read_source,
     refuse_existing,
+    safe_file_name,
     write_frame,
     write_terrain_mcap,
 )
@@ -225,10 +226,13 @@ def model_card(bundle: ModelBundle, *, version: int, session: str, drifted: Mapp
     return "\n".join(lines) + "\n"
 
 
-def export_all(session: Session, out: Path, *, predictions: bool = False, mcap: bool = False) -> list[tuple[Path, str]]:
+def export_all(
+    session: Session, out: Path, *, predictions: bool = False, mcap: bool = False, frames: bool = False
+) -> list[tuple[Path, str]]:
     """Write the active model and the labels to a new folder ``out``; with ``predictions``, per-timestep predictions
     of every log as Parquet; with ``mcap``, an MCAP file per log (the model's terrain and the labels, on the log's
-    clock) in ``out/mcap``.
+    clock) in ``out/mcap``; with ``frames``, the camera frames of the labelled segments in ``out/frames``, a folder
+    per terrain, and their index (``frames/index.csv``).
 
     Returns:
         What was written, one (path, description) per item.
@@ -245,7 +249,7 @@ def export_all(session: Session, out: Path, *, predictions: bool = False, mcap: 
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     try:
-        written = _write_export(session, tmp, version, bundle, predictions=predictions, mcap=mcap)
+        written = _write_export(session, tmp, version, bundle, predictions=predictions, mcap=mcap, frames=frames)
         tmp.rename(out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -254,7 +258,14 @@ def export_all(session: Session, out: Path, *, predictions: bool = False, mcap: 
 
 
 def _write_export(
-    session: Session, out: Path, version: ModelVersion, bundle: ModelBundle, *, predictions: bool, mcap: bool
+    session: Session,
+    out: Path,
+    version: ModelVersion,
+    bundle: ModelBundle,
+    *,
+    predictions: bool,
+    mcap: bool,
+    frames: bool,
 ) -> list[tuple[Path, str]]:
     from training import check_onnx, export_onnx
 
@@ -287,7 +298,32 @@ def _write_export(
         written.append((write_frame(pd.concat(frames), out / "predictions.parquet"), "per-timestep predictions"))
     if mcap:
         written += _write_mcaps(session, out / "mcap", version, bundle, scored)
+    if frames:
+        written.append(write_labelled_frames(session, out / "frames"))
     return written
+
+
+def write_labelled_frames(session: Session, folder: Path) -> tuple[Path, str]:
+    """The camera frames inside labelled segments, as the JPEGs the session keeps: ``folder/TERRAIN/LOG-camK-T.jpg``
+    (``T``: ms from the log's start), the layout image-classification tools read, and ``folder/index.csv`` with each
+    frame's log, camera topic, time and terrain."""
+    folder.mkdir()
+    rows = []
+    for seg in session.segments():
+        log = session.log(seg.log_id)
+        for cam in session.cameras(log.id):
+            a, b = seg.start / log.rate_hz, seg.stop / log.rate_hz
+            for number in session.camera_frames_between(log.id, a, b, camera=cam.index):
+                frame = session.camera_frame_by_number(log.id, number, camera=cam.index)
+                name = f"{safe_file_name(log.name)}-cam{cam.index}-{round(frame.t * 1000):08d}.jpg"
+                file = Path(safe_file_name(seg.terrain)) / name
+                (folder / file.parent).mkdir(exist_ok=True)
+                (folder / file).write_bytes(frame.jpeg)
+                rows.append((file.as_posix(), log.name, cam.topic, frame.t, log.t0 + frame.t, seg.terrain))
+    columns = ["file", "log", "camera", "t_s", "time", "terrain"]
+    write_frame(pd.DataFrame(rows, columns=columns), folder / "index.csv")
+    cams = "no log with labels has a camera" if not rows else f"{len(rows)} frames of labelled segments"
+    return folder, f"camera frames, a folder per terrain ({cams}; index.csv)"
 
 
 def _write_mcaps(

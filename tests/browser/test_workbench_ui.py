@@ -3,6 +3,8 @@ label file, and see another browser's label appear. Tiny models (hidden 8, a few
 
 from __future__ import annotations
 
+import base64
+import io
 import re
 import shutil
 import sqlite3
@@ -10,6 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
+from PIL import Image
 
 from sessions import Session
 from tests.conftest import new_session
@@ -141,6 +144,11 @@ def test_label_with_hotkeys_retrain_suggest_and_download(session_path: Path, ser
     # take a suggestion with its hotkeys: N shows it, A labels it with the model's guess
     open_tab(page, "Suggest")
     page.get_by_text("segments suggested").wait_for(timeout=60_000)
+    # each suggestion of the table shows its camera frame, small (the demo walks have a camera)
+    thumbs = page.locator("img.wb-thumb")
+    thumbs.first.wait_for(timeout=10_000)
+    picture = Image.open(io.BytesIO(base64.b64decode(thumbs.first.get_attribute("src").split(",", 1)[1])))
+    assert picture.format == "JPEG" and picture.width == 112 and thumbs.count() >= 2
     blur(page)
     page.keyboard.press("n")
     page.get_by_text("model's guess").wait_for(timeout=10_000)

@@ -48,6 +48,23 @@ def test_mcap_frames_are_kept_at_the_rate_cap_and_found_by_time(tmp_path: Path, 
     assert a is not None and b is not None and a.jpeg != b.jpeg  # the ground moves with the walk
 
 
+def test_thumbnails_and_the_frames_of_a_stretch(tmp_path: Path, demo_mcap: Path) -> None:
+    s = Session.create(tmp_path / "s")
+    (log,) = s.ingest([demo_mcap])
+    small = s.camera_thumbnail(log.id, 3.3)
+    full = _picture(s.camera_frame(log.id, 3.3).jpeg)
+    assert _picture(small).shape == (84, 112, 3)  # 112 px wide, the frame's 4:3 kept
+    shrunk = np.asarray(Image.fromarray(full.astype(np.uint8)).resize((112, 84), Image.BILINEAR), np.float64)
+    assert np.abs(_picture(small) - shrunk).mean() < 12  # the same picture, not another frame's
+    assert s.camera_thumbnail(log.id, 3.3) is small  # kept: a table redrawn reads and decodes nothing again
+    assert s.camera_thumbnail(log.id, log.duration_s + 5.0) is None
+    numbers = s.camera_frames_between(log.id, 2.0, 6.0)
+    times = s.camera_times(log.id)
+    assert numbers == [i for i, t in enumerate(times) if 2.0 <= t < 6.0] and len(numbers) == 8
+    frame = s.camera_frame_by_number(log.id, numbers[0])
+    assert frame.number == numbers[0] and frame.t == times[numbers[0]] and frame.jpeg[:2] == b"\xff\xd8"
+
+
 def test_no_camera_frames_when_the_cap_is_zero(tmp_path: Path, demo_mcap: Path) -> None:
     s = Session.create(tmp_path / "s")
     (log,) = s.ingest([demo_mcap], options=IngestOptions(camera_fps=0))

@@ -263,7 +263,7 @@ def _print_estimate(version: int, model: str, m: dict, estimate: dict) -> None:
         print(f"  probabilities calibrated on {cal['on']}: logits divided by {cal['temperature']:.2f}")
 
 
-def export(session: Pos[Path], out: Path, predictions: bool = False, mcap: bool = False) -> None:
+def export(session: Pos[Path], out: Path, predictions: bool = False, mcap: bool = False, frames: bool = False) -> None:
     """Export the active model (bundle, ONNX, model card) and the label files for the robot.
 
     Args:
@@ -272,11 +272,13 @@ def export(session: Pos[Path], out: Path, predictions: bool = False, mcap: bool 
         predictions: Also write per-timestep predictions of every log (predictions.parquet).
         mcap: Also write an MCAP file per log in OUT/mcap: the model's terrain per sample (topic /terrain) and the
             labels (/terrain/labels) on the log's own clock, to open beside the log in Foxglove.
+        frames: Also write the camera frames inside labelled segments to OUT/frames, a folder per terrain, with
+            their index (frames/index.csv: file, log, camera, time, terrain).
     """
     from ..export import export_all
 
     with Session.open(session) as s:
-        written = export_all(s, out, predictions=predictions, mcap=mcap)
+        written = export_all(s, out, predictions=predictions, mcap=mcap, frames=frames)
     for path, what in written:
         print(f"{path}  {what}")
 

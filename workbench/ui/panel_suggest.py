@@ -3,15 +3,22 @@ skip (skips are this browser's own)."""
 
 from __future__ import annotations
 
+import base64
 import html
 from typing import TYPE_CHECKING
 
 import labeling
 from sessions import WorkbenchError
 
+from ..user_errors import USER_ERRORS
+
 if TYPE_CHECKING:
     from .host import PanelHost
     from .state import Queued
+
+
+TABLE_ROWS = 12
+THUMB_SHOWN_PX = 56  # the thumbnails are twice this wide: sharp on a high-density screen
 
 
 class SuggestPanel:
@@ -120,21 +127,50 @@ class SuggestPanel:
             )
         else:
             self.info.content = f"<small style='color:#666'>{html.escape(self._hint(queue))}</small>"
+        shown = queue[:TABLE_ROWS]
+        pictures = self._thumbnails(shown)
         rows = []
-        for rank, q in enumerate(queue[:12]):
+        for rank, q in enumerate(shown):
             a, b = q.seconds
             mark = "background:#e0f2f1;" if self.current is not None and q.key == self.current.key else ""
+            picture = ""
+            if pictures:
+                jpeg = pictures.get(q.key)
+                picture = (
+                    f"<td><img class='wb-thumb' src='data:image/jpeg;base64,{base64.b64encode(jpeg).decode()}' "
+                    f"style='width:{THUMB_SHOWN_PX}px;display:block;border-radius:3px' alt='camera frame'></td>"
+                    if jpeg
+                    else "<td style='color:#999;text-align:center'>–</td>"
+                )
             rows.append(
-                f"<tr style='{mark}'><td>{rank + 1}</td><td>{html.escape(q.log.name)}</td>"
+                f"<tr style='{mark}'><td>{rank + 1}</td>{picture}<td>{html.escape(q.log.name)}</td>"
                 f"<td style='text-align:right'>{a:.1f}–{b:.1f}</td><td>{html.escape(q.reason)}</td>"
                 f"<td>{html.escape(q.guess or '–')}</td></tr>"
             )
+        view = "<th>view</th>" if pictures else ""
         self.table.content = (
             "<table style='width:100%;font-size:0.75em;border-collapse:collapse'><tr style='color:#666'>"
-            "<th>#</th><th>log</th><th>s</th><th>why</th><th>guess</th></tr>" + "".join(rows) + "</table>"
+            f"<th>#</th>{view}<th>log</th><th>s</th><th>why</th><th>guess</th></tr>" + "".join(rows) + "</table>"
             if rows
             else ""
         )
+
+    def _thumbnails(self, queue: list[Queued]) -> dict[tuple[int, int, int], bytes | None]:
+        """The camera frame at the middle of each suggestion, small, for logs that recorded one; empty when no log
+        of the table has a camera (no column then). A damaged camera shows no picture, not an error."""
+        session = self.host.state.session
+        cameras: dict[int, bool] = {}
+        out: dict[tuple[int, int, int], bytes | None] = {}
+        for q in queue:
+            try:
+                if q.log.id not in cameras:
+                    cameras[q.log.id] = bool(session.cameras(q.log.id))
+                if cameras[q.log.id]:
+                    a, b = q.seconds
+                    out[q.key] = session.camera_thumbnail(q.log.id, (a + b) / 2)
+            except USER_ERRORS:
+                out[q.key] = None
+        return out
 
     def _hint(self, queue: list[Queued]) -> str:
         if queue:

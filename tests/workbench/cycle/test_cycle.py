@@ -207,8 +207,23 @@ def test_terrain_mcap_lies_on_the_source_logs_clock(trained: Session, tmp_path: 
                 first.setdefault(channel.topic, m.log_time)
         return first
 
-    assert main(["export", str(trained.path), "--out", str(tmp_path / "x"), "--mcap"]) == 0
+    assert main(["export", str(trained.path), "--out", str(tmp_path / "x"), "--mcap", "--frames"]) == 0
     logs = trained.logs()
+    # --frames: the camera frames inside labelled segments, a folder per terrain, the very JPEGs the session keeps
+    index = pd.read_csv(tmp_path / "x" / "frames" / "index.csv")
+    by_log = {log.name: log for log in logs}
+    expected = 0
+    for seg in trained.segments():
+        log = trained.log(seg.log_id)
+        expected += len(trained.camera_frames_between(log.id, seg.start / 100.0, seg.stop / 100.0))
+    assert len(index) == expected > 0
+    for row in index.itertuples():
+        log = by_log[row.log]
+        seg = next(s for s in trained.segments(log.id) if s.start <= row.t_s * 100 < s.stop)
+        assert row.terrain == seg.terrain and row.file.startswith(f"{seg.terrain}/{row.log}-cam0-")
+        assert row.time == pytest.approx(log.t0 + row.t_s)
+        kept = trained.camera_frame(log.id, row.t_s, within_s=1e-6)
+        assert (tmp_path / "x" / "frames" / row.file).read_bytes() == kept.jpeg
     for log, source in zip(logs, demo_logs, strict=True):
         topics = read_mcap(tmp_path / "x" / "mcap" / f"terrain.{log.name}.mcap")
         times = np.array([t for t, _, _ in topics["/terrain"]])
