@@ -59,3 +59,28 @@ def test_serve_binds_loopback_by_default(tmp_path: Path, serve) -> None:
     assert listeners, "nothing listens on the server's port"
     # 0100007F is 127.0.0.1 (little-endian hex); IPv6 loopback ::1 is the same, 32 hex digits wide
     assert listeners <= {"0100007F", "00000000000000000000000001000000"}, listeners
+
+
+def test_a_new_session_asks_for_terrains_and_one_is_added_in_the_page(tmp_path: Path, serve, page) -> None:
+    from sessions import Session
+    from workbench.demo import generate_demo_logs
+
+    (log,) = generate_demo_logs(tmp_path / "logs", n_logs=1, minutes=0.2, seed=4)
+    session = tmp_path / "s"
+    assert main(["new", str(session)]) == 0
+    assert main(["ingest", str(session), str(log)]) == 0
+    server = serve(session)
+    page.goto(server.url)
+    page.get_by_text("walk_000").first.wait_for(timeout=30_000)
+    open_tab(page, "Label")
+    page.get_by_text("No terrains yet.").wait_for(timeout=10_000)  # the hint, with its Terrains folder open
+    save_screenshot(page, "no-terrains-yet")
+    name = page.locator(
+        "xpath=//label[text()='Name']/ancestor::div[contains(@class,'mantine-Flex-root')][1]//input"
+    ).first
+    name.fill("wet-floor")
+    name.press("Tab")
+    page.get_by_role("button", name="Add terrain").click()
+    page.get_by_text("No terrains yet.").wait_for(state="hidden", timeout=10_000)
+    with Session.open(session) as s:
+        assert [t.name for t in s.terrains()] == ["wet-floor"]
