@@ -30,6 +30,7 @@ from .logs import LogInfo, Segment, Terrain
 
 CONTROL = "terrain"  # the TimeSeriesLabels control's name in the labeling config we write
 OBJECT = "ts"  # the TimeSeries object's name
+BLOCK = 1 << 16  # rows of a log written to its CSV at a time
 UPLOAD_PREFIX = re.compile(r"^[0-9a-f]{8}-")  # Label Studio renames an uploaded file abc12345-NAME
 
 
@@ -77,7 +78,7 @@ def write_label_studio(
     logs: Sequence[LogInfo],
     segments: Sequence[Segment],
     terrains: Sequence[Terrain],
-    samples: Callable[[LogInfo], np.ndarray],
+    samples: Callable[[LogInfo, int, int], np.ndarray],
     *,
     url_prefix: str | None = None,
 ) -> list[Path]:
@@ -88,7 +89,7 @@ def write_label_studio(
         logs: The logs, one task each (unlabelled ones too, to label there).
         segments: The labels, as each task's annotation.
         terrains: The terrains, as the config's labels.
-        samples: A log's ``(T, C)`` samples, read when its CSV is written.
+        samples: A log's samples ``[start, stop)`` as a ``(stop - start, C)`` array, read a block at a time.
         url_prefix: What goes before a CSV's name in a task (default: Label Studio's local-files URL for the folder,
             ``/data/local-files/?d=NAME-files/``, served with its document root at ``out``'s folder).
 
@@ -104,9 +105,13 @@ def write_label_studio(
     written, tasks = [out, config], []
     for log in logs:
         csv = folder / log_csv_name(log)
-        table = pd.DataFrame(samples(log), columns=list(log.channel_names))
-        table.insert(0, "time", log.t0 + np.arange(len(table)) / log.rate_hz)
-        table.to_csv(csv, index=False, float_format="%.9g")
+        with open(csv, "w", newline="") as f:
+            for a in range(0, max(log.n_samples, 1), BLOCK):  # a block at a time: a long log is never held whole
+                b = min(a + BLOCK, log.n_samples)
+                table = pd.DataFrame(samples(log, a, b), columns=list(log.channel_names))
+                # fixed to the microsecond: the channels' 9 significant digits would round an epoch time to 10 s
+                table.insert(0, "time", np.char.mod("%.6f", log.t0 + np.arange(a, b) / log.rate_hz))
+                table.to_csv(f, index=False, header=a == 0, float_format="%.9g")
         written.append(csv)
         mine = [region(s, log) for s in segments if s.log_id == log.id]
         tasks.append(

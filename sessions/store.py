@@ -364,8 +364,8 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         """
         from .label_studio import write_label_studio
 
-        def samples(log: LogInfo) -> np.ndarray:
-            return self.samples(log.id)
+        def samples(log: LogInfo, start: int, stop: int) -> np.ndarray:
+            return self.samples(log.id, start, stop)
 
         return write_label_studio(
             Path(path), self.logs(), self.segments(), self.terrains(), samples, url_prefix=url_prefix

@@ -32,6 +32,7 @@ from .logs import Segment
 PREDICTION_TOPIC = "/terrain"
 LABEL_TOPIC = "/terrain/labels"
 PROFILE = ""  # no ROS profile: JSON messages are self-describing
+BLOCK = 1 << 16  # samples turned into messages at a time
 DIGITS = 4  # probabilities and scores, rounded: a tenth of a per cent is more than any figure here means
 
 PREDICTION_SCHEMA = {
@@ -185,23 +186,28 @@ def _channel(writer, topic: str, schema: dict) -> int:
 
 def _write_predictions(writer, clock: LogClock, p: TerrainPredictions) -> None:
     channel = _channel(writer, PREDICTION_TOPIC, PREDICTION_SCHEMA)
-    probs = np.asarray(p.probs, np.float64)  # (T, K)
-    best = probs.argmax(-1)
-    confidence = np.round(probs.max(-1), DIGITS).tolist()
-    rounded = np.round(probs, DIGITS).tolist()
-    drift = [None] * len(probs) if p.drift is None else np.round(np.asarray(p.drift, np.float64), DIGITS).tolist()
-    times = clock.ns(np.arange(len(probs))).tolist()
     classes = list(p.classes)
     dumps = json.JSONEncoder(separators=(",", ":")).encode
-    for i, t in enumerate(times):
-        message = {
-            "terrain": classes[best[i]],
-            "confidence": confidence[i],
-            "probabilities": dict(zip(classes, rounded[i], strict=True)),
-            "drift": drift[i],
-            "sample": i,
-        }
-        writer.add_message(channel, log_time=t, data=dumps(message).encode(), publish_time=t, sequence=i)
+    for a in range(0, len(p.probs), BLOCK):  # Python numbers for a block at a time: 10 h at 100 Hz would take GBs
+        probs = np.asarray(p.probs[a : a + BLOCK], np.float64)  # (B, K)
+        best = probs.argmax(-1).tolist()
+        confidence = np.round(probs.max(-1), DIGITS).tolist()
+        rounded = np.round(probs, DIGITS).tolist()
+        drift = (
+            [None] * len(probs)
+            if p.drift is None
+            else np.round(np.asarray(p.drift[a : a + BLOCK], np.float64), DIGITS).tolist()
+        )
+        times = clock.ns(np.arange(a, a + len(probs))).tolist()
+        for j, t in enumerate(times):
+            message = {
+                "terrain": classes[best[j]],
+                "confidence": confidence[j],
+                "probabilities": dict(zip(classes, rounded[j], strict=True)),
+                "drift": drift[j],
+                "sample": a + j,
+            }
+            writer.add_message(channel, log_time=t, data=dumps(message).encode(), publish_time=t, sequence=a + j)
 
 
 def label_states(segments: Sequence[Segment], n_samples: int) -> list[tuple[int, int, Segment | None]]:

@@ -89,7 +89,8 @@ def logs(tmp_path: Path) -> list[Path]:
     return write_logs(tmp_path / "logs")
 
 
-def test_export_is_one_task_per_log_on_the_logs_clock(tmp_path: Path, logs: list[Path]) -> None:
+def test_export_is_one_task_per_log_on_the_logs_clock(tmp_path: Path, logs: list[Path], monkeypatch) -> None:
+    monkeypatch.setattr("sessions.label_studio.BLOCK", 256)  # a log's CSV is written in blocks: several here
     with labelled(tmp_path / "a", logs) as s:
         written = s.export_label_studio(tmp_path / "ls.json")
     tasks = json.loads((tmp_path / "ls.json").read_text())
@@ -103,7 +104,10 @@ def test_export_is_one_task_per_log_on_the_logs_clock(tmp_path: Path, logs: list
     ]
     csv = pd.read_csv(tmp_path / "ls-files" / "field.csv")
     assert list(csv.columns) == ["time", "ax", "wz"] and len(csv) == 1500
-    assert csv["time"].iloc[100] == pytest.approx(EPOCH + 1.0)  # a region's start is a row's time
+    assert csv["time"].iloc[100] == pytest.approx(EPOCH + 1.0, abs=1e-6)  # a region's start is a row's time
+    assert np.allclose(np.diff(csv["time"]), 0.01, atol=1e-6)  # no row lost or repeated between blocks
+    with Session.open(tmp_path / "a") as s:
+        assert np.allclose(csv[["ax", "wz"]].to_numpy(), s.samples(s.logs()[0].id), atol=1e-6)
     config = ET.fromstring((tmp_path / "ls-files" / "labeling-config.xml").read_text())
     labels = [e.get("value") for e in config.iter("Label")]
     assert labels == [t.name for t in Session.open(tmp_path / "a").terrains()]

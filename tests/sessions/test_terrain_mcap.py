@@ -46,7 +46,8 @@ def segment(start: int, stop: int, terrain: str) -> Segment:
     return Segment(0, 1, start, stop, terrain, "ana", "manual", "", "")
 
 
-def test_predictions_lie_on_the_log_clock_and_validate(tmp_path: Path) -> None:
+def test_predictions_lie_on_the_log_clock_and_validate(tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setattr("sessions.terrain_mcap.BLOCK", 64)  # messages are made a block at a time: several here
     rng = np.random.default_rng(0)
     probs = rng.dirichlet(np.ones(3), size=250).astype(np.float32)  # (T, K)
     drift = rng.uniform(0, 2, 250).astype(np.float32)
