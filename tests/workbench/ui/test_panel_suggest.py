@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import base64
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
-from sessions import LogInfo
+from sessions import LogInfo, SessionError
 from workbench.ui.panel_suggest import SuggestPanel
 from workbench.ui.state import Queued
 
@@ -78,8 +79,27 @@ def _queued(start: int, guess: str, reason: str = "unsure") -> Queued:
     )
 
 
-def _panel(queue: list[Queued]) -> tuple[SuggestPanel, _Host]:
-    host = _Host(state=SimpleNamespace(queue=queue, strategy="combined", busy=None, scored=True, problem=None))
+class _Session:
+    """Cameras of the logs: none unless given; a thumbnail is its request, so a test can see what was asked."""
+
+    def __init__(self, cameras: dict[int, list] | None = None, broken: bool = False) -> None:
+        self._cameras, self.broken, self.asked = cameras or {}, broken, []
+
+    def cameras(self, log_id: int) -> list:
+        return self._cameras.get(log_id, [])
+
+    def camera_thumbnail(self, log_id: int, seconds: float) -> bytes:
+        if self.broken:
+            raise SessionError("s: log 1's camera index does not match its frames; the session was changed")
+        self.asked.append((log_id, seconds))
+        return b"\xff\xd8 jpeg " + str(seconds).encode()
+
+
+def _panel(queue: list[Queued], session: _Session | None = None) -> tuple[SuggestPanel, _Host]:
+    state = SimpleNamespace(
+        queue=queue, strategy="combined", busy=None, scored=True, problem=None, session=session or _Session()
+    )
+    host = _Host(state=state)
     return SuggestPanel(host), host
 
 
@@ -103,3 +123,19 @@ def test_a_suggestion_still_ranked_takes_its_new_guess() -> None:
     panel.refresh()
     assert panel.current.guess == "sand" and "models disagree" in panel.info.content
     assert "no longer ranked" not in panel.info.content
+
+
+def test_the_table_shows_each_suggestions_camera_frame_when_its_log_has_a_camera() -> None:
+    panel, _ = _panel([_queued(500, "grass")])
+    assert "<img" not in panel.table.content and "view" not in panel.table.content  # no camera: no column
+    session = _Session({1: ["/camera"]})
+    panel, _ = _panel([_queued(500, "grass"), _queued(900, "sand")], session)
+    assert session.asked == [(1, 5.5), (1, 9.5)]  # the frame at each suggestion's middle
+    assert panel.table.content.count("<img class='wb-thumb'") == 2 and "<th>view</th>" in panel.table.content
+    shown = base64.b64encode(b"\xff\xd8 jpeg 5.5").decode()
+    assert f"src='data:image/jpeg;base64,{shown}'" in panel.table.content
+
+
+def test_a_damaged_camera_shows_no_picture_and_keeps_the_table() -> None:
+    panel, _ = _panel([_queued(500, "grass")], _Session({1: ["/camera"]}, broken=True))
+    assert "<img" not in panel.table.content and "grass" in panel.table.content
