@@ -162,7 +162,9 @@ def label_studio_frame(tasks: list[dict], logs: Sequence[LogInfo], *, path: Path
                 continue
             author = _author(annotation.get("completed_by"))
             for result in annotation.get("result", []):
-                if not isinstance(result, dict) or result.get("type") != "timeserieslabels":
+                if not isinstance(result, dict):
+                    raise LabelError(f"{where}: a result that is no object ({result!r:.40}); nothing was imported")
+                if result.get("type") != "timeserieslabels":
                     continue  # another control of the project (choices, text...): not a terrain span
                 start_s, end_s, terrain = _span(result.get("value"), log, where=where)
                 rows.append((log.name, terrain, start_s, end_s, author))

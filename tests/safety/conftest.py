@@ -12,7 +12,7 @@ import pytest
 LINES: list[str] = []
 COUNTED = {  # module -> the promise its tests check
     "test_kill_training": "promise 2 (training killed at any moment)",
-    "test_fuzz_readers": "promise 3 (fuzz targets: the MCAP and CSV readers)",
+    "test_fuzz_readers": "promise 3 (fuzz targets: the MCAP and CSV readers, Label Studio import)",
     "test_safe_defaults": "promise 5 (safe by default: loopback, upload limit and names, no pickle, newer schema)",
     "test_disk_full": "promise 6 (full and read-only disk: labels and models, store, CLI and UI)",
     "test_bombs": "promise 8 (bombs: decoded bytes and pixels bounded in every reader, the CLI and uploads)",
