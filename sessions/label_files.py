@@ -178,6 +178,7 @@ class Row:
     """One row of a label file, resolved: its line in the file, log, range in samples, terrain and author."""
 
     line: int
+    where: str  # how messages name it: "row 7", or a Label Studio region's task and number
     log: LogInfo
     start: int
     stop: int
@@ -202,22 +203,27 @@ def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *,
         by_name.setdefault(log.name, log)
     out = []
     for i, row in enumerate(frame.itertuples(index=False), start=2):  # line 1 is the header
+        where = str(row.at) if "at" in frame.columns else f"row {i}"
         log = by_name.get(str(row.log))
         if log is None:
-            raise LabelError(f"{path}: row {i}: unknown log {row.log!r}; nothing was imported")
+            raise LabelError(f"{path}: {where}: unknown log {row.log!r}; nothing was imported")
         if str(row.terrain) not in terrains:
             raise LabelError(
-                f"{path}: row {i}: unknown terrain {row.terrain!r}; nothing was imported (add it with `workbench "
+                f"{path}: {where}: unknown terrain {row.terrain!r}; nothing was imported (add it with `workbench "
                 "terrains SESSION add NAME`, or import with --create-terrains)"
             )
         if has_samples and (not has_seconds or pd.notna(row.start_sample)):
-            start = _whole(row.start_sample, "start_sample", path=path, row=i)
-            stop = _whole(row.end_sample, "end_sample", path=path, row=i)
+            start = _whole(row.start_sample, "start_sample", path=path, where=where)
+            stop = _whole(row.end_sample, "end_sample", path=path, where=where)
         else:
-            start = _whole(_number(row.start_s, "start_s", path=path, row=i) * log.rate_hz, "start_s", path=path, row=i)
-            stop = _whole(_number(row.end_s, "end_s", path=path, row=i) * log.rate_hz, "end_s", path=path, row=i)
+            start = _whole(
+                _number(row.start_s, "start_s", path=path, where=where) * log.rate_hz, "start_s", path=path, where=where
+            )
+            stop = _whole(
+                _number(row.end_s, "end_s", path=path, where=where) * log.rate_hz, "end_s", path=path, where=where
+            )
         who = str(row.author) if "author" in frame.columns and pd.notna(row.author) else None
-        out.append(Row(i, log, start, stop, str(row.terrain), who))
+        out.append(Row(i, where, log, start, stop, str(row.terrain), who))
     return out
 
 
@@ -241,7 +247,7 @@ def import_rows(
                 )
             )
         except LabelError as exc:
-            raise LabelError(f"{path}: row {row.line}: {exc}; nothing was imported") from None
+            raise LabelError(f"{path}: {row.where}: {exc}; nothing was imported") from None
     return out
 
 
@@ -256,7 +262,7 @@ def import_reference_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrai
     for row in rows:
         if not 0 <= row.start < row.stop <= row.log.n_samples:
             raise LabelError(
-                f"{path}: row {row.line}: [{row.start}, {row.stop}) is not inside log {row.log.name!r} "
+                f"{path}: {row.where}: [{row.start}, {row.stop}) is not inside log {row.log.name!r} "
                 f"(samples 0 to {row.log.n_samples}); nothing was imported"
             )
         by_log.setdefault(row.log.id, []).append(row)
@@ -264,7 +270,7 @@ def import_reference_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrai
         log_rows.sort(key=lambda r: r.start)
         for a, b in pairwise(log_rows):
             if b.start < a.stop:
-                raise LabelError(f"{path}: row {b.line}: overlaps row {a.line} of the same log; nothing was imported")
+                raise LabelError(f"{path}: {b.where}: overlaps {a.where} of the same log; nothing was imported")
     for log_id, log_rows in by_log.items():
         conn.execute("DELETE FROM reference WHERE log_id = ?", (log_id,))
         conn.executemany(
@@ -274,22 +280,22 @@ def import_reference_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrai
     return len(rows)
 
 
-def _number(value: object, column: str, *, path: Path, row: int) -> float:
+def _number(value: object, column: str, *, path: Path, where: str) -> float:
     """A finite number from a cell, or a ``LabelError`` naming the file, the row and the column."""
     try:
         x = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise LabelError(f"{path}: row {row}: {column} is {value!r}, not a number; nothing was imported") from None
+        raise LabelError(f"{path}: {where}: {column} is {value!r}, not a number; nothing was imported") from None
     if math.isnan(x):
-        raise LabelError(f"{path}: row {row}: {column} is empty; nothing was imported")
+        raise LabelError(f"{path}: {where}: {column} is empty; nothing was imported")
     if not math.isfinite(x):
-        raise LabelError(f"{path}: row {row}: {column} is {value!r}, not a finite number; nothing was imported")
+        raise LabelError(f"{path}: {where}: {column} is {value!r}, not a finite number; nothing was imported")
     return x
 
 
-def _whole(value: object, column: str, *, path: Path, row: int) -> int:
+def _whole(value: object, column: str, *, path: Path, where: str) -> int:
     """A sample index from a cell (a whole number, or seconds times the rate rounded), else a ``LabelError``."""
-    x = _number(value, column, path=path, row=row)
+    x = _number(value, column, path=path, where=where)
     if abs(x) > 2**62:
-        raise LabelError(f"{path}: row {row}: {column} is {value!r}, out of range; nothing was imported")
+        raise LabelError(f"{path}: {where}: {column} is {value!r}, out of range; nothing was imported")
     return round(x)

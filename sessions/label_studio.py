@@ -137,7 +137,8 @@ def is_label_studio(data: object) -> bool:
 
 
 def label_studio_frame(tasks: list[dict], logs: Sequence[LogInfo], *, path: Path) -> pd.DataFrame:
-    """The regions of a Label Studio export as label rows: ``log, terrain, start_s, end_s, author``.
+    """The regions of a Label Studio export as label rows: ``log, terrain, start_s, end_s, author`` and ``at``, the
+    task and region that messages name.
 
     Raises:
         LabelError: A task naming no log of the session, a region without a terrain, an instant, times that are no
@@ -161,14 +162,15 @@ def label_studio_frame(tasks: list[dict], logs: Sequence[LogInfo], *, path: Path
             if annotation.get("was_cancelled"):
                 continue
             author = _author(annotation.get("completed_by"))
-            for result in annotation.get("result", []):
+            for k, result in enumerate(annotation.get("result", []), start=1):
                 if not isinstance(result, dict):
                     raise LabelError(f"{where}: a result that is no object ({result!r:.40}); nothing was imported")
                 if result.get("type") != "timeserieslabels":
                     continue  # another control of the project (choices, text...): not a terrain span
                 start_s, end_s, terrain = _span(result.get("value"), log, where=where)
-                rows.append((log.name, terrain, start_s, end_s, author))
-    return pd.DataFrame(rows, columns=["log", "terrain", "start_s", "end_s", "author"])
+                at = f"task {i}" + (f" (id {task['id']})" if "id" in task else "") + f", region {k}"
+                rows.append((log.name, terrain, start_s, end_s, author, at))
+    return pd.DataFrame(rows, columns=["log", "terrain", "start_s", "end_s", "author", "at"])
 
 
 def _task_log(task: dict, logs: Sequence[LogInfo]) -> LogInfo | None:

@@ -171,6 +171,10 @@ def test_a_malformed_label_studio_file_is_one_line_and_imports_nothing(tmp_path:
         "task 2 (id 2): region 1e+06 to 2e+06 lies outside log 'lab'": lambda t: value(t).update(start=1e6, end=2e6),
         "task 2 (id 2): a region needs one terrain": lambda t: value(t).update(timeserieslabels=[]),
         "task 1 (id 1): annotations is not a list": lambda t: t[0].update(annotations={"result": []}),
+        "task 2 (id 2), region 1: unknown terrain 'lava'": lambda t: value(t).update(timeserieslabels=["lava"]),
+        "task 1 (id 1), region 2: overlaps segment #": lambda t: t[0]["annotations"][0]["result"][1]["value"].update(
+            timeserieslabels=["sand"], start=EPOCH + 3.0
+        ),
     }
     for message, change in cases.items():
         path = broken(change)
