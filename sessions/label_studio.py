@@ -1,9 +1,10 @@
 """Label Studio in and out: time-series tasks with ``timeserieslabels`` regions, one task per log.
 
 Out: a tasks JSON (one task per log, the log's labels as an annotation), a CSV of each log's signals with a
-``time`` column on the log's clock, and the project's labeling config. Region ``start``/``end`` are seconds on the
-log's clock (``t0 + i / rate``, as the MCAP files), so a region means the same instant in Label Studio, Foxglove
-and the session.
+``time`` column on the log's clock (``t0 + i / rate`` seconds, as the MCAP files), and the project's labeling config.
+When every log's clock is Unix time the project's time axis shows dates and times, and region ``start``/``end`` are
+milliseconds, as Label Studio keeps them on a date axis; otherwise both are seconds. Either way a region means the
+same instant in Label Studio, Foxglove and the session.
 
 In: Label Studio's JSON export of such a project (tasks with ``annotations``, each a ``result`` list). A task names
 its log by ``data.log`` (ours), else by the file its time series came from (``walk_001.csv``, also with Label
@@ -26,6 +27,7 @@ import pandas as pd
 
 from .errors import LabelError
 from .file_names import safe_file_name
+from .ingest.time_columns import EPOCH_RANGE_S
 from .logs import LogInfo, Segment, Terrain
 
 CONTROL = "terrain"  # the TimeSeriesLabels control's name in the labeling config we write
@@ -43,21 +45,31 @@ def log_csv_name(log: LogInfo) -> str:
     return safe_file_name(log.name, empty="log") + ".csv"
 
 
-def labeling_config(terrains: Sequence[Terrain], channels: Sequence[str]) -> str:
-    """The project's labeling config: one label per terrain (in its colour), the channels on a time axis in s."""
+def on_dates(logs: Sequence[LogInfo]) -> bool:
+    """Whether the project's time axis shows dates: every log's clock is Unix time and sampled at 1 kHz or less
+    (d3, which parses it, reads milliseconds, not microseconds: faster samples would share a time)."""
+    return bool(logs) and all(EPOCH_RANGE_S[0] <= x.t0 <= EPOCH_RANGE_S[1] and x.rate_hz <= 1000 for x in logs)
+
+
+def labeling_config(terrains: Sequence[Terrain], channels: Sequence[str], *, dates: bool) -> str:
+    """The project's labeling config: one label per terrain (in its colour), the channels on a time axis: dates
+    parsed from the epoch seconds of the CSVs' time column when ``dates``, else seconds."""
     labels = "\n".join(f"    <Label value={quoteattr(t.name)} background={quoteattr(t.color)}/>" for t in terrains)
     series = "\n".join(f"    <Channel column={quoteattr(c)} legend={quoteattr(c)}/>" for c in channels)
+    # d3 reads "%s.%L" as epoch seconds and milliseconds ("%f" it does not parse: Label Studio 1.23 says so)
+    axis = 'timeFormat="%s.%L" timeDisplayFormat="%H:%M:%S.%L"' if dates else 'timeDisplayFormat=",.3f"'
     return (
         "<View>\n"
         f'  <TimeSeriesLabels name="{CONTROL}" toName="{OBJECT}">\n{labels}\n  </TimeSeriesLabels>\n'
-        f'  <TimeSeries name="{OBJECT}" valueType="url" value="$csv" sep="," timeColumn="time" '
-        'timeDisplayFormat=",.3f" durationDisplayFormat=",.3f">\n'
+        f'  <TimeSeries name="{OBJECT}" valueType="url" value="$csv" sep="," timeColumn="time" {axis}>\n'
         f"{series}\n  </TimeSeries>\n</View>\n"
     )
 
 
-def region(segment: Segment, log: LogInfo) -> dict:
-    """A segment as a Label Studio ``timeserieslabels`` region, its times in seconds on the log's clock."""
+def region(segment: Segment, log: LogInfo, *, dates: bool) -> dict:
+    """A segment as a Label Studio ``timeserieslabels`` region, its times on the log's clock: in milliseconds on a
+    date axis (as Label Studio keeps them there), else in seconds."""
+    scale = 1e3 if dates else 1.0
     return {
         "id": f"wb{segment.id}",
         "from_name": CONTROL,
@@ -65,8 +77,8 @@ def region(segment: Segment, log: LogInfo) -> dict:
         "type": "timeserieslabels",
         "origin": "manual",
         "value": {
-            "start": log.t0 + segment.start / log.rate_hz,
-            "end": log.t0 + segment.stop / log.rate_hz,
+            "start": (log.t0 + segment.start / log.rate_hz) * scale,
+            "end": (log.t0 + segment.stop / log.rate_hz) * scale,
             "instant": False,
             "timeserieslabels": [segment.terrain],
         },
@@ -100,8 +112,9 @@ def write_label_studio(
     folder.mkdir(parents=True, exist_ok=True)
     prefix = f"/data/local-files/?d={folder.name}/" if url_prefix is None else url_prefix
     shared = [c for c in logs[0].channel_names if all(c in x.channel_names for x in logs[1:])] if logs else []
+    dates = on_dates(logs)
     config = folder / "labeling-config.xml"
-    config.write_text(labeling_config(terrains, shared))
+    config.write_text(labeling_config(terrains, shared, dates=dates))
     written, tasks = [out, config], []
     for log in logs:
         csv = folder / log_csv_name(log)
@@ -109,11 +122,12 @@ def write_label_studio(
             for a in range(0, max(log.n_samples, 1), BLOCK):  # a block at a time: a long log is never held whole
                 b = min(a + BLOCK, log.n_samples)
                 table = pd.DataFrame(samples(log, a, b), columns=list(log.channel_names))
-                # fixed to the microsecond: the channels' 9 significant digits would round an epoch time to 10 s
-                table.insert(0, "time", np.char.mod("%.6f", log.t0 + np.arange(a, b) / log.rate_hz))
+                # fixed decimals: the channels' 9 significant digits would round an epoch time to 10 s
+                times = log.t0 + np.arange(a, b) / log.rate_hz
+                table.insert(0, "time", np.char.mod("%.3f" if dates else "%.6f", times))
                 table.to_csv(f, index=False, header=a == 0, float_format="%.9g")
         written.append(csv)
-        mine = [region(s, log) for s in segments if s.log_id == log.id]
+        mine = [region(s, log, dates=dates) for s in segments if s.log_id == log.id]
         tasks.append(
             {
                 "data": {"csv": prefix + csv.name, "log": log.name, "source_file": log.source_path},

@@ -116,6 +116,26 @@ def test_export_is_one_task_per_log_on_the_logs_clock(tmp_path: Path, logs: list
     assert {p.name for p in written} == {"ls.json", "labeling-config.xml", "field.csv", "lab.csv"}
 
 
+def test_logs_on_unix_time_get_a_date_axis_and_regions_in_ms(tmp_path: Path, logs: list[Path]) -> None:
+    with new_session(tmp_path / "a") as a:
+        (field,) = a.ingest(logs[:1])  # only the log timed in epoch seconds
+        a.add_segment(field.id, 100, 400, "grass", author="ana")
+        a.add_segment(field.id, 400, 650, "gravel", author="ana")
+        a.export_label_studio(tmp_path / "ls.json")
+        want = [(s.start, s.stop, s.terrain) for s in a.segments()]
+    config = ET.fromstring((tmp_path / "ls-files" / "labeling-config.xml").read_text()).find("TimeSeries")
+    assert config.get("timeFormat") == "%s.%L"  # d3 parses ms, not µs (Label Studio 1.23 refuses "%f")
+    assert pd.read_csv(tmp_path / "ls-files" / "field.csv", dtype={"time": str})["time"][100] == f"{EPOCH + 1:.3f}"
+    tasks = json.loads((tmp_path / "ls.json").read_text())
+    value = tasks[0]["annotations"][0]["result"][0]["value"]
+    assert (value["start"], value["end"]) == (pytest.approx((EPOCH + 1.0) * 1e3), pytest.approx((EPOCH + 4.0) * 1e3))
+    (tmp_path / "export.json").write_text(json.dumps(as_label_studio_export(tasks)))
+    b = new_session(tmp_path / "b")
+    b.ingest(logs[:1])
+    b.import_labels(tmp_path / "export.json", author="me")
+    assert [(s.start, s.stop, s.terrain) for s in b.segments()] == want
+
+
 @pytest.mark.parametrize("clock", ["log", "ms", "from-start"])
 def test_a_label_studio_export_imports_back_to_the_same_segments(tmp_path: Path, logs: list[Path], clock) -> None:
     with labelled(tmp_path / "a", logs) as a:
