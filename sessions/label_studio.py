@@ -158,10 +158,13 @@ def label_studio_frame(tasks: list[dict], logs: Sequence[LogInfo], *, path: Path
         LabelError: A task naming no log of the session, a region without a terrain, an instant, times that are no
             numbers or lie outside the log; the message names the task. Nothing is imported then.
     """
+    by_name = {x.name: x for x in logs}
+    by_file = {log_csv_name(x)[:-4]: x for x in logs}
     rows = []
     for i, task in enumerate(tasks, start=1):
-        where = f"{path}: task {i}" + (f" (id {task['id']})" if "id" in task else "")
-        log = _task_log(task, logs)
+        name = f"task {i}" + (f" (id {task['id']})" if "id" in task else "")
+        where = f"{path}: {name}"
+        log = _task_log(task["data"], by_name, by_file)
         if log is None:
             raise LabelError(
                 f"{where}: names no log of this session (data.log, or a data file named after a log); nothing was "
@@ -182,15 +185,12 @@ def label_studio_frame(tasks: list[dict], logs: Sequence[LogInfo], *, path: Path
                 if result.get("type") != "timeserieslabels":
                     continue  # another control of the project (choices, text...): not a terrain span
                 start_s, end_s, terrain = _span(result.get("value"), log, where=where)
-                at = f"task {i}" + (f" (id {task['id']})" if "id" in task else "") + f", region {k}"
-                rows.append((log.name, terrain, start_s, end_s, author, at))
+                rows.append((log.name, terrain, start_s, end_s, author, f"{name}, region {k}"))
     return pd.DataFrame(rows, columns=["log", "terrain", "start_s", "end_s", "author", "at"])
 
 
-def _task_log(task: dict, logs: Sequence[LogInfo]) -> LogInfo | None:
-    by_name = {x.name: x for x in logs}
-    by_file = {log_csv_name(x)[:-4]: x for x in logs}
-    data = task["data"]
+def _task_log(data: dict, by_name: dict[str, LogInfo], by_file: dict[str, LogInfo]) -> LogInfo | None:
+    """The log a task's data names: by ``log``, else by a file named after it (a log's name, or its CSV's)."""
     if isinstance(data.get("log"), str) and data["log"] in by_name:
         return by_name[data["log"]]
     for value in data.values():

@@ -390,10 +390,9 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         paths = per_log_paths(Path(path), [x.name for x in logs])
         refuse_existing(paths)
         for log, out in zip(logs, paths, strict=True):
-            clock = LogClock(log.name, log.t0, log.rate_hz, log.n_samples)
             mine = [s for s in segments if s.log_id == log.id]
             write_terrain_mcap(
-                out, clock, labels=mine, about={"source_file": log.source_path, "session": self.path.name}
+                out, LogClock.of(log), labels=mine, about={"source_file": log.source_path, "session": self.path.name}
             )
         return list(zip(paths, logs, strict=True))
 

@@ -27,7 +27,7 @@ import numpy as np
 from .errors import WorkbenchError
 from .file_names import safe_file_name
 from .ingest.time_columns import EPOCH_RANGE_S
-from .logs import Segment
+from .logs import LogInfo, Segment
 
 PREDICTION_TOPIC = "/terrain"
 LABEL_TOPIC = "/terrain/labels"
@@ -90,6 +90,11 @@ class LogClock:
     t0: float
     rate_hz: float
     n_samples: int
+
+    @classmethod
+    def of(cls, log: LogInfo) -> LogClock:
+        """A session log's clock."""
+        return cls(log.name, log.t0, log.rate_hz, log.n_samples)
 
     def span(self) -> str:
         """Where the log lies on its clock, in words: UTC dates for an epoch clock, else seconds."""

@@ -308,10 +308,12 @@ def write_labelled_frames(session: Session, folder: Path) -> tuple[Path, str]:
     (``T``: ms from the log's start), the layout image-classification tools read, and ``folder/index.csv`` with each
     frame's log, camera topic, time and terrain."""
     folder.mkdir()
+    logs = {x.id: x for x in session.logs()}
+    cameras = {log_id: session.cameras(log_id) for log_id in logs}
     rows = []
     for seg in session.segments():
-        log = session.log(seg.log_id)
-        for cam in session.cameras(log.id):
+        log = logs[seg.log_id]
+        for cam in cameras[log.id]:
             a, b = seg.start / log.rate_hz, seg.stop / log.rate_hz
             for number in session.camera_frames_between(log.id, a, b, camera=cam.index):
                 frame = session.camera_frame_by_number(log.id, number, camera=cam.index)
@@ -338,7 +340,7 @@ def _write_mcaps(
         s = scored[log.id]
         write_terrain_mcap(
             path,
-            LogClock(log.name, log.t0, log.rate_hz, log.n_samples),
+            LogClock.of(log),
             predictions=TerrainPredictions(tuple(bundle.classes), s.probs, s.drift),
             labels=session.segments(log.id),
             about={"model_version": str(version.id), "session": session.path.name, "source_file": log.source_path},

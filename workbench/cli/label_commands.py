@@ -44,7 +44,7 @@ def labels_export(
     with Session.open(session) as s:
         if out.suffix.lower() == ".mcap":
             for path, log in s.export_labels_mcap(out):
-                n, span = len(s.segments(log.id)), LogClock(log.name, log.t0, log.rate_hz, log.n_samples).span()
+                n, span = len(s.segments(log.id)), LogClock.of(log).span()
                 print(f"wrote {path}: {log.name}, topic {LABEL_TOPIC}, {n} segment(s), {span}")
             if not s.segments():
                 print("no label segments yet: nothing written")
