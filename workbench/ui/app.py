@@ -10,6 +10,7 @@ from pathlib import Path
 from sessions import Session
 
 from ..retrain import RETRAIN
+from .private_viser import remove_private_socket, start_private_viser
 from .torch_lane import LANE
 from .uploads import MAX_UPLOAD_MB, limit_uploads, safe_name
 
@@ -27,8 +28,6 @@ class WorkbenchApp:
         hidden: int = RETRAIN.hidden,
         max_epochs: tuple[int, int] = (RETRAIN.predictor.max_epochs, RETRAIN.classifier.max_epochs),
     ) -> None:
-        import viser
-
         from .gate import Gate
         from .jobs import TrainJob
         from .state import SharedState
@@ -44,9 +43,9 @@ class WorkbenchApp:
             predictor_config=replace(RETRAIN.predictor, max_epochs=max_epochs[0]),
             classifier_config=replace(RETRAIN.classifier, max_epochs=max_epochs[1]),
         )
-        # viser serves on a private loopback port; people reach it only through the gate
-        self.server = viser.ViserServer(host="127.0.0.1", port=0, label="Terrain workbench", verbose=False)
-        self.gate.inner_port = self.server.get_port()
+        # viser serves on a private Unix socket with a secret; people reach it only through the gate
+        self.server, self._inner = start_private_viser(label="Terrain workbench", verbose=False)
+        self.gate.inner = self._inner
         self.server.gui.set_panel_label(f"Terrain workbench · {Path(session.path).name}")
         self.views: dict[int, ClientView] = {}
         self._views_lock = threading.Lock()
@@ -119,6 +118,7 @@ class WorkbenchApp:
         self.gate.stop()
         self.state.stop()
         self.server.stop()
+        remove_private_socket(self._inner)
 
     def serve_forever(self) -> None:
         """Serve until Ctrl+C; this thread runs every PyTorch call of the server (``workbench.ui.torch_lane``)."""

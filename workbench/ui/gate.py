@@ -3,7 +3,8 @@
 viser 1.1 accepts any websocket and serves any page that asks, and browsers let every web page open a websocket to
 ``127.0.0.1:8080``: a page on the web could drive the workbench of a person labelling in another tab (measured: it
 downloaded every label). viser gives no hook for a check, so the gate stands in front of it: viser serves on a
-private loopback port, and the gate listens on the address a person opens, answers a request only when
+private Unix socket that only the gate can use (``private_viser``: no TCP port, a secret on every request), and the
+gate listens on the address a person opens, answers a request only when
 
 - its ``Host`` names the address served (on loopback: ``127.0.0.1``, ``localhost`` or ``[::1]`` with the port), which
   turns away DNS rebinding;
@@ -23,17 +24,20 @@ import http
 import http.client
 import logging
 import secrets
+import socket
 import threading
 from http.cookies import SimpleCookie
 from urllib.parse import parse_qs, urlsplit
 
-from websockets.asyncio.client import connect
+from websockets.asyncio.client import unix_connect
 from websockets.asyncio.server import ServerConnection, serve
 from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
 from sessions import WorkbenchError
+
+from .private_viser import SECRET_HEADER, InnerAddress
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 MAX_MESSAGE = 50 << 20  # viser's own limit for one websocket message
@@ -62,14 +66,32 @@ def new_token() -> str:
     return secrets.token_urlsafe(32)
 
 
+class _UnixHTTPConnection(http.client.HTTPConnection):
+    """HTTP to viser's Unix socket (``http.client`` speaks TCP only)."""
+
+    def __init__(self, path: str, *, timeout: float) -> None:
+        super().__init__("workbench.inner", timeout=timeout)
+        self._path = path
+
+    def connect(self) -> None:
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        sock.settimeout(self.timeout)
+        try:
+            sock.connect(self._path)
+        except OSError:
+            sock.close()
+            raise
+        self.sock = sock
+
+
 class Gate:
-    """Listen on ``host:port`` and pass allowed requests to viser on ``127.0.0.1:inner_port``.
+    """Listen on ``host:port`` and pass allowed requests to viser on its private socket.
 
     Args:
         host: Address to listen on.
         port: Port to listen on; 0 asks the system for any free one. A taken port is an error, never replaced.
-        inner_port: viser's private port on loopback (set it once viser is up: the gate binds first, so a taken
-            port is refused before anything else starts).
+        inner: viser's private socket and secret (set it once viser is up: the gate binds first, so a taken port is
+            refused before anything else starts).
         token: Required of every request when set (``?token=`` or the cookie the gate sets); ``None`` only on
             loopback.
 
@@ -77,10 +99,10 @@ class Gate:
         WorkbenchError: The port is taken, or a token is missing beyond loopback.
     """
 
-    def __init__(self, *, host: str, port: int, token: str | None, inner_port: int = 0) -> None:
+    def __init__(self, *, host: str, port: int, token: str | None, inner: InnerAddress | None = None) -> None:
         if token is None and not is_loopback(host):
             raise WorkbenchError(f"serving on {host} needs a token: anyone who can reach the port could use it")
-        self.host, self.inner_port, self.token = host, inner_port, token
+        self.host, self.inner, self.token = host, inner, token
         self.port = port
         self.cookie = f"workbench-token-{port}"
         self.refused = 0  # requests answered 403, for the tests and the log
@@ -147,9 +169,12 @@ class Gate:
 
     def _fetch(self, request: Request) -> Response:
         """The same request of viser: static files of the page."""
-        conn = http.client.HTTPConnection("127.0.0.1", self.inner_port, timeout=30)
+        if self.inner is None:
+            return Response(http.HTTPStatus.SERVICE_UNAVAILABLE, "Service Unavailable", Headers(), b"starting\n")
+        conn = _UnixHTTPConnection(self.inner.path, timeout=30)
         try:
             forward = {k: v for k in ("Accept-Encoding", "Accept") if (v := request.headers.get(k)) is not None}
+            forward[SECRET_HEADER] = self.inner.secret
             conn.request("GET", request.path, headers=forward)
             reply = conn.getresponse()
             body = reply.read()
@@ -167,10 +192,15 @@ class Gate:
 
     async def _relay(self, outer: ServerConnection) -> None:
         """Pass every message both ways between the browser and viser until either side closes."""
-        sub = outer.subprotocol
+        sub, address = outer.subprotocol, self.inner
+        if address is None:
+            await outer.close(1013, "starting")
+            return
         try:
-            async with connect(
-                f"ws://127.0.0.1:{self.inner_port}",
+            async with unix_connect(
+                address.path,
+                uri="ws://workbench.inner/",
+                additional_headers={SECRET_HEADER: address.secret},
                 subprotocols=[sub] if sub else None,
                 max_size=None,  # viser's own messages to a browser have no limit (a raw window can be 60 MB)
                 compression=None,

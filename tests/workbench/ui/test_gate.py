@@ -7,36 +7,43 @@ import threading
 
 import pytest
 from websockets.sync.client import connect
-from websockets.sync.server import serve
+from websockets.sync.server import unix_serve
 
 from sessions import WorkbenchError
 from workbench.ui.gate import Gate
+from workbench.ui.private_viser import SECRET_HEADER, InnerAddress
 
 
 @pytest.fixture
-def viser_stand_in():
-    """A websocket server on loopback that greets each connection with a 60 MB message and echoes the rest."""
+def viser_stand_in(tmp_path):
+    """A websocket server on a Unix socket that greets each connection with a 60 MB message and echoes the rest;
+    it records the secret each connection showed."""
     big = bytes(60 << 20)
+    address = InnerAddress(path=str(tmp_path / "viser.sock"), secret="the-secret")
+    shown: list[str | None] = []
 
     def handler(ws) -> None:
+        shown.append(ws.request.headers.get(SECRET_HEADER))
         ws.send(big)
         for message in ws:
             ws.send(message)
 
-    server = serve(handler, "127.0.0.1", 0, max_size=None)
+    server = unix_serve(handler, address.path, max_size=None)
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()
-    yield server.socket.getsockname()[1]
+    yield address, shown
     server.shutdown()
 
 
-def test_messages_past_the_browser_limit_reach_the_browser(viser_stand_in: int) -> None:
-    gate = Gate(host="127.0.0.1", port=0, token=None, inner_port=viser_stand_in)
+def test_messages_past_the_browser_limit_reach_the_browser(viser_stand_in) -> None:
+    address, shown = viser_stand_in
+    gate = Gate(host="127.0.0.1", port=0, token=None, inner=address)
     try:
         with connect(f"ws://127.0.0.1:{gate.port}", max_size=None, open_timeout=20) as ws:
             assert len(ws.recv(timeout=60)) == 60 << 20
             ws.send(b"label")
             assert ws.recv(timeout=20) == b"label"
+        assert shown == ["the-secret"]  # the gate shows viser its secret
     finally:
         gate.stop()
 
