@@ -12,8 +12,6 @@ from __future__ import annotations
 import http.client
 import os
 import socket
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -21,10 +19,7 @@ import pytest
 from websockets.exceptions import InvalidHandshake, InvalidStatus
 from websockets.sync.client import connect, unix_connect
 
-from tests.conftest import new_session
-
 VISER = f"viser-v{__import__('viser').__version__}"
-TOKEN = "t0ken-for-the-ports-test"
 
 
 def _socket_inodes(pid: int) -> set[int]:
@@ -60,33 +55,6 @@ def unix_socket_paths(pid: int) -> set[str]:
         if len(fields) >= 8 and int(fields[6]) in inodes and fields[7].startswith("/"):
             paths.add(fields[7])
     return paths
-
-
-@pytest.fixture
-def served(tmp_path: Path):
-    """``workbench serve SESSION --token T --port 0`` in a child; yields (process, gate port, banner)."""
-    new_session(tmp_path / "s").close()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "workbench.cli", "serve", str(tmp_path / "s"), "--token", TOKEN, "--port", "0"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-    try:
-        banner = ""
-        while "workbench serving" not in banner:  # everything printed up to the URL
-            line = proc.stdout.readline()
-            assert line, f"serve ended before it served: {banner}"
-            banner += line
-        port = int(banner.rsplit("http://127.0.0.1:", 1)[1].split("/")[0])
-        yield proc, port, banner
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
 
 
 def _page_status(port: int, **headers: str) -> int | None:

@@ -12,7 +12,7 @@ from sessions import Session
 from ..retrain import RETRAIN
 from .private_viser import remove_private_socket, start_private_viser
 from .torch_lane import LANE
-from .uploads import MAX_UPLOAD_MB, limit_uploads, safe_name
+from .uploads import UploadBudget, limit_uploads
 
 
 class WorkbenchApp:
@@ -49,14 +49,16 @@ class WorkbenchApp:
         self.server.gui.set_panel_label(f"Terrain workbench · {Path(session.path).name}")
         self.views: dict[int, ClientView] = {}
         self._views_lock = threading.Lock()
+        self.uploads = UploadBudget()  # what every client together may be sending at once
 
         def connect(client) -> None:
-            limit_uploads(client, MAX_UPLOAD_MB << 20, self._upload_refused)  # before its upload button exists
+            limit_uploads(client, self.uploads, self._upload_refused)  # before its upload button exists
             view = ClientView(client, self.state, self.job)
             with self._views_lock:
                 self.views[client.client_id] = view
 
         def disconnect(client) -> None:
+            self.uploads.release_client(client.client_id)  # viser drops the buffers; their room comes back
             with self._views_lock:
                 view = self.views.pop(client.client_id, None)
             if view is not None:
@@ -68,13 +70,10 @@ class WorkbenchApp:
         self._watch = threading.Thread(target=self._poll, name="session-watch", daemon=True)
         self._watch.start()
 
-    def _upload_refused(self, client_id: int, name: str, size: int) -> None:
+    def _upload_refused(self, client_id: int, why: str) -> None:
         client = self.server.get_clients().get(client_id)  # the client, not its view: that may still be building
         if client is not None:
-            body = (
-                f"{safe_name(name)}: refused at {size / 2**20:.1f} MB: over the {MAX_UPLOAD_MB} MB upload limit "
-                "or the size the browser declared; ingest large logs with `workbench ingest` instead"
-            )
+            body = f"Upload refused: {why}. Large logs ingest with `workbench ingest`."
             client.add_notification("Not done", body, auto_close_seconds=8.0, color="red")
 
     @property

@@ -15,7 +15,7 @@ import labeling
 from sessions import IngestError, Session, WorkbenchError
 
 from .charts import DRIFT
-from .uploads import MAX_UPLOAD_MB, UPLOAD_SUFFIXES, safe_name
+from .uploads import MAX_UPLOAD_MB, UPLOAD_SUFFIXES, forget_upload, safe_name
 
 if TYPE_CHECKING:
     from .host import PanelHost
@@ -90,7 +90,7 @@ class DataPanel:
         gui = host.client.gui
         self.logs = gui.add_html("")
         self.upload = gui.add_upload_button(f"Upload MCAP / CSV (≤ {MAX_UPLOAD_MB} MB)", icon="upload")
-        self.upload.on_upload(lambda _: host.guard(self._uploaded))
+        self.upload.on_upload(lambda _: host.guard(self._take_upload))
         with gui.add_folder("Download"):
             for fmt in ("csv", "parquet", "json"):
                 b = gui.add_button(f"Labels ({fmt.upper()})", icon="download")
@@ -103,6 +103,17 @@ class DataPanel:
         scores = self.host.state.scores.scores
         drifted = {i: labeling.drifted_share(s.drift) for i, s in scores.items()}
         self.logs.content = logs_table_html(self.host.state.session, drifted)
+
+    def _take_upload(self) -> None:
+        refused: str | None = None
+        try:
+            self._uploaded()
+        except WorkbenchError as exc:
+            refused = str(exc)  # not the error itself: its traceback holds the frame that holds the upload's bytes
+        finally:
+            forget_upload(self.upload)  # its bytes are on disk (or refused): the server keeps no copy
+        if refused is not None:
+            raise WorkbenchError(refused)
 
     def _uploaded(self) -> None:
         f = self.upload.value
