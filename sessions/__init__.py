@@ -8,6 +8,7 @@ from .errors import IngestError, LabelError, SessionError, WorkbenchError
 from .file_names import safe_file_name
 from .ingest import (
     AlignedLog,
+    DiscardRows,
     IngestOptions,
     Mapping,
     TimeColumn,
@@ -19,6 +20,7 @@ from .ingest import (
     sniff_csv,
 )
 from .label_files import write_frame
+from .limits import MAX_RATE_HZ
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import ModelVersion
 from .rowfiles import FileRows, NpyWriter
@@ -37,12 +39,14 @@ from .terrain_mcap import (
 __all__ = [
     "KNOWN_TERRAIN_COLORS",
     "LABEL_TOPIC",
+    "MAX_RATE_HZ",
     "PREDICTION_TOPIC",
     "SCHEMA_VERSION",
     "AlignedLog",
     "CameraFrame",
     "CameraInfo",
     "Channel",
+    "DiscardRows",
     "FileRows",
     "Gap",
     "HistoryEntry",

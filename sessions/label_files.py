@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import warnings
 from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
@@ -85,10 +86,12 @@ def neutralise_formulas(frame: pd.DataFrame) -> pd.DataFrame:
 def restore_formulas(frame: pd.DataFrame) -> pd.DataFrame:
     """Undo :func:`neutralise_formulas`, so a label file exported as CSV imports back to the same names."""
     for column in frame.columns:
-        if not pd.api.types.is_numeric_dtype(frame[column]):
-            frame[column] = frame[column].map(
-                lambda v: v[1:] if isinstance(v, str) and v.startswith("'") and v[1:].startswith(FORMULA_START) else v
-            )
+        if pd.api.types.is_numeric_dtype(frame[column]):
+            continue
+        text = frame[column].astype("string")  # vectorised on Arrow strings: no Python object per cell
+        quoted = (text.str.startswith("'") & text.str[1:2].isin(FORMULA_START)).fillna(False).astype(bool)
+        if quoted.any():  # only those cells change: the rest keep their storage
+            frame.loc[quoted, column] = text[quoted].str[1:]
     return frame
 
 
@@ -121,7 +124,16 @@ def read_frame(path: Path, *, max_rows: int = MAX_LABEL_ROWS, logs: list[LogInfo
         raise LabelError(f"{path}: {size:,} bytes, over the limit of {MAX_LABEL_FILE_BYTES:,} for a label file")
     try:
         if fmt == "csv":
-            return restore_formulas(pd.read_csv(path))
+            _check_csv_rows(path, max_rows)
+            with warnings.catch_warnings():  # a library's warning is no message for a person: errors name the row
+                warnings.simplefilter("ignore")
+                # every cell as text: a terrain named NA, null or NaN is a name, not a missing value; numbers are
+                # read by parse_rows, which names the first bad cell's row
+                # Arrow strings: 4.9 million rows as Python strings peaked at 0.9 GB
+                frame = pd.read_csv(
+                    path, dtype="string[pyarrow]", keep_default_na=False, na_values=[], engine="pyarrow"
+                )
+            return restore_formulas(frame)
         if fmt == "parquet":
             _check_parquet(path, max_rows)
             return pd.read_parquet(path)
@@ -134,6 +146,17 @@ def read_frame(path: Path, *, max_rows: int = MAX_LABEL_ROWS, logs: list[LogInfo
         raise
     except Exception as exc:
         raise LabelError(f"{path}: cannot read label file ({type(exc).__name__}: {exc})") from None
+
+
+def _check_csv_rows(path: Path, max_rows: int) -> None:
+    """Refuse a CSV with more rows than a label file may hold, counting lines before any is decoded (pandas took
+    3.8 GB and minutes on 10 million rows)."""
+    lines = 0
+    with open(path, "rb") as f:
+        while block := f.read(1 << 22):
+            lines += block.count(b"\n")
+            if lines > max_rows + 1:
+                raise LabelError(f"{path}: more than {max_rows:,} rows, the limit for a label file; split it")
 
 
 def _check_parquet(path: Path, max_rows: int) -> None:
@@ -212,7 +235,7 @@ def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *,
                 f"{path}: {where}: unknown terrain {row.terrain!r}; nothing was imported (add it with `workbench "
                 "terrains SESSION add NAME`, or import with --create-terrains)"
             )
-        if has_samples and (not has_seconds or pd.notna(row.start_sample)):
+        if has_samples and (not has_seconds or _given(row.start_sample)):
             start = _whole(row.start_sample, "start_sample", path=path, where=where)
             stop = _whole(row.end_sample, "end_sample", path=path, where=where)
         else:
@@ -222,7 +245,7 @@ def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *,
             stop = _whole(
                 _number(row.end_s, "end_s", path=path, where=where) * log.rate_hz, "end_s", path=path, where=where
             )
-        who = str(row.author) if "author" in frame.columns and pd.notna(row.author) else None
+        who = str(row.author) if "author" in frame.columns and _given(row.author) else None
         out.append(Row(i, where, log, start, stop, str(row.terrain), who))
     return out
 
@@ -280,16 +303,25 @@ def import_reference_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrai
     return len(rows)
 
 
+def _given(value: object) -> bool:
+    """Whether a cell holds anything: CSV cells are read as text (empty: ""), Parquet and JSON ones may be null."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return False
+    return not (isinstance(value, str) and not value.strip())
+
+
 def _number(value: object, column: str, *, path: Path, where: str) -> float:
     """A finite number from a cell, or a ``LabelError`` naming the file, the row and the column."""
+    if not _given(value):
+        raise LabelError(f"{path}: {where}: {column} is empty; nothing was imported")
     try:
         x = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
         raise LabelError(f"{path}: {where}: {column} is {value!r}, not a number; nothing was imported") from None
     if math.isnan(x):
-        raise LabelError(f"{path}: {where}: {column} is empty; nothing was imported")
+        raise LabelError(f"{path}: {where}: {column} is {value!r}, not a number; nothing was imported")
     if not math.isfinite(x):
-        raise LabelError(f"{path}: {where}: {column} is {value!r}, not a finite number; nothing was imported")
+        raise LabelError(f"{path}: {where}: {column} is {x!r}, not a finite number; nothing was imported")
     return x
 
 
@@ -297,5 +329,5 @@ def _whole(value: object, column: str, *, path: Path, where: str) -> int:
     """A sample index from a cell (a whole number, or seconds times the rate rounded), else a ``LabelError``."""
     x = _number(value, column, path=path, where=where)
     if abs(x) > 2**62:
-        raise LabelError(f"{path}: {where}: {column} is {value!r}, out of range; nothing was imported")
+        raise LabelError(f"{path}: {where}: {column} is {x!r}, out of range; nothing was imported")
     return round(x)

@@ -47,3 +47,21 @@ segments are eight weeks of logs labelled end to end; importing 100,000 rows tak
 MAX_LABEL_NESTING = 2
 """Depth of a JSON label file: a list of records of plain values (``[{"log": ..., "start_s": ...}]``) is two. The
 parser itself gives up past Python's recursion limit, with an error no reader expects."""
+
+MAX_RATE_HZ = 100_000.0
+"""Rate of a log's time base (``--rate``, ``rate_hz``): force plates and motor currents are sampled at a few kHz at
+most, and a grid at 1e7 Hz held a gigabyte for 30 s of a 100 Hz log before anything was written."""
+
+MAX_GRID_GROWTH = 64
+"""Grid rows per sample of the fastest stream: upsampling a 50 Hz IMU to 1 kHz is 20. A grid larger than this is a
+stamp that jumped (a 30 s CSV whose last row says 1e9 s asked for 1e11 rows: a 40 GB file) or a rate far past the
+sensors'. It is refused before anything is allocated, whatever ``--allow-gaps`` says."""
+
+MIN_GRID_ROWS = 1_000_000
+"""A grid of up to this many rows is never refused by ``MAX_GRID_GROWTH``: a short file may be resampled freely."""
+
+MAX_MAPPING_CHANNELS = 10_000
+"""Channels (and CSV column names) one mapping file may declare: a robot's richest state message has hundreds."""
+
+MAX_MAPPING_BYTES = 16 * MiB
+"""A mapping file on disk: channels are a few lines each."""

@@ -23,6 +23,8 @@ from . import labels as _labels
 from .cameras import place_cameras, stage_cameras
 from .errors import IngestError, SessionError
 from .ingest import AlignedLog, IngestOptions, align, plan_sources, read_source
+from .ingest.sources import Source
+from .ingest_lock import ingesting
 from .logs import LogInfo
 from .rowfiles import NpyWriter
 
@@ -88,6 +90,16 @@ class LogIngest:
 
         for err in errors:
             fail(err)
+        with ingesting(self.path / LOGS_DIR):  # the sweep of another process leaves this one's staged files alone
+            return self._ingest_sources(sources, options, fail, progress)
+
+    def _ingest_sources(
+        self,
+        sources: list[Source],
+        options: IngestOptions,
+        fail: Callable[[IngestError], None],
+        progress: Callable[[int, int], None] | None,
+    ) -> list[LogInfo]:
         out: list[LogInfo] = []
         total = sum(s.size for s in sources)
         done = 0

@@ -186,3 +186,41 @@ def migrate(conn: sqlite3.Connection, *, migrations: Sequence[Migration] = MIGRA
         conn.execute("ROLLBACK")
         raise
     return target
+
+
+_EXPECTED: dict[str, str] | None = None
+
+
+def _expected_objects() -> dict[str, str]:
+    """Name -> type of every object a session's database holds at this schema version, from a fresh one."""
+    global _EXPECTED
+    if _EXPECTED is None:
+        fresh = sqlite3.connect(":memory:", isolation_level=None)
+        try:
+            migrate(fresh)
+            _EXPECTED = dict(fresh.execute("SELECT name, type FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'"))
+        finally:
+            fresh.close()
+    return _EXPECTED
+
+
+def check_objects(conn: sqlite3.Connection, *, where: str) -> None:
+    """Refuse a database whose tables are not what the workbench writes: a table replaced by a view (a recursive
+    view named ``logs`` made ``info`` allocate 8 GB), or a view or trigger of someone else's, runs their SQL on every
+    read. Only the catalog is read, so this costs a millisecond whatever the session's size.
+
+    Raises:
+        SessionError: A table is missing, or is a view, or the file holds views or triggers.
+    """
+    expected = _expected_objects()
+    found = dict(conn.execute("SELECT name, type FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'"))
+    for name, kind in found.items():
+        if expected.get(name) != kind and kind in ("view", "trigger"):
+            what = f"a {kind} where the workbench keeps a {expected[name]}" if name in expected else f"a {kind}"
+            raise SessionError(
+                f"{where}: {name!r} is {what}: this database was changed outside the workbench; restore "
+                "session.sqlite from a backup"
+            )
+    missing = [n for n, kind in expected.items() if kind == "table" and found.get(n) != "table"]
+    if missing:
+        raise SessionError(f"{where}: table {missing[0]!r} is missing: not a session database the workbench wrote")

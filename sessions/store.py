@@ -18,12 +18,13 @@ import numpy as np
 from . import labels as _labels
 from .cameras import CameraStore
 from .errors import LabelError, SessionError
+from .ingest_lock import sweeping
 from .log_files import checked_log_file
 from .log_ingest import LOGS_DIR, LogIngest
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import CACHE_DIR, ModelRegistry
 from .rowfiles import FileRows
-from .schema import KNOWN_TERRAIN_COLORS, SCHEMA_VERSION, migrate
+from .schema import KNOWN_TERRAIN_COLORS, SCHEMA_VERSION, check_objects, migrate
 
 DB_NAME = "session.sqlite"
 _STALE_TMP_S = 600.0  # leftovers older than this are from a crashed ingest, not one in progress
@@ -86,7 +87,12 @@ class Session(LogIngest, CameraStore, ModelRegistry):
             # FULL: an acknowledged label survives power loss, not only a killed process.
             conn.execute("PRAGMA synchronous = FULL")
             conn.execute("PRAGMA foreign_keys = ON")
-            migrate(conn, where=str(path))
+            try:
+                migrate(conn, where=str(path))
+                check_objects(conn, where=str(path / DB_NAME))
+            except BaseException:
+                conn.close()
+                raise
         except sqlite3.DatabaseError as exc:
             raise SessionError(f"{path / DB_NAME}: not a usable session database ({exc})") from None
         session = cls(path, conn)
@@ -134,15 +140,18 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         """Remove what crashed ingests and model saves left: files and folders no catalog row points to."""
         known = {r[0] for r in self._read("SELECT file FROM logs")}
         cutoff = time.time() - _STALE_TMP_S
-        for f in (self.path / LOGS_DIR).glob(".tmp-*"):  # staged arrays and camera files of a crashed ingest
-            if f.stat().st_mtime < cutoff:
+        with sweeping(self.path / LOGS_DIR) as no_ingest_running:
+            # with no ingest running, every staged file is a dead one's; else only old ones are
+            logs_cutoff = float("inf") if no_ingest_running else cutoff
+            for f in (self.path / LOGS_DIR).glob(".tmp-*"):  # staged arrays and camera files of a crashed ingest
                 with contextlib.suppress(OSError):
-                    f.unlink()
-        for f in (self.path / LOGS_DIR).glob("*.npy"):
-            rel = f"{LOGS_DIR}/{f.name}"
-            if rel not in known and f.stat().st_mtime < cutoff:
+                    if f.stat().st_mtime < logs_cutoff:
+                        f.unlink()
+            for f in (self.path / LOGS_DIR).glob("*.npy"):
+                rel = f"{LOGS_DIR}/{f.name}"
                 with contextlib.suppress(OSError):
-                    f.unlink()
+                    if rel not in known and f.stat().st_mtime < logs_cutoff:
+                        f.unlink()
         # Model versions: a folder no catalog row points to is a save that died before it was registered.
         models = self.path / "models"
         registered = {r[0] for r in self._read("SELECT path FROM model_versions")}

@@ -1,6 +1,6 @@
 """Readers for robot logs (ROS 2 MCAP, QCAT / BorealTC / generic CSV) and alignment onto one time base."""
 
-from .align import AlignedLog, align
+from .align import AlignedLog, DiscardRows, align
 from .base import ChannelSpec, IngestOptions, Mapping, ParsedLog, Stream, load_mapping
 from .csv_reader import sniff_csv
 from .mcap_reader import TopicReport, read_mcap
@@ -10,6 +10,7 @@ from .time_columns import TimeColumn
 __all__ = [
     "AlignedLog",
     "ChannelSpec",
+    "DiscardRows",
     "IngestOptions",
     "Mapping",
     "ParsedLog",

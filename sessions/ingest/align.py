@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import IngestError
+from ..limits import MAX_GRID_GROWTH, MAX_RATE_HZ, MIN_GRID_ROWS
 from ..logs import Channel, Gap
 from ..rowfiles import NpyWriter
 from .base import IngestOptions, ParsedLog, Stream
@@ -98,6 +99,16 @@ MIN_RATE_HZ = 1e-3  # slower "sensors" are stamps gone wrong (a column of dates,
 ALIGN_ROWS = 1 << 18  # grid rows aligned at a time: bounds the temporaries whatever the log's length
 
 
+class DiscardRows:
+    """Where a dry run aligns to: the shape is kept, the rows are checked and dropped (a dry run held a whole log)."""
+
+    def __init__(self, shape: tuple[int, int]) -> None:
+        self.shape = shape
+
+    def __setitem__(self, key: slice, value: np.ndarray) -> None:
+        pass
+
+
 def align(
     parsed: ParsedLog, options: IngestOptions, *, allocate: Callable[[tuple[int, int]], np.ndarray] | None = None
 ) -> AlignedLog:
@@ -132,21 +143,54 @@ def align(
     if not streams:
         raise IngestError(path, "no stream has at least two samples")
     rate = float(options.target_rate or _snap(max(r for *_, r in streams)))
-    if not MIN_RATE_HZ <= rate < float("inf"):
+    if options.target_rate and not 0 < rate <= MAX_RATE_HZ:
+        raise IngestError(path, f"rate {rate:g} Hz is not between 0 and {MAX_RATE_HZ:g} Hz (sessions/limits.py)")
+    if not MIN_RATE_HZ <= rate <= MAX_RATE_HZ:
         raise IngestError(
             path,
             f"sample rate {rate:g} Hz: the stamps are not those of a sensor log "
-            f"(at least {MIN_RATE_HZ:g} Hz, one sample every {1 / MIN_RATE_HZ:g} s)",
+            f"(from {MIN_RATE_HZ:g} Hz, one sample every {1 / MIN_RATE_HZ:g} s, to {MAX_RATE_HZ:g} Hz)",
         )
     start = max(float(t[0]) for _, t, _, _ in streams)
     stop = min(float(t[-1]) for _, t, _, _ in streams)
     if stop <= start:
         names = ", ".join(s.name for s, *_ in streams)
         raise IngestError(path, f"the streams ({names}) share no time span")
-    n = int(np.floor((stop - start) * rate + 1e-9)) + 1
 
     def grid(a: int, b: int) -> np.ndarray:
         return start + np.arange(a, b, dtype=np.float64) / rate  # (b - a,)
+
+    def gap_error(stream: Stream, times: np.ndarray, last: int, after: int, srate: float) -> IngestError:
+        seconds = float(times[after] - times[last])
+        # the gap is reported from the grid point holding that last sample, not from when it went stale
+        near = max(0, int(np.floor((times[last] - start) * rate)) - 1)
+        g0 = near + int(np.searchsorted(grid(near, near + 3), times[last], side="left"))
+        return IngestError(
+            path,
+            f"no data for {seconds:.3f} s ({seconds * srate:.0f} samples at {srate:.1f} Hz) in stream "
+            f"{stream.name!r}; use --allow-gaps to record it as a gap",
+            where=f"t={grid(g0, g0 + 1)[0] - start:.3f} s",
+        )
+
+    # Checked on the stamps before the grid is allocated: a stamp that jumps asks for a grid of any size. A step of
+    # twice the limit and two grid periods is a gap however the grid falls; nearer ones are judged on the grid below.
+    if not options.allow_gaps:
+        for stream, times, _, srate in streams:
+            steps = np.diff(times)  # (N - 1,)
+            limit = 2.0 * options.gap_samples / srate + 2.0 / rate
+            over = np.flatnonzero((steps > limit) & (times[1:] > start) & (times[:-1] < stop))
+            if len(over):
+                raise gap_error(stream, times, int(over[0]), int(over[0]) + 1, srate)
+    span_rows = (stop - start) * rate + 1
+    most = max(len(t) for _, t, _, _ in streams)
+    if span_rows > max(MIN_GRID_ROWS, MAX_GRID_GROWTH * most):
+        raise IngestError(
+            path,
+            f"{stop - start:,.1f} s at {rate:g} Hz is {span_rows:,.0f} samples from {most:,} read: more than "
+            f"{MAX_GRID_GROWTH} per sample read (sessions/limits.py); a stamp that jumps, or a rate far above the "
+            "sensors'; split the file where its time jumps, or choose a lower --rate",
+        )
+    n = int(np.floor((stop - start) * rate + 1e-9)) + 1
 
     def latest(times: np.ndarray, at: np.ndarray) -> np.ndarray:
         # latest sample at or before each grid time; stamps within 0.1 % of a period count as "at" it,
@@ -183,17 +227,13 @@ def align(
         for stale0, g1 in runs:
             last = int(latest(times, grid(stale0, stale0 + 1))[0])  # the last sample before the silence
             after = min(int(latest(times, grid(g1 - 1, g1))[0]) + 1, len(times) - 1)  # the first one after it
+            if not options.allow_gaps:
+                raise gap_error(stream, times, last, after, srate)
             seconds = float(times[after] - times[last])
             # The gap is recorded from the grid point holding that last sample, not from when it went stale.
             near = max(0, int(np.floor((times[last] - start) * rate)) - 1)
             g0 = min(n, near + int(np.searchsorted(grid(near, near + 3), times[last], side="left")))
             reason = f"no data for {seconds:.3f} s ({seconds * srate:.0f} samples at {srate:.1f} Hz)"
-            if not options.allow_gaps:
-                raise IngestError(
-                    path,
-                    f"{reason} in stream {stream.name!r}; use --allow-gaps to record it as a gap",
-                    where=f"t={grid(g0, g0 + 1)[0] - start:.3f} s",
-                )
             gaps.append(Gap(g0, g1, stream.name, reason))
 
     reference = []

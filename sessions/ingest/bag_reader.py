@@ -71,6 +71,53 @@ def _too_large(exc: BaseException) -> DecodedTooLarge | None:
     return None
 
 
+ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
+SQLITE_MAGIC = b"SQLite format 3\x00"
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
+
+
+def _one_line(exc: BaseException) -> str:
+    """A library's message on one line (rosbags quotes a whole message definition in its parse errors)."""
+    text = " ".join(str(exc).split())
+    return text if len(text) <= 300 else text[:300] + "…"
+
+
+def _check_magic(path: Path) -> None:
+    """Refuse a file that is not the kind its name says before rosbags opens it: a zstd-compressed bag renamed
+    ``.db3`` reached rosbags' file decompression and failed with an AttributeError."""
+    with open(path, "rb") as f:
+        head = f.read(16)
+    if head.startswith(ZSTD_MAGIC):
+        raise IngestError(
+            path,
+            "compressed with zstd as a whole file (a ROS 2 bag compressed file by file?); decompress it first "
+            "(`zstd -d`), then ingest the .db3 with its metadata.yaml",
+        )
+    suffix = path.suffix.lower()
+    if suffix == ".db3" and not head.startswith(SQLITE_MAGIC):
+        raise IngestError(path, "not a ROS 2 bag: a .db3 file is an SQLite database, and this one has no SQLite header")
+    if suffix == ".bag" and not head.startswith(ROS1_MAGIC[: len(head)]):
+        raise IngestError(path, "not a ROS 1 bag: no '#ROSBAG V2.0' header")
+
+
+def _check_index(path: Path, reader) -> None:
+    """Refuse a ROS 1 bag whose index lists a chunk more than once: rosbags reads it as often as it is listed, every
+    message that many times (17 chunks listed 1,000 times each: 126 s and 729 MB for a 3 MB file)."""
+    for bag in getattr(reader, "readers", ()):
+        infos = getattr(bag, "chunk_infos", None)
+        if not infos:
+            continue
+        positions = [info.pos for info in infos]
+        if len(set(positions)) < len(positions):
+            first = next(p for i, p in enumerate(positions) if p in positions[:i])
+            raise IngestError(
+                path,
+                f"the bag's index lists a chunk more than once ({len(positions):,} entries for "
+                f"{len(set(positions)):,} chunks, the first repeated at byte {first:,}): damaged or tampered; "
+                "`rosbag reindex` rebuilds it",
+            )
+
+
 def read_bag(
     path: str | Path, options: IngestOptions, *, on_bytes: Callable[[int], None] | None = None
 ) -> tuple[ParsedLog, list[TopicReport]]:
@@ -85,6 +132,7 @@ def read_bag(
     path = Path(path)
     if path.stat().st_size == 0:
         raise IngestError(path, "empty file")
+    _check_magic(path)
     root = bag_root(path)
     _bound_decompression()
     # bags written without their message definitions (older ROS 2) fall back on the standard types
@@ -93,7 +141,12 @@ def read_bag(
         reader = AnyReader([root], default_typestore=default)
         reader.open()
     except Exception as exc:
-        raise IngestError(path, f"not a readable ROS bag: {type(exc).__name__}: {exc}") from None
+        raise IngestError(path, f"not a readable ROS bag: {type(exc).__name__}: {_one_line(exc)}") from None
+    try:
+        _check_index(path, reader)
+    except IngestError:
+        reader.close()
+        raise
 
     def feed(on_message, reset) -> None:
         try:
@@ -108,7 +161,7 @@ def read_bag(
                 raise IngestError(
                     path, f"{bound.what} decodes to more than {bound.limit:,} bytes, the limit (sessions/limits.py)"
                 ) from None
-            raise IngestError(path, f"truncated or corrupt bag: {type(exc).__name__}: {exc}") from None
+            raise IngestError(path, f"truncated or corrupt bag: {type(exc).__name__}: {_one_line(exc)}") from None
 
     def decoder_for(channel: _Channel, schema: _Schema) -> Callable[[bytes], object]:
         return lambda data: reader.deserialize(data, schema.name)

@@ -101,6 +101,11 @@ class IngestOptions:
         return self.rate_hz if self.rate_hz is not None else self.mapping.rate_hz
 
 
+def one_line_text(text: str) -> str:
+    """A parser's message on one line (tomllib and json name the line and column in it)."""
+    return " ".join(text.split())
+
+
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 
 
@@ -114,13 +119,18 @@ def load_mapping(path: str | Path) -> Mapping:
     import tomllib
 
     from ..errors import IngestError
+    from ..limits import MAX_MAPPING_BYTES, MAX_MAPPING_CHANNELS, MAX_RATE_HZ
 
     path = Path(path)
     try:
+        if (size := path.stat().st_size) > MAX_MAPPING_BYTES:
+            raise IngestError(path, f"{size:,} bytes: a mapping file is at most {MAX_MAPPING_BYTES:,}")
         text = path.read_text(encoding="utf-8-sig")
         raw = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
+    except RecursionError:
+        raise IngestError(path, "cannot read mapping file: nested deeper than the parser allows") from None
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise IngestError(path, f"cannot read mapping file: {exc}") from None
+        raise IngestError(path, f"cannot read mapping file: {one_line_text(str(exc))}") from None
     if not isinstance(raw, dict):
         raise IngestError(path, "mapping file must hold a table/object at the top")
     csv = raw.pop("csv", {}) or {}
@@ -131,6 +141,16 @@ def load_mapping(path: str | Path) -> Mapping:
     if unknown:
         raise IngestError(path, f"unknown keys in mapping file: {', '.join(sorted(unknown))}")
     try:
+        if not isinstance(csv, dict):
+            raise ValueError("[csv] must be a table")
+        listed = {k: raw.get(k, []) for k in ("channels", "ignore")} | {"csv.columns": csv.get("columns", [])}
+        for label, value in listed.items():
+            if not isinstance(value, list):
+                raise ValueError(f"{label} must be a list")
+            if len(value) > MAX_MAPPING_CHANNELS:
+                raise ValueError(f"{len(value):,} {label}: a mapping declares at most {MAX_MAPPING_CHANNELS:,}")
+        if not all(isinstance(c, dict) for c in listed["channels"]):
+            raise ValueError("each [[channels]] entry must be a table")
         channels = tuple(
             ChannelSpec(
                 source=str(c["source"]),
@@ -138,24 +158,40 @@ def load_mapping(path: str | Path) -> Mapping:
                 name=str(c.get("name", "")),
                 unit=str(c.get("unit", "")),
             )
-            for c in raw.get("channels", [])
+            for c in listed["channels"]
         )
+        seen: set[tuple[str, str]] = set()
+        for c in channels:
+            if (c.source, c.field) in seen:
+                where = c.source + (f" field {c.field}" if c.field else "")
+                raise ValueError(f"channels: {where!r} is listed more than once (each source is read once)")
+            seen.add((c.source, c.field))
         time_unit = csv.get("time_unit")
         if time_unit is not None and time_unit not in TIME_UNITS:
             raise ValueError(f"csv.time_unit must be one of {', '.join(TIME_UNITS)}, not {time_unit!r}")
+        header = csv.get("header")
+        if header is not None and not isinstance(header, bool):
+            raise ValueError(f"csv.header must be true or false, not {header!r}")
+        time_column = csv.get("time_column")
+        if time_column is not None and (isinstance(time_column, bool) or not isinstance(time_column, str | int)):
+            raise ValueError(f"csv.time_column must be a column name or a 0-based number, not {time_column!r}")
         rate = raw.get("rate_hz")
         sample_rate = csv.get("sample_rate_hz")
         for label, value in (("rate_hz", rate), ("csv.sample_rate_hz", sample_rate)):
-            if value is not None and not float(value) > 0:
-                raise ValueError(f"{label} must be positive")
+            if value is None:
+                continue
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"{label} must be a number, not {value!r}")
+            if not 0 < float(value) <= MAX_RATE_HZ:
+                raise ValueError(f"{label} = {value:g}: a rate is above 0 and at most {MAX_RATE_HZ:g} Hz")
         return Mapping(
             channels=channels,
-            ignore=tuple(str(x) for x in raw.get("ignore", [])),
+            ignore=tuple(str(x) for x in listed["ignore"]),
             rate_hz=None if rate is None else float(rate),
-            time_column=csv.get("time_column"),
+            time_column=time_column,
             time_unit=time_unit,
-            header=csv.get("header"),
-            columns=tuple(str(x) for x in csv.get("columns", [])),
+            header=header,
+            columns=tuple(str(x) for x in listed["csv.columns"]),
             sample_rate_hz=None if sample_rate is None else float(sample_rate),
         )
     except (KeyError, TypeError, ValueError) as exc:

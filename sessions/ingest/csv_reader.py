@@ -106,9 +106,14 @@ def _read_frame(path: Path, *, header: bool | None, names: tuple[str, ...] = ())
     if path.stat().st_size == 0:
         raise IngestError(path, "empty file")
     _check_text(path)
+    first = next(csv.reader([_first_line(path)]), [])
     if header is None:
-        first = next(csv.reader([_first_line(path)]), [])
         header = any(_not_number(c) for c in first if c.strip())
+    if names and len(names) > len(first):
+        # pandas would make a column of each name (100,000 names on a 27 KB file: 142 s and 7.6 GB)
+        raise IngestError(
+            path, f"the mapping names {len(names):,} columns (csv.columns); the file's first line has {len(first):,}"
+        )
     try:
         frame = pd.read_csv(
             path,

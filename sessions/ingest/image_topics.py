@@ -121,7 +121,9 @@ def frame_jpeg(msg: object, schema: str) -> tuple[bytes, int, int]:
             image = Image.open(io.BytesIO(data))  # reads the header only: the size is known before decoding
         except Image.DecompressionBombError as exc:  # Pillow's own guard, past ours: the frame, not the log
             raise ValueError(f"a frame over the limit of {MAX_FRAME_PIXELS:,} pixels (Pillow: {exc})") from None
-        except (UnidentifiedImageError, OSError, ValueError) as exc:
+        except UnidentifiedImageError:  # its message names the BytesIO object it read from
+            raise ValueError(f"image data is no picture ({fmt or 'no format'}: no image format recognised)") from None
+        except (OSError, ValueError) as exc:
             raise ValueError(f"image data is no picture ({fmt or 'no format'}: {exc})") from None
         _check_pixels(*image.size)
         if image.format == "JPEG" and max(image.size) <= MAX_SIDE:

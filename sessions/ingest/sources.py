@@ -13,6 +13,11 @@ from .csv_reader import BOREAL_RE, QCAT_RE, is_borealtc, is_qcat, read_borealtc,
 from .mcap_reader import TopicReport, read_mcap
 
 LOG_SUFFIXES = (".mcap", ".csv", *BAG_SUFFIXES)
+COMPRESSED_BAG_SUFFIXES = (".db3.zstd", ".mcap.zstd")  # a ROS 2 bag compressed file by file (compression_mode: file)
+
+
+def _is_compressed_bag(path: Path) -> bool:
+    return path.name.lower().endswith(COMPRESSED_BAG_SUFFIXES)
 
 
 @dataclass(frozen=True)
@@ -36,7 +41,9 @@ def _expand(paths: list[Path]) -> list[Path]:
     out: list[Path] = []
     for p in paths:
         if p.is_dir():
-            found = sorted(q for q in p.rglob("*") if q.is_file() and q.suffix.lower() in LOG_SUFFIXES)
+            found = sorted(
+                q for q in p.rglob("*") if q.is_file() and (q.suffix.lower() in LOG_SUFFIXES or _is_compressed_bag(q))
+            )
             if not found:
                 raise IngestError(p, "folder holds no .mcap, .bag, .db3 or .csv files")
             out.extend(found)
@@ -84,6 +91,16 @@ def plan_sources(paths: list[str | Path]) -> tuple[list[Source], list[IngestErro
             fmt = "qcat"
         elif suffix == ".csv":
             group, fmt = [f], "csv"
+        elif _is_compressed_bag(f):
+            errors.append(
+                IngestError(
+                    f,
+                    "a ROS 2 bag compressed file by file (zstd), which is not read here; decompress it first "
+                    "(`ros2 bag decompress`, or `zstd -d` on each file and compression_mode removed from "
+                    "metadata.yaml), then ingest the .db3 or .mcap",
+                )
+            )
+            continue
         else:
             kind = f.suffix or "(none)"
             errors.append(IngestError(f, f"unsupported file type {kind!r}; expected .mcap, .bag, .db3 or .csv"))

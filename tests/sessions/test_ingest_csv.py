@@ -209,7 +209,7 @@ def test_missing_file_and_unsupported_type(session: Session, tmp_path: Path) -> 
         session.ingest([tmp_path / "nope.csv"])
     with pytest.raises(IngestError, match=r"unsupported file type '\.txt'"):
         session.ingest([write(tmp_path / "x.txt", "x")])
-    with pytest.raises(IngestError, match="not a readable ROS bag"):  # a .bag is read as a bag: this one is none
+    with pytest.raises(IngestError, match=r"not a ROS 1 bag: no .#ROSBAG V2\.0. header"):  # read as a bag: it is none
         session.ingest([write(tmp_path / "x.bag", "x")])
     (tmp_path / "sub").mkdir()
     with pytest.raises(IngestError, match=r"folder holds no \.mcap, \.bag, \.db3 or \.csv files"):

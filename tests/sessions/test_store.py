@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from sessions import SCHEMA_VERSION, Session, SessionError
+from sessions.ingest_lock import ingesting
 from sessions.rowfiles import NpyWriter
 from sessions.schema import MIGRATIONS, migrate, schema_version
 
@@ -160,9 +161,12 @@ def test_leftovers_of_a_crashed_ingest_are_swept(tmp_path: Path) -> None:
         np.save(f, np.zeros((2, 2), np.float32))
     old = time.time() - 3600
     os.utime(stale, (old, old))
-    Session.open(tmp_path / "s").close()
+    with ingesting(tmp_path / "s" / "logs"):  # an ingest runs in another process right now
+        Session.open(tmp_path / "s").close()
     assert not stale.exists()
-    assert fresh.exists()  # might belong to an ingest running in another process right now
+    assert fresh.exists()  # might be that ingest's
+    Session.open(tmp_path / "s").close()
+    assert not fresh.exists()  # no ingest holds the lock: a killed one's, swept at once (issue 52)
     for name in (".tmp-v0001-dead", "v0001"):  # a model save that died before it was registered
         d = tmp_path / "s" / "models" / name
         d.mkdir(parents=True)
@@ -187,6 +191,6 @@ def test_a_session_folder_that_cannot_be_written_gives_a_clear_error(
         s.ingest([demo_mcap])
     monkeypatch.undo()
     assert s.logs() == []
-    assert list((tmp_path / "s" / "logs").iterdir()) == []
+    assert [f.name for f in (tmp_path / "s" / "logs").iterdir()] == [".ingest.lock"]  # no staged file
     (log,) = s.ingest([demo_mcap])  # and the session works afterwards
     assert log.n_samples > 0

@@ -7,7 +7,17 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 
-from sessions import IngestError, IngestOptions, Mapping, TimeColumn, align, plan_sources, read_source, sniff_csv
+from sessions import (
+    DiscardRows,
+    IngestError,
+    IngestOptions,
+    Mapping,
+    TimeColumn,
+    align,
+    plan_sources,
+    read_source,
+    sniff_csv,
+)
 
 
 def _toml_str(text: str) -> str:
@@ -83,7 +93,7 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
                 sniffed = sniff_csv(source.files[0])
         try:
             parsed_logs, reports = read_source(source, options)
-            aligned = [align(p, options) for p in parsed_logs]
+            aligned = [align(p, options, allocate=DiscardRows) for p in parsed_logs]
         except IngestError as err:
             ok = False
             no_time = no_time or (source.format == "csv" and err.reason.startswith("no time column"))

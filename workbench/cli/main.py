@@ -13,7 +13,7 @@ from typing import Annotated, Literal
 
 import tyro
 
-from sessions import IngestError, IngestOptions, Session, WorkbenchError, load_mapping
+from sessions import MAX_RATE_HZ, IngestError, IngestOptions, Session, WorkbenchError, load_mapping
 
 from ..retrain import RETRAIN
 from ..user_errors import USER_ERRORS, one_line
@@ -68,6 +68,8 @@ def ingest(
     """
     if not camera_fps >= 0:
         raise WorkbenchError(f"--camera-fps must be 0 or more, not {camera_fps}")
+    if rate is not None and not 0 < rate <= MAX_RATE_HZ:
+        raise WorkbenchError(f"--rate {rate:g}: a rate is above 0 and at most {MAX_RATE_HZ:g} Hz")
     options = IngestOptions(
         mapping=load_mapping(mapping) if mapping else IngestOptions().mapping,
         rate_hz=rate,

@@ -1,0 +1,131 @@
+"""The hostile inputs of issue 52 through the CLI, each in a child process: one line naming the file and the reason,
+exit 2, under 1 GB and 20 s, the session unchanged; or, where the input is legitimate, read correctly."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import REPO, new_session, snapshot
+from tests.safety.hostile_cases import BUILDERS, Case, _csv
+
+TIME_LIMIT_S = 20.0
+PEAK_LIMIT_MB = 1024.0
+MEASURED: list[tuple[str, float, float]] = []  # (case, seconds, peak MB)
+
+
+def run_cli(args: list[str], *, timeout: float = TIME_LIMIT_S) -> tuple[int, str, str, float, float]:
+    """``workbench ARGS`` in a child: exit code, stdout, stderr, seconds and peak RSS (MB) of that child alone."""
+    t0 = time.perf_counter()
+    peak_file = Path(tempfile.mkdtemp()) / "peak"
+    proc = subprocess.Popen(
+        [sys.executable, str(REPO / "tests" / "safety" / "cli_peak.py"), str(peak_file), *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        cwd=REPO,
+        env={**os.environ, "WORKBENCH_DEBUG": ""},
+    )
+    out: dict[str, bytes] = {}
+    readers = [
+        threading.Thread(target=lambda k=k, f=f: out.__setitem__(k, f.read()), daemon=True)
+        for k, f in (("out", proc.stdout), ("err", proc.stderr))
+    ]
+    for r in readers:
+        r.start()
+    timer = threading.Timer(timeout, proc.kill)
+    timer.start()
+    proc.wait()
+    timer.cancel()
+    seconds = time.perf_counter() - t0
+    for r in readers:
+        r.join()
+    if proc.returncode == -9:
+        pytest.fail(f"workbench {' '.join(args)[:200]}: no answer within {timeout:.0f} s (killed)")
+    text = {k: v.decode("utf-8", "replace") for k, v in out.items()}
+    peak = int(peak_file.read_text()) / 1024
+    shutil.rmtree(peak_file.parent)
+    return proc.returncode, text["out"], text["err"], seconds, peak
+
+
+@pytest.fixture(scope="module")
+def template(tmp_path_factory) -> Path:
+    """A session with one log, ``walk``, that label files name."""
+    folder = tmp_path_factory.mktemp("template")
+    s = new_session(folder / "session")
+    s.ingest([_csv(folder / "walk.csv", 60.0)])
+    s.close()
+    return folder / "session"
+
+
+def _cases(tmp: Path) -> list[Case]:
+    return [case for build in BUILDERS for case in build(tmp)]
+
+
+CASE_NAMES = [build.__name__ for build in BUILDERS]
+
+
+@pytest.mark.parametrize("build", BUILDERS, ids=CASE_NAMES)
+def test_a_hostile_input_ends_in_one_line(build, template: Path, tmp_path: Path, promise) -> None:
+    for case in build(tmp_path):
+        session = tmp_path / f"s-{len(MEASURED)}"
+        shutil.copytree(template, session)
+        before = snapshot(session)
+        args = [a.replace("{session}", str(session)) for a in case.args]
+        code, out, err, seconds, peak = run_cli(args)
+        MEASURED.append((case.name, seconds, peak))
+        where = f"{case.name}: rc {code}, stderr {err[-600:]!r}"
+        assert "internal error" not in err and "Traceback" not in err, where
+        assert code == case.code, where
+        assert peak < PEAK_LIMIT_MB, f"{case.name}: peak RSS {peak:.0f} MB"
+        assert seconds < TIME_LIMIT_S, f"{case.name}: {seconds:.1f} s"
+        if case.check is not None:
+            case.check(session, out + err)
+            continue
+        lines = err.strip().splitlines()
+        if "--dry-run" in args and not lines:  # the dry run writes a file's refusal into the mapping it prints
+            assert case.says in out, where
+        else:
+            assert len(lines) == 1, where
+            assert case.names in lines[0] and case.says in lines[0], where
+        assert snapshot(session) == before, f"{case.name}: refused, yet the session changed"
+        assert not list((session / "logs").glob(".tmp-*")), f"{case.name}: a staged file was left"
+
+
+def test_a_killed_ingests_staged_file_is_swept_at_once_unless_an_ingest_is_live(template: Path, tmp_path: Path) -> None:
+    """Before: a staged ``.tmp-*.npy`` was swept only once ten minutes old (a killed ingest left 40 GB meanwhile)."""
+    from sessions.ingest_lock import ingesting
+
+    session = tmp_path / "s"
+    shutil.copytree(template, session)
+    dead = session / "logs" / ".tmp-0123456789abcdef.npy"
+    dead.write_bytes(bytes(1 << 20))  # fresh: what a SIGKILLed ingest leaves
+    with ingesting(session / "logs"):  # another process's ingest is live: its staged files stay
+        code, _, err, _, _ = run_cli(["info", str(session)])
+        assert code == 0, err
+        assert dead.exists()
+    code, _, err, seconds, peak = run_cli(["info", str(session)])
+    assert code == 0, err
+    assert not dead.exists(), "no ingest is live, yet the staged file stayed"
+    MEASURED.append(("a killed ingest's fresh staged file", seconds, peak))
+
+
+def test_zz_summary(promise) -> None:
+    if MEASURED:
+        worst_t = max(MEASURED, key=lambda m: m[1])
+        worst_m = max(MEASURED, key=lambda m: m[2])
+        promise(
+            f"hostile input through the CLI (issue 52): {len(MEASURED)} cases, each one line and exit 2 or read "
+            f"correctly; slowest {worst_t[1]:.1f} s ({worst_t[0]}), highest peak RSS {worst_m[2]:.0f} MB "
+            f"({worst_m[0]}); limits {TIME_LIMIT_S:.0f} s and {PEAK_LIMIT_MB:.0f} MB"
+        )
+    if os.environ.get("WORKBENCH_HOSTILE_TABLE"):  # the table of issue 52's closing note
+        for name, seconds, peak in MEASURED:
+            promise(f"hostile case | {name} | {seconds:.1f} s | {peak:.0f} MB")
