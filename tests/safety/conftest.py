@@ -24,6 +24,7 @@ COUNTED = {  # module -> the promise its tests check
     "test_bombs": "promise 8 (bombs: decoded bytes and pixels bounded in every reader, the CLI and uploads)",
     "test_upload_totals": "upload totals (one total for the server, two at once per page, memory back when a page "
     "leaves)",
+    "test_terminal_names": "names escaped (terminal control characters in names, the dry run's mapping round trip)",
     "test_security": "promise 7 (security: same origin and token, escaped names, uploads cut at the limit, label "
     "import, CSV formulas, tampered files, taken port)",
 }

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import json
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -19,9 +18,22 @@ from sessions import (
     sniff_csv,
 )
 
+from .terminal import shown
+
 
 def _toml_str(text: str) -> str:
-    return json.dumps(text, ensure_ascii=False)  # a JSON string is a valid TOML basic string
+    """A TOML basic string: quotes, backslashes and every control or format character escaped, so a topic named
+    ``"/imu\\nrate_hz = 3.0"`` stays one string (JSON's escaping left DEL and C1 controls raw, which TOML refuses)."""
+    out = []
+    for ch in text:
+        if ch in ('"', "\\"):
+            out.append("\\" + ch)
+        elif ch.isprintable() or ch == " ":
+            out.append(ch)
+        else:
+            code = ord(ch)
+            out.append(f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}")
+    return '"' + "".join(out) + '"'
 
 
 def _toml_value(value: object) -> str:
@@ -147,4 +159,6 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
         lines.append(f"ignore = {_toml_value(list(options.mapping.ignore))}")
     lines.append("")
     lines += _csv_section(options.mapping, sniffed, no_time, found)
+    # a comment holds names from the files (topics, logs, notes): a newline in one would end the comment
+    lines = ["#" + shown(line[1:]) if line.startswith("#") else line for line in lines]
     return ok, "\n".join(lines + channel_lines)

@@ -19,12 +19,13 @@ from ..retrain import RETRAIN
 from ..user_errors import USER_ERRORS, one_line
 from . import evaluate_command, label_commands, model_commands
 from .ingest_report import dry_run_report
+from .terminal import EscapingStream, shown
 
 Pos = tyro.conf.Positional
 
 
 def _err(message: str) -> None:
-    print(f"error: {message}", file=sys.stderr)
+    print(f"error: {shown(message)}", file=sys.stderr)
 
 
 def new(session: Pos[Path], terrains: tuple[str, ...] = ()) -> None:
@@ -94,21 +95,21 @@ def ingest(
 
             def on_error(err: IngestError) -> None:
                 failures.append(err)
-                bar.write(f"error: {err}", file=sys.stderr)
+                bar.write(f"error: {shown(one_line(err))}", file=sys.stderr)
 
             logs = s.ingest(files, options=options, on_error=on_error, progress=progress)
         added = [log for log in logs if log.id not in before]
         for log in added:
             gaps = f", {len(log.gaps)} gaps" if log.gaps else ""
-            print(f"+ {log.name}: {log.duration_s:.1f} s at {log.rate_hz:g} Hz, {log.n_channels} channels{gaps}")
+            print(f"+ {shown(log.name)}: {log.duration_s:.1f} s at {log.rate_hz:g} Hz, {log.n_channels} channels{gaps}")
             for note in log.info.get("notes", ()):  # type: ignore[union-attr]
-                print(f"  note: {note}")
+                print(f"  note: {shown(note)}")
             for cam in log.info.get("cameras", ()):  # type: ignore[union-attr]
                 if cam.get("skipped"):
                     n = cam["skipped"]
                     print(
-                        f"  warning: camera {cam['topic']}: skipped {n} camera frame{'s' * (n > 1)} "
-                        f"({cam['skipped_why']}); {cam['frames']} kept"
+                        f"  warning: camera {shown(cam['topic'])}: skipped {n} camera frame{'s' * (n > 1)} "
+                        f"({shown(cam['skipped_why'])}); {cam['frames']} kept"
                     )
         already = len(logs) - len(added)
         print(
@@ -130,18 +131,19 @@ def info(session: Pos[Path]) -> None:
         segments = s.segments()
         print(f"session {s.path} (schema {s.schema_version})")
         print(f"{len(logs)} log(s), {sum(log.duration_s for log in logs) / 60:.1f} min in all")
-        width = max((len(log.name) for log in logs), default=4)
+        width = max((len(shown(log.name)) for log in logs), default=4)
         for log in logs:
             lab = sum(seg.length for seg in segments if seg.log_id == log.id)
-            ref = f"  reference={log.reference_terrain}" if log.reference_terrain else ""
-            ref += "".join(f"  camera {c.topic} ({c.frames} frames)" for c in s.cameras(log.id))
+            ref = f"  reference={shown(log.reference_terrain)}" if log.reference_terrain else ""
+            ref += "".join(f"  camera {shown(c.topic)} ({c.frames} frames)" for c in s.cameras(log.id))
             print(
-                f"  {log.id:>4}  {log.name:<{width}}  {log.format:<8} {log.duration_s:>9.1f} s  "
+                f"  {log.id:>4}  {shown(log.name):<{width}}  {log.format:<8} {log.duration_s:>9.1f} s  "
                 f"{log.rate_hz:>7g} Hz  {log.n_channels:>3} ch  {len(log.gaps):>3} gaps  "
                 f"{lab / max(log.n_samples, 1):>6.1%} labelled{ref}"
             )
         print(
-            "terrains: " + (", ".join(t.name for t in s.terrains()) or "none yet (workbench terrains SESSION add NAME)")
+            "terrains: "
+            + (", ".join(shown(t.name) for t in s.terrains()) or "none yet (workbench terrains SESSION add NAME)")
         )
         print(f"{len(segments)} label segment(s)")
 
@@ -169,24 +171,24 @@ def terrains(
                 raise WorkbenchError("terrains add: name at least one terrain")
             for name in names:
                 t = s.add_terrain(name, color=color)
-                print(f"added terrain {t.name} ({t.color})")
+                print(f"added terrain {shown(t.name)} ({t.color})")
         elif action == "rename":
             if len(names) != 2:
                 raise WorkbenchError("terrains rename: give the old name and the new one")
             s.rename_terrain(*names)
-            print(f"renamed terrain {names[0]} to {names[1]}")
+            print(f"renamed terrain {shown(names[0])} to {shown(names[1])}")
         elif action == "remove":
             if not names:
                 raise WorkbenchError("terrains remove: name at least one terrain")
             s.remove_terrains(names)
-            print(f"removed terrain(s): {', '.join(names)}")
+            print(f"removed terrain(s): {', '.join(shown(n) for n in names)}")
         else:
             seconds: dict[str, float] = {}
             rates = {x.id: x.rate_hz for x in s.logs()}
             for seg in s.segments():
                 seconds[seg.terrain] = seconds.get(seg.terrain, 0.0) + seg.length / rates[seg.log_id]
             for t in s.terrains():
-                print(f"  {t.name:<20} {t.color}  {seconds.get(t.name, 0.0):>9.1f} s labelled")
+                print(f"  {shown(t.name):<20} {t.color}  {seconds.get(t.name, 0.0):>9.1f} s labelled")
             if not s.terrains():
                 hint = "or import labels with --create-terrains"
                 print(f"no terrains yet: `workbench terrains {session} add NAME...`, {hint}")
@@ -340,6 +342,16 @@ LABEL_COMMANDS = {"export": label_commands.labels_export, "import": label_comman
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``workbench`` console script. Returns the exit code."""
     argv = sys.argv[1:] if argv is None else argv
+    stdout = sys.stdout
+    if not {"-h", "--help"} & set(argv) and not isinstance(stdout, EscapingStream):
+        sys.stdout = EscapingStream(stdout)  # type: ignore[assignment]  # help keeps tyro's colours
+    try:
+        return _run(argv)
+    finally:
+        sys.stdout = stdout
+
+
+def _run(argv: list[str]) -> int:
     try:
         if argv[:1] == ["labels"]:  # tyro has no nested subcommands over functions: route them here
             result = tyro.extras.subcommand_cli_from_dict(
