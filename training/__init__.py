@@ -3,10 +3,12 @@
 Rooms (one per family, found by name through :mod:`.registry`):
     ``spectral_cnn``  the default family: short-time spectra and a small convolutional network (``--model default``)
     ``paper_lstm``    the paper's two stacked LSTMs (``--model paper``)
+and ``runtime``, what ships to a robot: ``bundle`` (a model as files), ``stream`` (one sample at a time),
+``onnx_export``.
 
-Shared at this level: ``registry`` (family name -> room), ``bundle`` (a model as files), ``passes`` (stage 2 over
-whole logs), ``stream`` (one sample at a time), ``onnx_export``, ``checkpoint``, ``distributed``, ``fitting``
-(what every stage-2 fit returns), ``normalizer``, ``metrics``, ``progress``, ``training_errors``.
+Shared at this level: ``registry`` (family name -> room), ``passes`` (stage 2 over whole logs), ``checkpoint``,
+``distributed``, ``fitting`` (what every stage-2 fit returns), ``normalizer``, ``metrics``, ``progress``,
+``training_errors``.
 
 Takes arrays, never sessions: ``workbench`` wires it to the session store and scores logs with it. The evaluation
 protocols (BorealTC, QCAT, held-out logs) live with the datasets they read, in ``workbench.evaluation``.
@@ -23,7 +25,16 @@ __all__, __getattr__, __dir__ = lazy_exports(
     {
         # the shared machinery
         "registry": ("DEFAULT_FAMILY", "FAMILY_ROOMS", "Family", "family", "family_names"),
-        "bundle": ("ModelBundle", "load_bundle", "parameter_count", "save_bundle"),
+        "runtime": (
+            "ModelBundle",
+            "StreamingClassifier",
+            "check_onnx",
+            "export_onnx",
+            "load_bundle",
+            "parameter_count",
+            "run_onnx",
+            "save_bundle",
+        ),
         "checkpoint": ("Checkpoint", "load_checkpoint", "save_checkpoint"),
         "fitting": ("ClassifierFit", "Segment", "fold_indices", "to_dict"),
         "blocking": ("Block", "BlockedFolds", "blocked_folds", "cut_blocks"),
@@ -39,9 +50,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "normalizer": ("Normalizer", "Rows"),
         "passes": ("ensemble_pass", "padded_groups", "run_classifiers"),
         "metrics": ("classification_metrics", "expected_calibration_error"),
-        "onnx_export": ("check_onnx", "export_onnx", "run_onnx"),
         "progress": ("CancelFn", "Cancelled", "Progress", "ProgressFn", "never"),
-        "stream": ("StreamingClassifier",),
         "training_errors": ("BundleError", "TrainingError"),
         # the paper family's room
         "paper_lstm": (

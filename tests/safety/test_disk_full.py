@@ -68,7 +68,7 @@ def test_a_read_only_session_refuses_every_change_and_keeps_its_state(labelled: 
 
 
 def test_a_model_save_on_a_full_disk_leaves_the_active_models(tmp_path: Path, monkeypatch) -> None:
-    import training.bundle as bundle
+    import training.runtime.bundle as bundle
     from tests.workbench.cycle.test_cycle import TINY, build_trained
     from workbench import cycle
     from workbench.demo import generate_demo_logs

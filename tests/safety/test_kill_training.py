@@ -14,7 +14,7 @@ import pytest
 
 from sessions import Session
 from training import TrainConfig
-from training.bundle import load_bundle
+from training.runtime.bundle import load_bundle
 from workbench import cycle
 from workbench.cycle import score_session
 
@@ -26,7 +26,7 @@ CHILD = textwrap.dedent(
     from sessions import Session
     from training import TrainConfig
     from workbench import cycle
-    import training.bundle as bundle
+    import training.runtime.bundle as bundle
 
     path, where, stage, steps = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
 

@@ -85,7 +85,7 @@ def test_models_load_without_unpickling(tmp_path: Path, monkeypatch) -> None:
     import torch
 
     from tests.training.test_bundle_stream import tiny_bundle
-    from training.bundle import load_bundle, save_bundle
+    from training.runtime.bundle import load_bundle, save_bundle
 
     bundle, _ = tiny_bundle()
     path = save_bundle(bundle, tmp_path / "v1")

@@ -19,8 +19,8 @@ from training import (
     run_classifiers,
     run_predictor,
 )
-from training.bundle import BundleError, ModelBundle, load_bundle, save_bundle
-from training.stream import StreamingClassifier
+from training.runtime.bundle import BundleError, ModelBundle, load_bundle, save_bundle
+from training.runtime.stream import StreamingClassifier
 
 
 def tiny_bundle(mode: str = "hidden", seed: int = 0) -> tuple[ModelBundle, list[np.ndarray]]:
@@ -147,7 +147,7 @@ def test_bfloat16_streaming_stays_close_to_the_offline_pass(mode: str) -> None:
 
 def test_onnx_matches_pytorch(tmp_path: Path) -> None:
     pytest.importorskip("onnxruntime")
-    from training.onnx_export import check_onnx, export_onnx, run_onnx
+    from training.runtime.onnx_export import check_onnx, export_onnx, run_onnx
 
     bundle, logs = tiny_bundle("surprise")
     path = export_onnx(bundle, tmp_path / "classifier.onnx")

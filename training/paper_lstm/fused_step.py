@@ -26,7 +26,7 @@ import numpy as np
 from ..training_errors import BundleError
 
 if TYPE_CHECKING:
-    from ..bundle import ModelBundle
+    from ..runtime import ModelBundle
 
 
 def _np(t) -> np.ndarray:

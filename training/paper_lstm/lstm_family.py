@@ -11,7 +11,7 @@ from .lstm_models import Classifier
 from .lstm_step import INPUTS, OUTPUTS, STREAM_AXES, StepModel, zero_state
 
 if TYPE_CHECKING:
-    from ..bundle import ModelBundle
+    from ..runtime import ModelBundle
 
 
 def _classifier(cfg: dict) -> Classifier:

@@ -16,7 +16,7 @@ from ..training_errors import BundleError
 from .lstm_models import stage1_features
 
 if TYPE_CHECKING:
-    from ..bundle import ModelBundle
+    from ..runtime import ModelBundle
 
 INPUTS = ("x", "h1", "c1", "h2", "c2", "prev", "started")
 OUTPUTS = ("probs", "h1_out", "c1_out", "h2_out", "c2_out", "prev_out")

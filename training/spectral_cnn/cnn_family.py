@@ -10,8 +10,8 @@ from .window_classifier import OLD_WINDOW_KINDS, WINDOW_KIND, WindowClassifier, 
 from .window_step import INPUTS, OUTPUTS, WindowStep, WindowStepModel, zero_state
 
 if TYPE_CHECKING:
-    from ..bundle import ModelBundle
     from ..fitting import ClassifierFit
+    from ..runtime import ModelBundle
 
 
 def _classifier(cfg: dict) -> WindowClassifier:

@@ -24,7 +24,7 @@ from .spectra import SpectralConfig, SpectralStream
 from .window_classifier import SPREAD_EPS, gelu_tanh
 
 if TYPE_CHECKING:
-    from ..bundle import ModelBundle
+    from ..runtime import ModelBundle
 
 INPUTS = ("x", "ring", "count", "frames", "n_frames")
 OUTPUTS = ("probs", "ring_out", "count_out", "frames_out", "n_frames_out")

@@ -14,11 +14,11 @@ from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
 from torch import nn
 
-from .normalizer import Normalizer
-from .paper_lstm import FeatureMode, Predictor, PredictorConfig
-from .registry import Family, family_of_kind
-from .spectral_cnn import FRAME_PREDICTOR_KIND, DriftReference, FramePredictor, FramePredictorConfig, SpectralConfig
-from .training_errors import BundleError
+from ..normalizer import Normalizer
+from ..paper_lstm import FeatureMode, Predictor, PredictorConfig
+from ..registry import Family, family_of_kind
+from ..spectral_cnn import FRAME_PREDICTOR_KIND, DriftReference, FramePredictor, FramePredictorConfig, SpectralConfig
+from ..training_errors import BundleError
 
 BUNDLE_SCHEMA = 1
 CONFIG_FILE = "model.json"

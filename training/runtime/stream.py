@@ -12,8 +12,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..training_errors import BundleError
 from .bundle import ModelBundle
-from .training_errors import BundleError
 
 
 class StreamingClassifier:
