@@ -27,10 +27,11 @@ browser:
 demo: install
 	$(VENV)/bin/workbench demo --session demo-session --port $(PORT)
 
+# two pytest workers on the two cores (each runs torch on one thread: tests/conftest.py)
 test: install browser
 	$(PY) -m ruff check .
 	$(PY) -m ruff format --check .
-	$(PY) -m pytest -m "not slow"
+	$(PY) -m pytest -n 2 -m "not slow"
 
 lint: install
 	$(PY) -m ruff check .

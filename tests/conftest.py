@@ -11,6 +11,14 @@ from pathlib import Path
 import pytest
 
 from sessions import Session
+from tests.promise_report import pytest_runtest_logreport, pytest_terminal_summary  # noqa: F401 (hooks)
+
+# Under pytest-xdist each worker is one process of two on two cores: torch (libgomp) in each must use one thread
+# and sleep rather than spin between parallel regions, or the two slow each other many times over. Set before any
+# test imports torch; the CLI children the tests start inherit it.
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("WORKBENCH_SHARED_DATA", REPO.parent / "shared" / "data"))

@@ -19,7 +19,6 @@ from tests.safety.hostile_cases import BUILDERS, Case, _csv
 
 TIME_LIMIT_S = 20.0
 PEAK_LIMIT_MB = 1024.0
-MEASURED: list[tuple[str, float, float]] = []  # (case, seconds, peak MB)
 
 
 def run_cli(args: list[str], *, timeout: float = TIME_LIMIT_S) -> tuple[int, str, str, float, float]:
@@ -73,14 +72,14 @@ CASE_NAMES = [build.__name__ for build in BUILDERS]
 
 
 @pytest.mark.parametrize("build", BUILDERS, ids=CASE_NAMES)
-def test_a_hostile_input_ends_in_one_line(build, template: Path, tmp_path: Path, promise) -> None:
-    for case in build(tmp_path):
-        session = tmp_path / f"s-{len(MEASURED)}"
+def test_a_hostile_input_ends_in_one_line(build, template: Path, tmp_path: Path, hostile_case) -> None:
+    for i, case in enumerate(build(tmp_path)):
+        session = tmp_path / f"s-{i}"
         shutil.copytree(template, session)
         before = snapshot(session)
         args = [a.replace("{session}", str(session)) for a in case.args]
         code, out, err, seconds, peak = run_cli(args)
-        MEASURED.append((case.name, seconds, peak))
+        hostile_case(case.name, seconds, peak)
         where = f"{case.name}: rc {code}, stderr {err[-600:]!r}"
         assert "internal error" not in err and "Traceback" not in err, where
         assert code == case.code, where
@@ -99,7 +98,9 @@ def test_a_hostile_input_ends_in_one_line(build, template: Path, tmp_path: Path,
         assert not list((session / "logs").glob(".tmp-*")), f"{case.name}: a staged file was left"
 
 
-def test_a_killed_ingests_staged_file_is_swept_at_once_unless_an_ingest_is_live(template: Path, tmp_path: Path) -> None:
+def test_a_killed_ingests_staged_file_is_swept_at_once_unless_an_ingest_is_live(
+    template: Path, tmp_path: Path, hostile_case
+) -> None:
     """Before: a staged ``.tmp-*.npy`` was swept only once ten minutes old (a killed ingest left 40 GB meanwhile)."""
     from sessions.ingest_lock import ingesting
 
@@ -114,18 +115,4 @@ def test_a_killed_ingests_staged_file_is_swept_at_once_unless_an_ingest_is_live(
     code, _, err, seconds, peak = run_cli(["info", str(session)])
     assert code == 0, err
     assert not dead.exists(), "no ingest is live, yet the staged file stayed"
-    MEASURED.append(("a killed ingest's fresh staged file", seconds, peak))
-
-
-def test_zz_summary(promise) -> None:
-    if MEASURED:
-        worst_t = max(MEASURED, key=lambda m: m[1])
-        worst_m = max(MEASURED, key=lambda m: m[2])
-        promise(
-            f"hostile input through the CLI (issue 52): {len(MEASURED)} cases, each one line and exit 2 or read "
-            f"correctly; slowest {worst_t[1]:.1f} s ({worst_t[0]}), highest peak RSS {worst_m[2]:.0f} MB "
-            f"({worst_m[0]}); limits {TIME_LIMIT_S:.0f} s and {PEAK_LIMIT_MB:.0f} MB"
-        )
-    if os.environ.get("WORKBENCH_HOSTILE_TABLE"):  # the table of issue 52's closing note
-        for name, seconds, peak in MEASURED:
-            promise(f"hostile case | {name} | {seconds:.1f} s | {peak:.0f} MB")
+    hostile_case("a killed ingest's fresh staged file", seconds, peak)

@@ -125,8 +125,9 @@ def summary(kills: int, acked: int, stored: int) -> str:
     )
 
 
-def test_acknowledged_labels_survive_ten_kills(tmp_path: Path, promise) -> None:
-    kills, acked, stored = run_kills(tmp_path, 120.0, 10, seed=1)
+def test_acknowledged_labels_survive_four_kills(tmp_path: Path, promise) -> None:
+    """The short version `make test` runs (ten kills took 39 s of its five minutes); `make stress` kills 200 times."""
+    kills, acked, stored = run_kills(tmp_path, 120.0, 4, seed=1)
     assert acked > 0 and stored >= acked
     promise(summary(kills, acked, stored))
 
