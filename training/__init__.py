@@ -7,8 +7,8 @@ and ``runtime``, what ships to a robot: ``bundle`` (a model as files), ``stream`
 ``onnx_export``.
 
 Shared at this level: ``registry`` (family name -> room), ``passes`` (stage 2 over whole logs), ``checkpoint``,
-``distributed``, ``fitting`` (what every stage-2 fit returns), ``normalizer``, ``metrics``, ``progress``,
-``training_errors``.
+``distributed``, ``cpu_threads`` (threads for the free CPUs), ``fitting`` (what every stage-2 fit returns),
+``normalizer``, ``metrics``, ``progress``, ``training_errors``.
 
 Takes arrays, never sessions: ``workbench`` wires it to the session store and scores logs with it. The evaluation
 protocols (BorealTC, QCAT, held-out logs) live with the datasets they read, in ``workbench.evaluation``.
@@ -36,6 +36,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "save_bundle",
         ),
         "checkpoint": ("Checkpoint", "load_checkpoint", "save_checkpoint"),
+        "cpu_threads": ("free_cpus", "threads_for", "use_free_cpus", "usable_cpus"),
         "fitting": ("ClassifierFit", "Segment", "fold_indices", "to_dict"),
         "blocking": ("Block", "BlockedFolds", "blocked_folds", "cut_blocks"),
         "estimates": (

@@ -152,7 +152,7 @@ def train(
         else:
             with Session.open(session) as s:
                 if stage in ("predictor", "all"):
-                    _train_predictor(s, config, hidden, model)
+                    _on_free_cpus(lambda: _train_predictor(s, config, hidden, model))
                 if stage in ("classifier", "all"):
                     _train_classifier(s, config, hidden, feature_mode, stage, model)
     finally:
@@ -165,6 +165,23 @@ def train(
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(0)
+
+
+def _on_free_cpus(fn) -> None:
+    """Stage 1 on as many threads as CPUs are free when it starts (``training.use_free_cpus``): on a busy machine
+    torch's thread per core waits on the one that is descheduled (the frame predictor beside one busy loop: 4.1x
+    its time alone, 1.6x on the free CPUs; ``benchmarks/bench_under_load.py``). Stage 2 keeps torch's count: its
+    fits already run one thread each, side by side, and share the cores through the scheduler."""
+    import torch
+
+    from training import use_free_cpus
+
+    threads = torch.get_num_threads()
+    use_free_cpus()
+    try:
+        fn()
+    finally:
+        torch.set_num_threads(threads)
 
 
 def _train_predictor(s: Session, config: TrainConfig, hidden: int, model: str | None) -> None:
