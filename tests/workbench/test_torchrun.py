@@ -17,6 +17,7 @@ from tests.browser.conftest import free_port
 from tests.conftest import new_session
 from training import load_bundle
 
+pytestmark = pytest.mark.xdist_group("torchrun")  # one worker: the two-process run below is made once for both tests
 EPOCHS = 3
 ROOT = Path(__file__).resolve().parents[2]
 # float sums in another order: DDP adds two half-batch gradients where one process adds them all at once, and Adam
@@ -33,6 +34,16 @@ def logs_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     with new_session(tmp / "s") as s:
         s.ingest(logs)
     return tmp / "s"
+
+
+@pytest.fixture(scope="module")
+def two_process_run(logs_session: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, str]:
+    """Stage 1 trained by ``torchrun --nproc-per-node 2`` on a copy of the session, never killed: the session, and
+    what the run printed (out, err). Made once for the tests that compare against it."""
+    session = copy_of(logs_session, tmp_path_factory.mktemp("two") / "s")
+    out = run(train_args(session), procs=2)
+    assert out.returncode == 0, out.stderr
+    return session, out.stdout, out.stderr
 
 
 def copy_of(src: Path, dst: Path) -> Path:
@@ -83,26 +94,26 @@ def history(session: Path) -> list[dict[str, float]]:
         return load_bundle(s.path / v.path).info["history"]
 
 
-def test_two_processes_draw_the_loss_curve_of_one(logs_session: Path, tmp_path: Path) -> None:
+def test_two_processes_draw_the_loss_curve_of_one(logs_session: Path, tmp_path: Path, two_process_run) -> None:
     one = run(train_args(copy_of(logs_session, tmp_path / "one")))
     assert one.returncode == 0, one.stderr
-    two = run(train_args(copy_of(logs_session, tmp_path / "two")), procs=2)
-    assert two.returncode == 0, two.stderr
-    assert two.stdout.count("predictor v1:") == 1, two.stdout  # the main process reports, once
-    h1, h2 = history(tmp_path / "one"), history(tmp_path / "two")
+    two, stdout, _ = two_process_run
+    assert stdout.count("predictor v1:") == 1, stdout  # the main process reports, once
+    h1, h2 = history(tmp_path / "one"), history(two)
     assert len(h1) == len(h2) == EPOCHS
     for a, b in zip(h1, h2, strict=True):
         assert b["train_loss"] == pytest.approx(a["train_loss"], rel=REL)
         assert b["val_loss"] == pytest.approx(a["val_loss"], rel=REL)
-    with Session.open(tmp_path / "two") as s:
+    with Session.open(two) as s:
         (v,) = s.model_versions("predictor")
         assert v.active and load_bundle(s.path / v.path).info["processes"] == 2
         assert not list((s.path / "cache" / "checkpoints").glob("predictor*.safetensors"))  # gone once saved
 
 
-def test_a_run_killed_mid_epoch_resumes_from_its_checkpoint(logs_session: Path, tmp_path: Path) -> None:
-    whole = copy_of(logs_session, tmp_path / "whole")
-    assert run(train_args(whole), procs=2).returncode == 0
+def test_a_run_killed_mid_epoch_resumes_from_its_checkpoint(
+    logs_session: Path, tmp_path: Path, two_process_run
+) -> None:
+    whole, _, _ = two_process_run
     killed = copy_of(logs_session, tmp_path / "killed")
     dead = run([str(killed), str(EPOCHS)], procs=2, script="tests/workbench/ddp_kill_worker.py")
     assert dead.returncode != 0, "the main process was to kill itself"
