@@ -27,12 +27,12 @@ browser:
 demo: install
 	$(VENV)/bin/workbench demo --session demo-session --port $(PORT)
 
-# two pytest workers on the two cores (each runs torch on one thread: tests/conftest.py); a test module marked
-# xdist_group runs on one worker, sharing its module fixtures
+# two pytest workers on the two cores (each runs torch on one thread: tests/conftest.py); a test file runs on one
+# worker, in order, so its module fixtures are made once and a module's last test sees what the others measured
 test: install browser
 	$(PY) -m ruff check .
 	$(PY) -m ruff format --check .
-	$(PY) -m pytest -n 2 --dist loadgroup -m "not slow"
+	$(PY) -m pytest -n 2 --dist loadfile -m "not slow"
 
 lint: install
 	$(PY) -m ruff check .

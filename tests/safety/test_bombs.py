@@ -48,6 +48,7 @@ def ingest_measured(session: Path, *files: Path, dry_run: bool = False) -> tuple
     )
     res = json.loads(out.stdout)
     PEAKS.append(res["peak_mb"])
+    assert res["peak_mb"] < PEAK_LIMIT_MB, f"{cli}: peak RSS {res['peak_mb']:.0f} MB"  # each case, whatever runs last
     return res["rc"], [x for x in res["out"].splitlines() if x.strip()], res["peak_mb"]
 
 
@@ -154,6 +155,7 @@ def labels_measured(session: Path, label_file: Path) -> tuple[int, list[str], fl
     )
     res = json.loads(out.stdout)
     PEAKS.append(res["peak_mb"])
+    assert res["peak_mb"] < PEAK_LIMIT_MB, f"{cli}: peak RSS {res['peak_mb']:.0f} MB"  # each case, whatever runs last
     return res["rc"], [x for x in res["out"].splitlines() if x.strip()], res["peak_mb"]
 
 

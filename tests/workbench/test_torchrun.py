@@ -17,7 +17,6 @@ from tests.browser.conftest import free_port
 from tests.conftest import new_session
 from training import load_bundle
 
-pytestmark = pytest.mark.xdist_group("torchrun")  # one worker: the two-process run below is made once for both tests
 EPOCHS = 3
 ROOT = Path(__file__).resolve().parents[2]
 # float sums in another order: DDP adds two half-batch gradients where one process adds them all at once, and Adam
