@@ -73,7 +73,7 @@ class UploadBudget:
     def in_flight(self) -> int:
         """The declared bytes of the uploads now in flight."""
         with self._lock:
-            return sum(t.declared for t in self._transfers.values())
+            return self._used()
 
     def reserve(self, transfer: str, client_id: int, name: str, declared: int) -> str | None:
         """Take room for an upload that starts; uploads stalled for ``stalled_s`` are dropped first if it needs
