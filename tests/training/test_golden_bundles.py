@@ -16,6 +16,7 @@ from training import (
     load_bundle,
     log_frames,
     run_classifiers,
+    run_onnx,
     run_predictor,
     save_bundle,
 )
@@ -47,3 +48,14 @@ def test_a_golden_bundle_loads_and_scores_as_when_it_was_saved(name: str, tmp_pa
     np.testing.assert_allclose(StreamingClassifier(again).run(x), expected, rtol=0, atol=1e-6)
     onnx = export_onnx(bundle, tmp_path / "step.onnx")
     assert check_onnx(onnx, bundle, x[:120]) < 1e-5
+
+
+@pytest.mark.parametrize("name", FAMILIES)
+def test_torch_export_writes_the_same_numbers_as_the_torchscript_exporter(name: str, tmp_path: Path) -> None:
+    """The exporter a torch without the TorchScript one falls back to (``export_onnx(dynamo=None)``)."""
+    x = np.load(GOLDEN / "log.npy")
+    bundle = load_bundle(GOLDEN / name)
+    script = export_onnx(bundle, tmp_path / "script.onnx", dynamo=False)
+    dynamo = export_onnx(bundle, tmp_path / "dynamo.onnx", dynamo=True)
+    assert check_onnx(dynamo, bundle, x[:120]) < 1e-5
+    np.testing.assert_allclose(run_onnx(dynamo, bundle, x[:120]), run_onnx(script, bundle, x[:120]), atol=1e-6)

@@ -109,17 +109,22 @@ def neighbour_distance(
     reference: np.ndarray, queries: np.ndarray, neighbours: int, *, skip_self: bool = False
 ) -> np.ndarray:
     """Mean Euclidean distance of each query ``(N, E)`` to its ``neighbours`` nearest rows of ``reference``
-    ``(R, E)``; ``skip_self`` drops each query's nearest (the query is in the reference)."""
+    ``(R, E)``; ``skip_self`` drops each query's nearest (the query is in the reference).
+
+    In torch: its ``topk`` picks the nearest of a 2048 × 2048 block 5 times faster than NumPy's ``partition``
+    (which was a third of scoring a session), and its matrix product uses every thread it was given."""
     k = min(neighbours + int(skip_self), len(reference))
-    ref_sq = np.square(reference).sum(axis=1)  # (R,)
+    ref = torch.from_numpy(np.ascontiguousarray(reference, np.float32))  # (R, E)
+    ref_sq = ref.square().sum(dim=1)  # (R,)
     out = np.empty(len(queries), np.float32)
     for c in range(0, len(queries), QUERY_CHUNK):
-        q = queries[c : c + QUERY_CHUNK]  # (n, E)
-        sq = np.square(q).sum(axis=1)[:, None] + ref_sq[None] - 2.0 * (q @ reference.T)  # (n, R) no (n, R, E)
-        near = np.sqrt(np.maximum(np.partition(sq, k - 1, axis=1)[:, :k], 0.0))  # (n, k) the nearest
+        q = torch.from_numpy(np.ascontiguousarray(queries[c : c + QUERY_CHUNK], np.float32))  # (n, E)
+        sq = torch.addmm(q.square().sum(dim=1)[:, None] + ref_sq[None], q, ref.T, alpha=-2.0)  # (n, R) no (n, R, E)
+        near = torch.topk(sq, k, dim=1, largest=False, sorted=skip_self).values  # (n, k) the nearest, ascending
+        near = near.clamp_min_(0.0).sqrt_()
         if skip_self and k > 1:
-            near = np.sort(near, axis=1)[:, 1:]
-        out[c : c + QUERY_CHUNK] = near.mean(axis=1)
+            near = near[:, 1:]
+        out[c : c + QUERY_CHUNK] = near.mean(dim=1).numpy()
     return out
 
 
