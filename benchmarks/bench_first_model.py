@@ -1,6 +1,8 @@
 """Time to a first model, as a new user meets it: `workbench train SESSION` (both stages, the default family) on a
 new session of 1 hour and of 10 hours of 22-channel 100 Hz logs (demo walks as ROS 2 MCAP) with 5 % of the time
-labelled; and `workbench demo`'s first start to a served page.
+labelled; `workbench train` then `workbench export --predictions` on a session shaped as a quadruped's logs (11 IMU
+CSVs of 6 to 10 minutes, 6 channels at 50 Hz, 10 % labelled in 5 s pieces: :mod:`imu_logs`); and `workbench demo`'s
+first start to a served page.
 
 Each step runs in a fresh interpreter, as a person runs the command, and reports its wall time and peak resident set
 (``ru_maxrss``). Writing, ingesting and labelling the logs are set-up, timed but not part of the figure.
@@ -29,6 +31,7 @@ from pathlib import Path
 from common import Row, parse_args, record
 
 LABELLED = 0.05
+IMU_LABELLED = 0.10  # the quadruped-shaped session's labels: 10 % of the time, in 5 s pieces
 
 
 def child(step: str, *args: str) -> dict:
@@ -60,6 +63,35 @@ def run_child(step: str, args: list[str]) -> None:
                 "channels": len(logs[0].channel_names),
                 "labelled": sum(g.stop - g.start for g in added) / steps,
             }
+    elif step == "setup-imu":  # 11 IMU CSVs at 50 Hz, ingested, the reference imported, 10 % labelled in 5 s pieces
+        from imu_logs import write_imu_logs
+
+        from sessions import Session
+        from workbench.demo import seed_labels
+
+        folder = Path(args[0])
+        files, reference = write_imu_logs(
+            folder / "logs", n_logs=int(args[1]), minutes=(float(args[2]), float(args[3]))
+        )
+        with Session.create(folder / "session") as s:
+            logs = s.ingest(files)
+            s.import_reference(reference, create_terrains=True)
+            added = seed_labels(s, IMU_LABELLED, seed=0, segment_s=5.0)
+            steps = sum(x.n_samples for x in logs)
+            extra = {
+                "logs": len(logs),
+                "hours": steps / logs[0].rate_hz / 3600,
+                "steps": steps,
+                "channels": len(logs[0].channel_names),
+                "rate": logs[0].rate_hz,
+                "labelled": sum(g.stop - g.start for g in added) / steps,
+            }
+    elif step == "export":  # `workbench export SESSION --out OUT --predictions`
+        from workbench.cli import main as workbench
+
+        if workbench(["export", args[0], "--out", args[1], "--predictions"]) != 0:
+            raise SystemExit("workbench export failed")
+        extra = {"predictions": Path(args[1], "predictions.parquet").stat().st_size}
     elif step == "frames":  # the reference: read the logs, fit the normalisation, compute every log's frames
         from sessions import Session
         from training import Normalizer, log_frames
@@ -132,6 +164,43 @@ def demo_first_start(folder: Path, *, quick: bool) -> tuple[float, float]:
     return served, time.perf_counter() - t
 
 
+def session_steps(setup_step: str, args: list[str], *, export: bool) -> tuple[dict, dict, dict, dict | None]:
+    """In a temporary folder, each in a fresh interpreter: the set-up, the reference (the frames), `workbench train`
+    and, with ``export``, `workbench export --predictions`; what each reported."""
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        setup = child(setup_step, str(folder), *args)
+        print(f"set-up {setup}", flush=True)
+        session = str(folder / "session")
+        ref = child("frames", session)
+        print(f"reference {ref}", flush=True)
+        train = child("train", session)
+        print(f"train {train}", flush=True)
+        exported = child("export", session, str(folder / "export")) if export else None
+        if exported:
+            print(f"export {exported}", flush=True)
+    return setup, ref, train, exported
+
+
+def imu_first_model(*, quick: bool) -> Row:
+    """`workbench train` then `workbench export --predictions` on a session shaped as a quadruped's IMU logs."""
+    n_logs, low, high = ("3", "1", "2") if quick else ("11", "6", "10")
+    setup, ref, train, export = session_steps("setup-imu", [n_logs, low, high], export=True)
+    total = train["seconds"] + export["seconds"]
+    return Row(
+        f"`workbench train` + `export --predictions` (default family), {setup['logs']} logs of {low}-{high} min, "
+        f"{setup['steps']:,} steps of {setup['channels']}-channel {setup['rate']:.0f} Hz IMU CSV, "
+        f"{setup['labelled']:.1%} labelled in 5 s pieces",
+        f"{total:.0f} s (train {train['seconds']:.0f} s, export {export['seconds']:.0f} s), "
+        f"peak {max(train['peak'], export['peak']) / 2**30:.2f} GiB RSS",
+        f"reading the logs + computing the frames: {ref['seconds']:.0f} s",
+        f"{total / ref['seconds']:.1f}× the reference",
+        "≤ 60 s",
+        bool(total <= 60),
+        f"stage 1: {train['stage1']}; classifier v{train['classifier']}",
+    )
+
+
 def main() -> None:
     if "--child" in sys.argv:
         i = sys.argv.index("--child")
@@ -141,15 +210,7 @@ def main() -> None:
     sizes = ((2, 3.0, 60.0), (4, 6.0, 600.0)) if args.quick else ((6, 10.0, 60.0), (20, 30.0, 600.0))
     rows = []
     for n_logs, minutes, target in sizes:
-        with tempfile.TemporaryDirectory() as tmp:
-            folder = Path(tmp)
-            setup = child("setup", str(folder), str(n_logs), str(minutes))
-            print(f"set-up {setup}", flush=True)
-            session = str(folder / "session")
-            ref = child("frames", session)
-            print(f"reference {ref}", flush=True)
-            train = child("train", session)
-            print(f"train {train}", flush=True)
+        setup, ref, train, _ = session_steps("setup", [str(n_logs), str(minutes)], export=False)
         hours, gb = setup["hours"], train["peak"] / 2**30
         rows.append(
             Row(
@@ -163,6 +224,7 @@ def main() -> None:
                 f"stage 1: {train['stage1']}; classifier v{train['classifier']}",
             )
         )
+    rows.append(imu_first_model(quick=args.quick))
     with tempfile.TemporaryDirectory() as tmp:
         served, reference = demo_first_start(Path(tmp), quick=args.quick)
     rows.append(

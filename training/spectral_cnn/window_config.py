@@ -41,6 +41,8 @@ class WindowFitConfig:
         hidden: Channels of the network's convolutions.
         epochs: Passes over the labelled rows.
         refit_epochs: Passes over labelled and pseudo-labelled rows when self-training refits.
+        warm_refit: The refit goes on from the fold's first network (which labelled the stretches) rather than
+            from its initial weights.
         max_steps: Most optimiser steps of one fit, whatever the data's size (bounds a Retrain on a big session).
         batch: Rows per optimiser step.
         lr: AdamW learning rate.
@@ -57,7 +59,8 @@ class WindowFitConfig:
     k_folds: int = 5
     hidden: int = 64
     epochs: int = 60
-    refit_epochs: int = 30
+    refit_epochs: int = 10
+    warm_refit: bool = True
     max_steps: int = 2000
     batch: int = 128
     lr: float = 3e-3
