@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.demo.walks import generate_walk
+from workbench.demo import generate_walk
 
 IMU_RATE_HZ = 50.0
 COLUMNS = ("time", "ax", "ay", "az", "wx", "wy", "wz")
