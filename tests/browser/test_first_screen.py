@@ -7,6 +7,8 @@ import os
 import re
 import shutil
 import time
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -14,7 +16,7 @@ import pytest
 from sessions import Session
 from tests.conftest import REPO
 
-from .conftest import ARTIFACTS, close_notifications, open_tab, save_screenshot
+from .conftest import ARTIFACTS, Server, close_notifications, open_tab, save_screenshot
 from .test_workbench_ui import TINY, blur, open_workbench, rows, set_cursor, tiny_trained_session, wait_until
 
 pytestmark = pytest.mark.browser
@@ -34,21 +36,39 @@ def scored_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-@pytest.fixture
-def session_path(scored_session: Path, tmp_path: Path) -> Path:
-    path = tmp_path / "s"
-    shutil.copytree(scored_session, path)
-    return path
-
-
 def kept_files(path: Path) -> dict[str, float]:
     return {str(p): p.stat().st_mtime for p in (path / "cache").glob("scores-*/*")}
 
 
-def test_the_first_screen_is_drawn_from_the_kept_scoring(session_path: Path, serve, page) -> None:
-    kept = kept_files(session_path)
+@dataclass(frozen=True)
+class Screen:
+    """One server on a copy of the scored session and one page, shared by this module's tests in file order (a file
+    runs on one pytest worker, in order): a page load is 5 s of software WebGL in headless Chromium, and what each
+    test checks needs the page as a person leaves it, not a new one."""
+
+    path: Path
+    kept: dict[str, float]  # the kept scoring's files before the server started
+    server: Server
+    page: object
+
+
+@pytest.fixture(scope="module")
+def screen(scored_session: Path, tmp_path_factory: pytest.TempPathFactory, browser) -> Iterator[Screen]:
+    path = tmp_path_factory.mktemp("screen") / "s"
+    shutil.copytree(scored_session, path)
+    kept = kept_files(path)
+    server = Server(path, *TINY)
+    context = browser.new_context(viewport={"width": 1400, "height": 850})
+    try:
+        yield Screen(path, kept, server, context.new_page())
+    finally:
+        context.close()
+        server.stop()
+
+
+def test_the_first_screen_is_drawn_from_the_kept_scoring(screen: Screen) -> None:
+    session_path, kept, server, page = screen.path, screen.kept, screen.server, screen.page
     assert any(p.endswith("queue.json") for p in kept)
-    server = serve(session_path, *TINY)
     started = time.monotonic()
     page.goto(server.url)
     page.get_by_text("segments suggested").wait_for(timeout=30_000)  # the queue, without a scoring pass
@@ -75,9 +95,10 @@ def shown_at(page) -> float:
     return float(re.search(r"at ([\d.]+) s", caption).group(1))
 
 
-def test_the_camera_frame_follows_the_cursor(session_path: Path, serve, page) -> None:
-    server = serve(session_path, *TINY)
-    open_workbench(page, server.url)
+def test_the_camera_frame_follows_the_cursor(screen: Screen) -> None:
+    page = screen.page
+    if "cursor 0.00 s" not in page.inner_text("body"):  # the first test did not get as far as the page
+        open_workbench(page, screen.server.url)
     frame = page.locator("img[data-frame]")
     frame.wait_for(timeout=10_000)
     numbers = []
@@ -92,10 +113,12 @@ def test_the_camera_frame_follows_the_cursor(session_path: Path, serve, page) ->
     save_screenshot(page, "camera-follows-cursor")
 
 
-def test_a_predicted_stretch_is_accepted_with_one_key_and_undone(session_path: Path, serve, page) -> None:
+def test_a_predicted_stretch_is_accepted_with_one_key_and_undone(screen: Screen) -> None:
+    session_path, page = screen.path, screen.page
     before = rows(session_path)
-    server = serve(session_path, *TINY)
-    open_workbench(page, server.url)
+    if "walk_000" not in page.inner_text("body"):
+        open_workbench(page, screen.server.url)
+    set_cursor(page, 0.0)  # J finds the model's first stretch after the cursor: the one a new page shows first
     open_tab(page, "Label")
     blur(page)
     page.keyboard.press("j")
@@ -108,7 +131,7 @@ def test_a_predicted_stretch_is_accepted_with_one_key_and_undone(session_path: P
     classes = {r[3] for r in before}  # the classifier was trained on exactly these terrains
     assert len({r[3] for r in accepted}) == 1 and accepted[0][3] in classes
     for g, a, b, _, _ in accepted:  # only unlabelled time
-        assert not any(g == h and a < y and x < b for h, x, y in labelled)
+        assert not any(g == h and a < y and x < b for h, x, y in labelled), (accepted, sorted(labelled))
     page.get_by_text("Accepted").first.wait_for(timeout=10_000)
     save_screenshot(page, "stretch-accepted")
     close_notifications(page)

@@ -9,6 +9,8 @@ import re
 import shutil
 import sqlite3
 import time
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -18,7 +20,7 @@ from sessions import Session
 from tests.conftest import new_session
 from training import TrainConfig
 
-from .conftest import open_tab, save_screenshot
+from .conftest import Server, open_tab, save_screenshot
 
 pytestmark = pytest.mark.browser
 TINY = ("--hidden", "8", "--stage1-epochs", "2", "--stage2-epochs", "3")
@@ -45,11 +47,36 @@ def base_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tiny_trained_session(tmp_path_factory.mktemp("ui"), seed=3, labelled=0.15)
 
 
-@pytest.fixture
-def session_path(base_session: Path, tmp_path: Path) -> Path:
-    path = tmp_path / "s"
+@dataclass(frozen=True)
+class Workbench:
+    """One server on a copy of the trained session and one page, shared by this module's tests in file order (a
+    file runs on one pytest worker, in order): each goes on from the page the one before left, as a person does,
+    and a page load is 5 s of software WebGL in headless Chromium."""
+
+    path: Path
+    server: Server
+    page: object
+
+
+@pytest.fixture(scope="module")
+def workbench(base_session: Path, tmp_path_factory: pytest.TempPathFactory, browser) -> Iterator[Workbench]:
+    path = tmp_path_factory.mktemp("workbench") / "s"
     shutil.copytree(base_session, path)
-    return path
+    server = Server(path, *TINY)
+    context = browser.new_context(viewport={"width": 1400, "height": 850})
+    try:
+        yield Workbench(path, server, context.new_page())
+    finally:
+        context.close()
+        server.stop()
+
+
+def opened(workbench: Workbench):
+    """The shared page, opened on the workbench (again, when an earlier test stopped before it was)."""
+    page = workbench.page
+    if "walk_000" not in page.inner_text("body"):
+        open_workbench(page, workbench.server.url)
+    return page
 
 
 def rows(path: Path, where: str = "1") -> list[tuple]:
@@ -110,10 +137,10 @@ def blur(page) -> None:
     page.evaluate("document.activeElement && document.activeElement.blur()")
 
 
-def test_label_with_hotkeys_retrain_suggest_and_download(session_path: Path, serve, page) -> None:
+def test_label_with_hotkeys_retrain_suggest_and_download(workbench: Workbench) -> None:
+    session_path = workbench.path
     before = rows(session_path)
-    server = serve(session_path, *TINY)
-    open_workbench(page, server.url)
+    page = opened(workbench)
     # label 2 s of the first log as terrain 2 (grass) with the keyboard: cursor, B, cursor, E, 2, Enter
     t = free_seconds(session_path, 1, 2.0)
     set_cursor(page, t)
@@ -172,14 +199,11 @@ def test_label_with_hotkeys_retrain_suggest_and_download(session_path: Path, ser
     assert len(text.strip().splitlines()) == 1 + len(rows(session_path))
 
 
-def test_a_second_browser_sees_the_first_ones_label(session_path: Path, serve, browser) -> None:
-    server = serve(session_path, *TINY)
-    pages = []
-    for _ in range(2):
-        ctx = browser.new_context(viewport={"width": 1400, "height": 900})
-        pages.append(ctx.new_page())
-        open_workbench(pages[-1], server.url)
-    first, second = pages
+def test_a_second_browser_sees_the_first_ones_label(workbench: Workbench, browser) -> None:
+    session_path = workbench.path
+    first = opened(workbench)
+    second = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
+    open_workbench(second, workbench.server.url)
     open_tab(second, "Label")
     n = len(rows(session_path))
     second.get_by_text(f"{n} segments labelled").wait_for(timeout=10_000)
@@ -194,11 +218,10 @@ def test_a_second_browser_sees_the_first_ones_label(session_path: Path, serve, b
     assert len(rows(session_path)) == n + 1
     # the second browser kept its own view: its cursor did not move with the first one's
     assert "cursor 0.00 s" in second.inner_text("body")
-    for p in pages:
-        p.context.close()
+    second.context.close()
 
 
-def test_upload_ingests_a_log_and_refuses_a_broken_file(session_path: Path, serve, page, tmp_path: Path) -> None:
+def test_upload_ingests_a_log_and_refuses_a_broken_file(workbench: Workbench, tmp_path: Path) -> None:
     from workbench.demo import generate_demo_logs
 
     extra = generate_demo_logs(tmp_path / "more", n_logs=1, minutes=0.3, seed=9)[0]
@@ -206,8 +229,8 @@ def test_upload_ingests_a_log_and_refuses_a_broken_file(session_path: Path, serv
     shutil.copy(extra, good)
     bad = tmp_path / "broken.mcap"
     bad.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 100)
-    server = serve(session_path, *TINY)
-    open_workbench(page, server.url)
+    session_path = workbench.path
+    page = opened(workbench)
     open_tab(page, "Data")
     upload = page.locator("input[type=file]").first
     upload.set_input_files(str(bad))

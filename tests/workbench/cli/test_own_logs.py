@@ -172,7 +172,9 @@ def test_reference_truth_is_imported_apart_from_labels(tmp_path: Path, demo_mcap
 
 
 def test_training_prints_progress_lines_when_its_output_goes_to_a_file(tmp_path: Path, demo_mcap: Path) -> None:
-    """Wall 5: `workbench train` printed nothing for 20 minutes when its output went to a file."""
+    """Wall 5: `workbench train` printed nothing for 20 minutes when its output went to a file. The paper family's
+    LSTM (epochs and a validation loss) in a child whose output is a file; the default family's stages are checked
+    in :func:`test_classify_reads_files_as_ingest_does`, whose output is captured."""
     import subprocess
     import sys
 
@@ -185,7 +187,21 @@ def test_training_prints_progress_lines_when_its_output_goes_to_a_file(tmp_path:
     )
     with open(tmp_path / "train.log", "w") as out:
         done = subprocess.run(
-            [sys.executable, "-c", code, "train", str(s), "--stage", "predictor", "--max-epochs", "2", "--hidden", "8"],
+            [
+                sys.executable,
+                "-c",
+                code,
+                "train",
+                str(s),
+                "--stage",
+                "predictor",
+                "--model",
+                "paper",
+                "--max-epochs",
+                "2",
+                "--hidden",
+                "8",
+            ],
             stdout=out,
             stderr=subprocess.STDOUT,
             timeout=300,
@@ -209,9 +225,13 @@ def _walk_csv(path: Path, freq: float, seed: int, *, hole: bool = False) -> Path
     return path
 
 
-def test_classify_reads_files_as_ingest_does(tmp_path: Path, capsys) -> None:
+def test_classify_reads_files_as_ingest_does(tmp_path: Path, capsys, monkeypatch) -> None:
     """Wall 6: `classify` took none of ingest's options, yet told the user to `use --allow-gaps`, which it refused;
-    headerless files could not be classified."""
+    headerless files could not be classified. (Its `train`, output captured, also shows the default family's
+    progress as lines: wall 5 for both of its stages.)"""
+    from workbench.cli import model_commands
+
+    monkeypatch.setattr(model_commands, "PROGRESS_EVERY_S", 0.0)
     mapping = tmp_path / "m.toml"
     mapping.write_text('[csv]\nheader = false\ncolumns = ["ax", "ay", "az"]\nsample_rate_hz = 100.0\n')
     logs = [_walk_csv(tmp_path / f"w{i}.csv", (8.0, 25.0)[i % 2], i) for i in range(4)]
@@ -223,7 +243,13 @@ def test_classify_reads_files_as_ingest_does(tmp_path: Path, capsys) -> None:
         "log,terrain,start_s,end_s\n" + "".join(f"w{i},{('soft', 'hard')[i % 2]},2.0,12.0\n" for i in range(4))
     )
     assert run("labels", "import", s, labels, "--create-terrains") == 0
+    capsys.readouterr()
     assert run("train", s, "--hidden", "8", "--max-epochs", "1") == 0
+    text = capsys.readouterr().out
+    for stage in ("predictor", "classifier"):  # the default family's two stages, each as lines with the time left
+        lines = [x for x in text.splitlines() if x.startswith(f"{stage}: ") and "left" in x]
+        assert lines and "spent, about" in lines[-1] and f"{stage}: done in" in text
+    assert "\r" not in text
     assert run("export", s, "--out", tmp_path / "x") == 0
     new = _walk_csv(tmp_path / "new.csv", 25.0, 9, hole=True)
     capsys.readouterr()
