@@ -7,12 +7,15 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import socket
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 from tests.conftest import REPO
 
@@ -75,6 +78,26 @@ class Server:
             print(f"--- server output ({self.log_path}) ---\n{self.output()}")
         else:
             self.log_path.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def shared_page(
+    source: Path, folder: Path, browser, *extra: str, before: Callable[[Path], Any] | None = None
+) -> Iterator[tuple[Path, Any, Server, Any]]:
+    """A copy of the session ``source`` at ``folder / "s"``, a ``workbench serve`` on it and one page (not opened),
+    for a module's tests to share in file order (a file runs on one pytest worker, in order): a page load is 5 s of
+    software WebGL in headless Chromium. ``before`` reads the copy before the server starts; its result comes
+    second."""
+    path = folder / "s"
+    shutil.copytree(source, path)
+    seen = before(path) if before is not None else None
+    server = Server(path, *extra)
+    context = browser.new_context(viewport={"width": 1400, "height": 850})
+    try:
+        yield path, seen, server, context.new_page()
+    finally:
+        context.close()
+        server.stop()
 
 
 def save_screenshot(page, name: str) -> Path:

@@ -16,7 +16,7 @@ import pytest
 from sessions import Session
 from tests.conftest import REPO
 
-from .conftest import ARTIFACTS, Server, close_notifications, open_tab, save_screenshot
+from .conftest import ARTIFACTS, Server, close_notifications, open_tab, save_screenshot, shared_page
 from .test_workbench_ui import TINY, blur, open_workbench, rows, set_cursor, tiny_trained_session, wait_until
 
 pytestmark = pytest.mark.browser
@@ -54,16 +54,8 @@ class Screen:
 
 @pytest.fixture(scope="module")
 def screen(scored_session: Path, tmp_path_factory: pytest.TempPathFactory, browser) -> Iterator[Screen]:
-    path = tmp_path_factory.mktemp("screen") / "s"
-    shutil.copytree(scored_session, path)
-    kept = kept_files(path)
-    server = Server(path, *TINY)
-    context = browser.new_context(viewport={"width": 1400, "height": 850})
-    try:
-        yield Screen(path, kept, server, context.new_page())
-    finally:
-        context.close()
-        server.stop()
+    with shared_page(scored_session, tmp_path_factory.mktemp("screen"), browser, *TINY, before=kept_files) as shared:
+        yield Screen(*shared)
 
 
 def test_the_first_screen_is_drawn_from_the_kept_scoring(screen: Screen) -> None:

@@ -20,7 +20,7 @@ from sessions import Session
 from tests.conftest import new_session
 from training import TrainConfig
 
-from .conftest import Server, open_tab, save_screenshot
+from .conftest import Server, open_tab, save_screenshot, shared_page
 
 pytestmark = pytest.mark.browser
 TINY = ("--hidden", "8", "--stage1-epochs", "2", "--stage2-epochs", "3")
@@ -60,15 +60,8 @@ class Workbench:
 
 @pytest.fixture(scope="module")
 def workbench(base_session: Path, tmp_path_factory: pytest.TempPathFactory, browser) -> Iterator[Workbench]:
-    path = tmp_path_factory.mktemp("workbench") / "s"
-    shutil.copytree(base_session, path)
-    server = Server(path, *TINY)
-    context = browser.new_context(viewport={"width": 1400, "height": 850})
-    try:
-        yield Workbench(path, server, context.new_page())
-    finally:
-        context.close()
-        server.stop()
+    with shared_page(base_session, tmp_path_factory.mktemp("workbench"), browser, *TINY) as (path, _, server, page):
+        yield Workbench(path, server, page)
 
 
 def opened(workbench: Workbench):
