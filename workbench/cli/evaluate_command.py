@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Literal
 
@@ -9,7 +10,10 @@ import tyro
 
 from training import FeatureMode
 
+from ..retrain import RETRAIN
 from .model_commands import check_device
+
+STAGE2_EPOCHS = 150  # the protocols' stage 2 (the paper family) when --stage2-epochs is not given
 
 Pos = tyro.conf.Positional
 
@@ -24,7 +28,7 @@ def evaluate(
     hidden: int = 200,
     seed: int = 0,
     stage1_epochs: int = 40,
-    stage2_epochs: int = 150,
+    stage2_epochs: int | None = None,
     folds: int = 5,
     out: Path | None = None,
     simulate: bool = False,
@@ -61,7 +65,8 @@ def evaluate(
         hidden: LSTM width of both stages.
         seed: Seed of folds, labelled subset and training.
         stage1_epochs: Most epochs of stage 1 (early stopping on validation loss).
-        stage2_epochs: Most epochs of stage 2.
+        stage2_epochs: Most epochs of stage 2 (the paper family's LSTM); unset: 150, and for a session the
+            Retrain's (100, early stopping on its validation loss).
         folds: Outer folds of the qcat and demo protocols (borealtc keeps the authors' 5).
         out: Also write per-fold details as JSON here (with --simulate: the folder for the plot).
         simulate: Run the label-efficiency simulation (borealtc and demo).
@@ -90,7 +95,8 @@ def evaluate(
         from ..evaluation import evaluate_session
 
         with Session.open(folder) as s:
-            print(evaluate_session(s, reference=reference, folds=folds, seed=seed))
+            config = None if stage2_epochs is None else replace(RETRAIN.classifier, max_epochs=stage2_epochs)
+            print(evaluate_session(s, reference=reference, folds=folds, config=config, seed=seed))
         return
     if simulate:
         print(
@@ -123,13 +129,18 @@ def evaluate(
             hidden=hidden,
             seed=seed,
             stage1_epochs=stage1_epochs,
-            stage2_epochs=stage2_epochs,
+            stage2_epochs=stage2_epochs or STAGE2_EPOCHS,
             out=out,
             device=device,
         )
     elif dataset == "qcat":
         report = ev.evaluate_qcat(
-            folder, hidden=hidden, seed=seed, folds=folds, epochs=(stage1_epochs, stage2_epochs), device=device
+            folder,
+            hidden=hidden,
+            seed=seed,
+            folds=folds,
+            epochs=(stage1_epochs, stage2_epochs or STAGE2_EPOCHS),
+            device=device,
         )
     else:
         report = ev.evaluate_demo(
@@ -138,7 +149,7 @@ def evaluate(
             hidden=hidden,
             seed=seed,
             folds=folds,
-            epochs=(stage1_epochs, stage2_epochs),
+            epochs=(stage1_epochs, stage2_epochs or STAGE2_EPOCHS),
             device=device,
         )
     print(report)

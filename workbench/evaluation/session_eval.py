@@ -85,7 +85,11 @@ def evaluate_session(
     outs = stage1_outputs(session, p_version, bundle, logs)
     index = {x.id: i for i, x in enumerate(logs)}
     labels = [s for s in session.segments() if s.log_id in index]
-    segments = [(index[s.log_id], s.start, s.stop, classes.index(s.terrain)) for s in labels]
+    # stage 2 learns the labelled terrains only, as `workbench train` does: an output for a terrain nobody labelled
+    # could only be wrong, and a short fit did predict one (outside every row of the confusion table)
+    learned = tuple(c for c in classes if c in {s.terrain for s in labels})
+    to_session = np.asarray([classes.index(c) for c in learned])  # a learned class's index among the terrains
+    segments = [(index[s.log_id], s.start, s.stop, learned.index(s.terrain)) for s in labels]
     k = min(folds, len(judged))
     y_true, y_pred, rows = [], [], []
     unmeasured: dict[str, int] = {}  # reference samples of a terrain no fold could have predicted
@@ -106,15 +110,15 @@ def evaluate_session(
                     kept, labels, lambda x: signal_change_points(session, x), shortest=front.span
                 )
             ]
-            fit = fam.fit(features, train, classes, config=window, stretches=stretches)
+            fit = fam.fit(features, train, learned, config=window, stretches=stretches)
         else:
-            fit = fit_classifier(features, train, classes, config=config, hidden=hidden)
+            fit = fit_classifier(features, train, learned, config=config, hidden=hidden)
         order = sorted(held_logs)
         scored = score_logs(fit.models, [features[i] for i in order], [outs[logs[i].id].surprise() for i in order])
         fold_true, fold_pred = [], []
-        trained = {s[3] for s in train}
+        trained = {int(to_session[s[3]]) for s in train}
         for i, s in zip(order, scored, strict=True):
-            predicted = s.predicted
+            predicted = to_session[s.predicted]
             for a, b, terrain in truth[logs[i].id]:
                 c = classes.index(terrain)
                 if c not in trained:  # no label of it outside the fold: no model could be right; not a recall of 0
@@ -136,11 +140,7 @@ def evaluate_session(
     m = classification_metrics(np.concatenate(y_true), np.concatenate(y_pred), classes)
     rate = logs[0].rate_hz
     # rows and columns of the terrains in use only: a session's other terrains are empty lines
-    in_use = [
-        c
-        for c in classes
-        if c in {t for x in judged for _, _, t in truth[logs[x].id]} | {classes[s[3]] for s in segments}
-    ]
+    in_use = [c for c in classes if c in {t for x in judged for _, _, t in truth[logs[x].id]} | set(learned)]
     at = [classes.index(c) for c in in_use]
     reference_logs = {c: sum(any(t == c for _, _, t in truth[logs[x].id]) for x in judged) for c in in_use}
     recall_rows = []
