@@ -6,6 +6,7 @@ import os
 import shutil
 import sqlite3
 from collections.abc import Iterator
+from functools import partial
 from pathlib import Path
 
 import pytest
@@ -63,6 +64,15 @@ def add_terrains(s: Session, names: tuple[str, ...] = TEST_TERRAINS) -> Session:
 def new_session(path: Path, terrains: tuple[str, ...] = TEST_TERRAINS) -> Session:
     """``Session.create`` with the terrains a test labels with."""
     return add_terrains(Session.create(path), terrains)
+
+
+@pytest.fixture
+def quick_stage1(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The default family's stage 1 fitted in 60 AdamW steps instead of 600, for tests of what the CLI wires
+    together (the fit itself: tests/training/test_frame_predictor.py); its stage 2 reads the frames, not stage 1."""
+    from workbench.cycle import frame_stage1
+
+    monkeypatch.setattr(frame_stage1, "FramePredictorFit", partial(frame_stage1.FramePredictorFit, steps=60))
 
 
 @pytest.fixture

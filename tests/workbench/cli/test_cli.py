@@ -102,7 +102,7 @@ def test_dry_run_reports_refusals_with_exit_2(tmp_path: Path, capsys) -> None:
     assert "REFUSED: empty file" in capsys.readouterr().out
 
 
-def test_demo_prepares_a_session_without_serving(tmp_path: Path, capsys) -> None:
+def test_demo_prepares_a_session_without_serving(tmp_path: Path, capsys, quick_stage1) -> None:
     s = tmp_path / "demo"
     assert run("demo", "--session", s, "--logs", "2", "--minutes", "0.5", "--no-serve") == 0
     logs = Session.open(s).logs()

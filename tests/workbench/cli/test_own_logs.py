@@ -225,7 +225,7 @@ def _walk_csv(path: Path, freq: float, seed: int, *, hole: bool = False) -> Path
     return path
 
 
-def test_classify_reads_files_as_ingest_does(tmp_path: Path, capsys, monkeypatch) -> None:
+def test_classify_reads_files_as_ingest_does(tmp_path: Path, capsys, monkeypatch, quick_stage1) -> None:
     """Wall 6: `classify` took none of ingest's options, yet told the user to `use --allow-gaps`, which it refused;
     headerless files could not be classified. (Its `train`, output captured, also shows the default family's
     progress as lines: wall 5 for both of its stages.)"""

@@ -138,7 +138,9 @@ def test_a_session_whose_stage1_is_the_lstm_keeps_working(tmp_path: Path, demo_l
     s.close()
 
 
-def test_the_cli_trains_the_frame_predictor_by_default_and_the_lstm_for_the_paper(tmp_path: Path, demo_logs, capsys):
+def test_the_cli_trains_the_frame_predictor_by_default_and_the_lstm_for_the_paper(
+    tmp_path: Path, demo_logs, capsys, quick_stage1
+):
     s = tmp_path / "s"
     assert main(["new", str(s)]) == 0
     assert main(["ingest", str(s), str(demo_logs[0])]) == 0
