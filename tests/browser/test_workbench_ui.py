@@ -205,8 +205,10 @@ def test_a_second_browser_sees_the_first_ones_label(workbench: Workbench, browse
     first.keyboard.press("b")
     set_cursor(first, t + 2.5)
     first.keyboard.press("e")
+    first.get_by_text(f"range {t:.2f}–{t + 2.5:.2f} s").wait_for(timeout=10_000)  # the server has the range
     first.keyboard.press("4")
     first.keyboard.press("Enter")
+    first.get_by_text("Saved").first.wait_for(timeout=10_000)
     second.get_by_text(f"{n + 1} segments labelled").wait_for(timeout=10_000)
     assert len(rows(session_path)) == n + 1
     # the second browser kept its own view: its cursor did not move with the first one's
