@@ -219,7 +219,7 @@ def test_retrain_can_be_cancelled_and_saves_nothing(state: SharedState) -> None:
     assert len(state.session.model_versions()) == before
 
 
-def test_retrain_needs_two_terrains_and_stage1_follows_new_logs(tmp_path: Path, demo_logs) -> None:  # noqa: F811
+def test_retrain_needs_two_terrains_and_stage1_follows_new_logs(tmp_path: Path, demo_logs, quick_stage1) -> None:  # noqa: F811
     with new_session(tmp_path / "s") as s:
         s.ingest(demo_logs[:1])
         st = SharedState(s)
