@@ -16,6 +16,7 @@ HELD_OUT = "held-out logs"
 SAME_RUN = "same run"
 MIXED = "held-out logs and same run"
 NOT_MEASURED = "not measurable"
+MISSED_RECALL = 0.5  # a terrain whose measured recall is below this is named: the model misses it
 
 
 def _recall(true: np.ndarray, pred: np.ndarray, k: int) -> float | None:
@@ -87,10 +88,29 @@ def terrain_estimate(
     }
 
 
+def missed_terrains(estimate: Mapping, *, below: float = MISSED_RECALL) -> list[tuple[str, float]]:
+    """The terrains whose measured recall is under ``below`` (name, recall), worst first: the ones a person should
+    label more of. Read from ``per_terrain``, so an estimate saved before this existed gives them too."""
+    per = estimate.get("per_terrain") or {}
+    low = [(n, float(e["recall"])) for n, e in per.items() if e.get("recall") is not None and e["recall"] < below]
+    return sorted(low, key=lambda x: x[1])
+
+
+def missed_words(missed: Sequence[tuple[str, float]]) -> str:
+    """``"the model misses sand (15 % recall), grass (40 %)"``; empty when nothing is missed."""
+    if not missed:
+        return ""
+    named = [f"{n} ({100 * r:.0f} % recall)" if i == 0 else f"{n} ({100 * r:.0f} %)" for i, (n, r) in enumerate(missed)]
+    return "the model misses " + _names(named)
+
+
 def _note(per: Mapping[str, dict], kind: str, gap: float | None, gap_terrains: int) -> str:
     one_log = sorted(n for n, e in per.items() if e["by"] == SAME_RUN)
     unmeasured = sorted(n for n, e in per.items() if e["by"] == NOT_MEASURED)
     parts = []
+    missed = missed_terrains({"per_terrain": per})
+    if missed:  # first: what the person can fix by labelling
+        parts.append(f"{missed_words(missed)}: label more of {'it' if len(missed) == 1 else 'them'}")
     if kind == HELD_OUT:
         parts.append("measured on held-out logs: expect about this on new runs")
     elif one_log:

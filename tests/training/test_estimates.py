@@ -4,7 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from training import HELD_OUT, MIXED, NOT_MEASURED, SAME_RUN, estimate_headline, estimate_table, terrain_estimate
+from training import (
+    HELD_OUT,
+    MIXED,
+    NOT_MEASURED,
+    SAME_RUN,
+    estimate_headline,
+    estimate_table,
+    missed_terrains,
+    missed_words,
+    terrain_estimate,
+)
 
 CLASSES = ("ice", "wet", "carpet")
 
@@ -47,3 +57,17 @@ def test_held_out_logs_everywhere_and_a_terrain_nothing_could_measure() -> None:
     assert "carpet: one labelled piece, not measurable" in e["note"]
     nothing = terrain_estimate(CLASSES, {0: 1, 1: 1}, (np.zeros(0), np.zeros(0)))
     assert nothing["accuracy"] is None and nothing["kind"] == NOT_MEASURED and estimate_headline(nothing) is None
+
+
+def test_a_terrain_under_half_recall_is_named_first_in_the_note() -> None:
+    """Issue 54: a minority terrain the model misses is named where a person decides what to label next."""
+    e = terrain_estimate(
+        CLASSES, {0: 2, 1: 2, 2: 2}, _steps({0: 0.9, 1: 0.9, 2: 0.9}), _steps({0: 0.9, 1: 0.3, 2: 0.45})
+    )
+    assert missed_terrains(e) == [("wet", 0.3), ("carpet", 0.45)]  # worst first
+    assert e["note"].startswith("the model misses wet (30 % recall), carpet (45 %): label more of them;")
+    assert missed_words(missed_terrains(e, below=0.4)) == "the model misses wet (30 % recall)"
+    fine = terrain_estimate(CLASSES, {0: 2, 1: 2, 2: 2}, _steps({0: 0.9, 1: 0.9, 2: 0.9}), _steps({0: 0.9, 1: 0.5}))
+    assert missed_terrains(fine) == [] and "misses" not in fine["note"]  # 50 % is not under half
+    # an estimate saved before the names existed still gives them
+    assert missed_terrains({"per_terrain": {"sand": {"recall": 0.1}, "ice": {"recall": None}}}) == [("sand", 0.1)]

@@ -7,7 +7,7 @@ import html
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from training import HELD_OUT, estimate_headline
+from training import HELD_OUT, estimate_headline, missed_terrains, missed_words
 
 if TYPE_CHECKING:
     from .host import PanelHost
@@ -23,7 +23,7 @@ def status_html(host: PanelHost) -> str:
     classifier = session.active_model("classifier")
     predictor = session.active_model("predictor")
     if classifier is not None:
-        model = f"<b>{html.escape(str(classifier.config.get('model', 'paper')))} v{classifier.id}</b>" + _figure(
+        model = f"<b>{html.escape(str(classifier.config.get('model', 'paper')))} v{classifier.id}</b>" + figure_html(
             classifier.metrics
         )
     elif predictor is not None:
@@ -48,7 +48,7 @@ def status_html(host: PanelHost) -> str:
     return f"<div style='font-size:0.8em;line-height:1.5'>{model}<br>{labels}{doing_html}</div>"
 
 
-def _figure(m: dict) -> str:
+def figure_html(m: dict) -> str:
     """The active classifier's estimate, saying which it is; a same-run figure carries its caution, in full on hover
     (the person deciding whether to label more reads it here)."""
     estimate = m.get("estimate")
@@ -56,11 +56,13 @@ def _figure(m: dict) -> str:
         words = estimate_headline(estimate)
         if words is None:
             return " · <span style='color:#b26a00'>accuracy not measurable yet</span>"
+        missed = missed_words(missed_terrains(estimate)).removeprefix("the model ")  # the line names the model
+        misses = f" · <b style='color:#c62828'>{html.escape(missed)}</b>" if missed else ""
         if estimate["kind"] == HELD_OUT:
-            return f" · {html.escape(words)}"
+            return f" · {html.escape(words)}{misses}"
         return (
             f" · <span title='{html.escape(estimate['note'], quote=True)}'>{html.escape(words)} "
-            "<b style='color:#b26a00'>(new runs may score lower)</b></span>"
+            f"<b style='color:#b26a00'>(new runs may score lower)</b></span>{misses}"
         )
     held = m.get("held_out_logs") or {}  # a version from before the estimate, or the paper family's
     acc, where = held.get("accuracy"), "on held-out logs"

@@ -1,0 +1,32 @@
+"""The status line's model figure: the estimate, its caution, and the terrains the model misses (issue 54)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from training import terrain_estimate
+from workbench.ui.status_bar import figure_html
+
+CLASSES = ("concrete", "grass", "sand")
+
+
+def _steps(recalls: tuple[float, ...], n: int = 100) -> tuple[np.ndarray, np.ndarray]:
+    true = np.repeat(np.arange(len(recalls)), n)
+    pred = np.concatenate(
+        [np.r_[np.full(round(r * n), k), np.full(n - round(r * n), (k + 1) % 3)] for k, r in enumerate(recalls)]
+    )
+    return true, pred
+
+
+def test_the_status_line_names_a_terrain_the_model_misses_in_red() -> None:
+    held = terrain_estimate(CLASSES, {0: 2, 1: 2, 2: 2}, _steps((0.9, 0.9, 0.9)), _steps((0.95, 0.9, 0.2)))
+    line = figure_html({"estimate": held})
+    assert "on held-out logs" in line and "<b style='color:#c62828'>misses sand (20 % recall)</b>" in line
+    same = terrain_estimate(CLASSES, {0: 1, 1: 1, 2: 1}, _steps((0.9, 0.4, 0.9)))  # same-run figures miss too
+    line = figure_html({"estimate": same})
+    assert "new runs may score lower" in line and "misses grass (40 % recall)" in line
+
+
+def test_no_terrain_is_named_when_every_recall_is_half_or_more() -> None:
+    fine = terrain_estimate(CLASSES, {0: 2, 1: 2, 2: 2}, _steps((0.9, 0.9, 0.9)), _steps((0.9, 0.5, 0.6)))
+    assert "misses" not in figure_html({"estimate": fine})
