@@ -24,47 +24,29 @@ LABELLED = 0.1
 KEPT = 0.1  # the minority terrain's share of its training partitions
 
 
-def recalls(parts, y, run_of, classes, *, minority: int | None, seed: int) -> tuple[dict[str, float], float]:
+def recalls(runs, labels, classes, *, minority: int | None, seed: int) -> tuple[dict[str, float], float]:
     """Each terrain's recall over every test window of the 5 outer folds by run, and the accuracy."""
-    from dataclasses import replace
+    from workbench.evaluation import borealtc_window_protocol
 
-    from training import (
-        Normalizer,
-        SpectralConfig,
-        SpectralSteps,
-        WindowFitConfig,
-        fit_window_classifier,
-        log_frames,
-        run_classifiers,
+    def keep_a_tenth(fold: int, train_idx: np.ndarray, y: np.ndarray) -> np.ndarray:
+        mine = train_idx[y[train_idx] == minority]
+        keep = set(np.random.default_rng(fold).choice(mine, max(1, round(KEPT * len(mine))), replace=False))
+        return np.asarray([i for i in train_idx if y[i] != minority or i in keep])
+
+    results = borealtc_window_protocol(
+        runs,
+        labels,
+        classes,
+        rate_hz=RATE_HZ,
+        labelled=LABELLED,
+        split="runs",
+        seed=seed,
+        log=lambda _: None,
+        train_filter=None if minority is None else keep_a_tenth,
     )
-    from workbench.evaluation import WindowProtocol, labelled_subset, outer_folds, window_inputs
-
-    protocol = WindowProtocol()
-    size, win, stride = (round(s * RATE_HZ) for s in (protocol.partition_s, protocol.window_s, protocol.stride_s))
-    fit = replace(WindowFitConfig(), seed=seed)
-    true_all, pred_all = [], []
-    for fold, (train_idx, test_idx) in enumerate(
-        outer_folds(y, run_of, split="runs", folds=protocol.folds, seed=seed), start=1
-    ):
-        if minority is not None:
-            mine = train_idx[y[train_idx] == minority]
-            keep = set(np.random.default_rng(fold).choice(mine, max(1, round(KEPT * len(mine))), replace=False))
-            train_idx = np.asarray([i for i in train_idx if y[i] != minority or i in keep])
-        train = [parts[i] for i in train_idx]
-        normalizer = Normalizer.fit(train)
-        config = SpectralConfig.for_log(np.concatenate(train[:50]), RATE_HZ)
-        features = [SpectralSteps(log_frames(p, config, transform=normalizer), len(p), config) for p in train]
-        chosen = set(labelled_subset(train_idx, y, LABELLED, seed=seed + fold).tolist())
-        first = config.span - 1  # the first step whose window holds full frames only
-        segments = [(j, first, size, int(y[i])) for j, i in enumerate(train_idx) if i in chosen]
-        stretches = [(j, first, size) for j, i in enumerate(train_idx) if i not in chosen]
-        groups = [int(run_of[i]) for i in train_idx]
-        cfit = fit_window_classifier(features, segments, classes, config=fit, stretches=stretches, groups=groups)
-        x, owner = window_inputs([parts[i] for i in test_idx], win, stride, config, normalizer)
-        true_all.append(y[test_idx][owner])
-        pred_all.append(run_classifiers(cfit.models, [x])[0].mean(0).argmax(1))
-    t, p = np.concatenate(true_all), np.concatenate(pred_all)
-    return {c: float((p[t == k] == k).mean()) for k, c in enumerate(classes)}, float((t == p).mean())
+    confusion = sum(np.asarray(r.metrics["confusion"]) for r in results)  # (K, K) rows: truth, every test window
+    recall = confusion.diagonal() / np.maximum(confusion.sum(axis=1), 1)
+    return dict(zip(classes, recall.tolist(), strict=True)), float(confusion.trace() / confusion.sum())
 
 
 def main() -> int:
@@ -76,18 +58,17 @@ def main() -> int:
         print(f"skipped: {DATA} is absent (BorealTC is not shipped with the project)")
         return 0
     sys.path.insert(0, str(ROOT))
-    from workbench.evaluation import WindowProtocol, load_runs, partitions
+    from workbench.evaluation import load_runs
 
     runs, terrains, _ = load_runs(DATA)
     classes = sorted(set(terrains))
-    size = round(WindowProtocol().partition_s * RATE_HZ)
-    parts, y, run_of = partitions(runs, [classes.index(t) for t in terrains], size)
+    labels = [classes.index(t) for t in terrains]
     t0 = time.monotonic()
-    full, acc = recalls(parts, y, run_of, classes, minority=None, seed=opts.seed)
+    full, acc = recalls(runs, labels, classes, minority=None, seed=opts.seed)
     print(f"all time: accuracy {acc:.1%}; recall " + ", ".join(f"{c} {r:.1%}" for c, r in full.items()), flush=True)
     for name in opts.terrains or classes:
         k = classes.index(name)
-        rec, acc = recalls(parts, y, run_of, classes, minority=k, seed=opts.seed)
+        rec, acc = recalls(runs, labels, classes, minority=k, seed=opts.seed)
         drop = 100 * (full[name] - rec[name])
         print(
             f"{name} at a tenth of its time: its recall {rec[name]:.1%} against {full[name]:.1%} with all of it "

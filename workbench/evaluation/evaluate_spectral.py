@@ -82,6 +82,7 @@ def borealtc_window_protocol(
     fit: WindowFitConfig | None = None,
     seed: int = 0,
     log: Callable[[str], None] = print,
+    train_filter: Callable[[int, np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> list[FoldResult]:
     """Run the protocol for the default family; one result per outer fold.
 
@@ -96,6 +97,9 @@ def borealtc_window_protocol(
         fit: The window classifier's fit settings (self-training on by default).
         seed: Seed of the folds, the labelled subset and the fit.
         log: Where progress lines go.
+        train_filter: ``(fold, training partition indices, every partition's class) -> the indices kept``: a
+            protocol that trains on less of some terrain (the minority row, ``benchmarks/minority_borealtc.py``);
+            the test folds are unchanged.
     """
     protocol = protocol or WindowProtocol()
     size, win, stride = (round(s * rate_hz) for s in (protocol.partition_s, protocol.window_s, protocol.stride_s))
@@ -108,6 +112,8 @@ def borealtc_window_protocol(
         outer_folds(y, run_of, split=split, folds=protocol.folds, seed=seed), start=1
     ):
         t0 = time.monotonic()
+        if train_filter is not None:
+            train_idx = np.asarray(train_filter(fold, train_idx, y))
         train = [parts[i] for i in train_idx]
         normalizer = Normalizer.fit(train)
         config = SpectralConfig.for_log(np.concatenate(train[:50]), rate_hz)
