@@ -331,7 +331,7 @@ def fit_window_classifier(
         index, py, taken = _pseudo_labels(model, pool, bounds, kept, config.agree)
         if taken:  # the pseudo-labelled rows are read in the pool, not copied beside the labelled ones
             y = np.concatenate([y, py])
-            start = model.train() if config.warm_refit else fresh()
+            start = model if config.warm_refit else fresh()  # train_rows puts it back in training mode
             model = train_rows(start, x, y, config.refit_epochs, config, seed, cancel, front=front, more=(pool, index))
         return model, taken, seen, labelled
 
