@@ -3,28 +3,26 @@ default family as it is; each terrain in turn kept at a tenth of its training pa
 alike, drawn per fold), the test folds unchanged. Prints each terrain's recall there against its recall with all its
 time (the target: within 10 points).
 
-    python benchmarks/minority_borealtc.py [--seed S] [TERRAIN ...]
+    python benchmarks/minority_borealtc.py [--seed S] [--balance B] [--inner F] [TERRAIN ...]
 
-About 90 s per terrain on 2 cores. Skips with a reason when ``../shared/data/borealtc`` is absent.
+``--balance`` picks :attr:`training.WindowFitConfig.balance`. ``--inner F`` screens on inner folds: the protocol runs
+on outer fold F's training runs only (5 inner folds by run over them; F's test runs are never read), as settings are
+chosen. About 90 s per terrain on 2 cores. Skips with a reason when ``../shared/data/borealtc`` is absent.
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
 import time
-from pathlib import Path
+from functools import partial
 
 import numpy as np
+from borealtc_runs import RATE_HZ, borealtc_arguments, borealtc_runs
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT.parent / "shared" / "data" / "borealtc"
-RATE_HZ = 100.0
 LABELLED = 0.1
 KEPT = 0.1  # the minority terrain's share of its training partitions
 
 
-def recalls(runs, labels, classes, *, minority: int | None, seed: int) -> tuple[dict[str, float], float]:
+def recalls(runs, labels, classes, *, minority: int | None, seed: int, fit) -> tuple[dict[str, float], float]:
     """Each terrain's recall over every test window of the 5 outer folds by run, and the accuracy."""
     from workbench.evaluation import borealtc_window_protocol
 
@@ -41,6 +39,7 @@ def recalls(runs, labels, classes, *, minority: int | None, seed: int) -> tuple[
         labelled=LABELLED,
         split="runs",
         seed=seed,
+        fit=fit,
         log=lambda _: None,
         train_filter=None if minority is None else keep_a_tenth,
     )
@@ -50,25 +49,24 @@ def recalls(runs, labels, classes, *, minority: int | None, seed: int) -> tuple[
 
 
 def main() -> int:
-    args = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    args = borealtc_arguments(__doc__)
     args.add_argument("terrains", nargs="*", help="terrains to keep at a tenth (default: each in turn)")
-    args.add_argument("--seed", type=int, default=0)
     opts = args.parse_args()
-    if not DATA.is_dir():
-        print(f"skipped: {DATA} is absent (BorealTC is not shipped with the project)")
+    if (data := borealtc_runs(opts)) is None:
         return 0
-    sys.path.insert(0, str(ROOT))
-    from workbench.evaluation import load_runs
-
-    runs, terrains, _ = load_runs(DATA)
-    classes = sorted(set(terrains))
-    labels = [classes.index(t) for t in terrains]
+    runs, labels, classes, fit = data
     t0 = time.monotonic()
-    full, acc = recalls(runs, labels, classes, minority=None, seed=opts.seed)
-    print(f"all time: accuracy {acc:.1%}; recall " + ", ".join(f"{c} {r:.1%}" for c, r in full.items()), flush=True)
+    run = partial(recalls, runs, labels, classes, seed=opts.seed, fit=fit)
+    full, acc = run(minority=None)
+    balanced = float(np.mean(list(full.values())))
+    print(
+        f"balance {fit.balance}, all time: accuracy {acc:.1%}, balanced {balanced:.1%}; recall "
+        + ", ".join(f"{c} {r:.1%}" for c, r in full.items()),
+        flush=True,
+    )
     for name in opts.terrains or classes:
         k = classes.index(name)
-        rec, acc = recalls(runs, labels, classes, minority=k, seed=opts.seed)
+        rec, acc = run(minority=k)
         drop = 100 * (full[name] - rec[name])
         print(
             f"{name} at a tenth of its time: its recall {rec[name]:.1%} against {full[name]:.1%} with all of it "

@@ -7,7 +7,8 @@ and ``runtime``, what ships to a robot: ``bundle`` (a model as files), ``stream`
 ``onnx_export``.
 
 Shared at this level: ``registry`` (family name -> room), ``passes`` (stage 2 over whole logs), ``checkpoint``,
-``distributed``, ``cpu_threads`` (threads for the free CPUs), ``fitting`` (what every stage-2 fit returns),
+``distributed``, ``cpu_threads`` (threads for the free CPUs), ``drift_accuracy`` (a file's expected accuracy from its
+drift), ``fitting`` (what every stage-2 fit returns),
 ``normalizer``, ``metrics``, ``progress``, ``training_errors``.
 
 Takes arrays, never sessions: ``workbench`` wires it to the session store and scores logs with it. The evaluation
@@ -28,6 +29,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "runtime": (
             "ModelBundle",
             "StreamingClassifier",
+            "TerrainFilter",
             "check_onnx",
             "export_onnx",
             "load_bundle",
@@ -51,6 +53,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "missed_words",
             "terrain_estimate",
         ),
+        "drift_accuracy": ("accuracy_by_drift", "expected_accuracy"),
         "normalizer": ("Normalizer", "Rows"),
         "passes": ("ensemble_pass", "padded_groups", "run_classifiers"),
         "metrics": ("classification_metrics", "expected_calibration_error"),

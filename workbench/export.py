@@ -33,6 +33,7 @@ from sessions import (
 from training import (
     BundleError,
     ModelBundle,
+    TerrainFilter,
     estimate_headline,
     estimate_table,
     load_bundle,
@@ -40,12 +41,13 @@ from training import (
     run_predictor,
 )
 
+from .expectations import file_expectation
+
 ONNX_TOLERANCE = 1e-4
 CHECK_SAMPLES = 1500  # per log, for the ONNX check: a per-sample loop in onnxruntime
 
 
 OUTPUT_TYPES = (".csv", ".parquet", ".json", ".mcap")  # classify's --out
-MOSTLY_DRIFTED = 0.5  # a file with more drifted time than this gets a warning line from classify
 
 
 def prediction_frame(
@@ -70,17 +72,6 @@ def prediction_frame(
     if drift is not None:
         frame["drift"] = np.asarray(drift, np.float32)
     return frame
-
-
-def drift_warning(name: str, drift: np.ndarray | None) -> str | None:
-    """One line when most of a log is unlike the labelled data, else ``None``."""
-    share = labeling.drifted_share(drift)
-    if share is None or share <= MOSTLY_DRIFTED:
-        return None
-    return (
-        f"warning: {name}: {share:.0%} of its time is unlike anything labelled (drift > 1): its predictions are "
-        "less reliable there; label some of it and retrain"
-    )
 
 
 def _estimate_section(m: dict) -> list[str]:
@@ -373,11 +364,15 @@ def _arrays_for(bundle: ModelBundle, files: Sequence[Path], options: IngestOptio
         yield None, err
 
 
-def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: IngestOptions):
+def classify_files(
+    bundle_dir: Path, files: Sequence[Path], out: Path, options: IngestOptions, *, smooth_s: float | None = None
+):
     """Per-timestep predictions for log files; returns (exit code, lines to print).
 
     ``out`` is a table (.csv, .parquet, .json) of every log, or an ``.mcap`` file per log on the log's own clock
-    (``sessions.terrain_mcap``); an MCAP output that exists is refused before the model runs.
+    (``sessions.terrain_mcap``); an MCAP output that exists is refused before the model runs. ``smooth_s``: the
+    probabilities written are forward–backward over an HMM whose terrain lasts that many seconds on average
+    (:class:`training.TerrainFilter`); each file's line says the delay the causal filter costs on a robot.
     """
     try:
         bundle = load_bundle(bundle_dir)
@@ -390,6 +385,8 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
             f"error: {bundle_dir}: the model runs at {bundle.rate_hz:g} Hz, so logs are aligned at that rate; "
             f"--rate {options.target_rate:g} would feed it another (leave --rate out)"
         ]
+    if smooth_s is not None and not smooth_s > 0:
+        return 2, [f"error: --smooth {smooth_s:g}: the time on a terrain must be a positive number of seconds"]
     as_mcap = Path(out).suffix.lower() == ".mcap"
     if Path(out).suffix.lower() not in OUTPUT_TYPES:
         return 2, [f"error: {out}: unknown output type {Path(out).suffix!r}; use {', '.join(OUTPUT_TYPES)}"]
@@ -418,7 +415,18 @@ def classify_files(bundle_dir: Path, files: Sequence[Path], out: Path, options: 
             features = [o.lazy(bundle.feature_mode) for o in outs]
             surprise = [o.surprise() for o in outs]
         scored = score_logs(bundle.classifiers, features, surprise, drift=bundle.drift)
-        lines += [w for name, s in zip(names, scored, strict=True) if (w := drift_warning(name, s.drift))]
+        for name, s in zip(names, scored, strict=True):  # per file: its drift and what to expect at it
+            if (expect := file_expectation(name, s.drift, bundle.metrics)) is not None:
+                lines += [expect.line(), *filter(None, [expect.warning()])]
+        if smooth_s is not None:
+            hmm = TerrainFilter.for_dwell(smooth_s, bundle.rate_hz, len(bundle.classes))
+            for name, s in zip(names, scored, strict=True):
+                delay = hmm.delay_steps(float(np.median(s.probs.max(axis=1)))) / bundle.rate_hz
+                lines.append(
+                    f"{name}: smoothed (an HMM, {smooth_s:g} s on a terrain on average); on a robot the causal "
+                    f"filter would follow a terrain change {delay:.2f} s late at this file's median confidence"
+                )
+            scored = [replace(s, probs=hmm.smooth(s.probs).astype(np.float32)) for s in scored]
         if as_mcap:
             for name, s, t0, path in zip(names, scored, starts, paths, strict=True):
                 clock = LogClock(name, t0, bundle.rate_hz, len(s.probs))

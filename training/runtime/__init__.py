@@ -1,6 +1,7 @@
-"""What ships to a robot: load a bundle (``bundle``), run it one sample at a time (``stream``), export it to ONNX and
-check the export against the stream (``onnx_export``). A person integrating the model on a robot reads this room; the
-families' rooms say how the models are built and trained.
+"""What ships to a robot: load a bundle (``bundle``), run it one sample at a time (``stream``, with an optional HMM
+over its probabilities: ``terrain_filter``), export it to ONNX and check the export against the stream
+(``onnx_export``). A person integrating the model on a robot reads this room; the families' rooms say how the models
+are built and trained.
 
 Used through ``training`` (``from training import StreamingClassifier, load_bundle``), whose names load on first use.
 """
@@ -8,10 +9,12 @@ Used through ``training`` (``from training import StreamingClassifier, load_bund
 from .bundle import ModelBundle, load_bundle, parameter_count, save_bundle
 from .onnx_export import check_onnx, export_onnx, run_onnx
 from .stream import StreamingClassifier
+from .terrain_filter import TerrainFilter
 
 __all__ = [
     "ModelBundle",
     "StreamingClassifier",
+    "TerrainFilter",
     "check_onnx",
     "export_onnx",
     "load_bundle",

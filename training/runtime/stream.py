@@ -14,6 +14,7 @@ import numpy as np
 
 from ..training_errors import BundleError
 from .bundle import ModelBundle
+from .terrain_filter import FLOOR, TerrainFilter
 
 
 class StreamingClassifier:
@@ -29,7 +30,13 @@ class StreamingClassifier:
     """
 
     def __init__(
-        self, bundle: ModelBundle, *, streams: int = 1, precision: str = "float32", members: int | None = None
+        self,
+        bundle: ModelBundle,
+        *,
+        streams: int = 1,
+        precision: str = "float32",
+        members: int | None = None,
+        smooth_s: float | None = None,
     ) -> None:
         """
         Args:
@@ -42,6 +49,9 @@ class StreamingClassifier:
                 member's weights, so one member is about 2.5× faster per sample (``benchmarks/bench_streaming.py``).
                 The bundle's out-of-fold accuracy is single fold models' accuracy on data they did not see, so it
                 is what one member is expected to reach; the ensemble's mean is usually a little better.
+            smooth_s: The causal HMM filter (:class:`.terrain_filter.TerrainFilter`) over each stream's
+                probabilities, for a robot that stays this many seconds on a terrain on average; off when ``None``.
+                It answers a change late: ``self.filter.delay_steps(confidence)`` says by how many steps.
         """
         if not bundle.classifiers:
             raise BundleError("the bundle has no classifier: train stage 2 first")
@@ -56,17 +66,24 @@ class StreamingClassifier:
         self.bundle = bundle
         self.streams = streams
         self._step = family.stream_step(bundle, streams=streams, precision=precision)
+        k = len(bundle.classes)
+        self.filter = None if smooth_s is None else TerrainFilter.for_dwell(smooth_s, bundle.rate_hz, k)
+        self._belief = np.full((streams, k), 1.0 / k)  # (B, K) the filter's state per stream
 
     def reset(self) -> None:
         """Forget every stream's past (a new log, a robot restarted)."""
         self._step.reset()
+        self._belief[:] = 1.0 / self._belief.shape[1]
 
     def step(self, x: np.ndarray) -> np.ndarray:
         """One raw sample per stream: ``(C,)`` -> ``(K,)`` or ``(B, C)`` -> ``(B, K)``."""
         x = np.asarray(x, np.float32)
-        if x.ndim == 1:
-            return self._step(x.reshape(1, -1))[0].copy()
-        return self._step(x).copy()
+        probs = self._step(x.reshape(1, -1) if x.ndim == 1 else x)  # (B, K)
+        if self.filter is not None:
+            belief = self.filter.transition(self._belief) * np.maximum(probs, FLOOR)  # (B, K)
+            self._belief = belief / belief.sum(axis=1, keepdims=True)
+            probs = self._belief.astype(np.float32)
+        return probs[0].copy() if x.ndim == 1 else probs.copy()
 
     def run(self, samples: np.ndarray) -> np.ndarray:
         """A whole ``(T, C)`` log of one stream, step by step: ``(T, K)``."""

@@ -28,7 +28,6 @@ from functools import partial
 import numpy as np
 import torch
 from sklearn.model_selection import GroupKFold, StratifiedGroupKFold
-from torch.nn import functional as F
 
 from ..blocking import blocked_folds
 from ..estimates import terrain_estimate
@@ -36,13 +35,14 @@ from ..fit_threads import INIT_LOCK, fit_workers, run_fits
 from ..fitting import ClassifierFit, Segment
 from ..metrics import classification_metrics
 from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from .class_balance import BalancedLoss, class_shares, epoch_order
 from .row_draws import RowDraws
 from .spectra import SpectralConfig, SpectralSteps, frame_moments
 from .window_augment import augment_rows
 from .window_calibration import fit_temperature, scale_head
 from .window_classifier import WindowClassifier, WindowClassifierConfig
 from .window_config import WindowFitConfig
-from .window_drift import REFERENCE_ROWS, fit_drift
+from .window_drift import REFERENCE_ROWS, fit_drift, held_out_relation
 
 BLOCK_GUARDS = 4  # a block is four guards long: a fold's guard never takes more than half of a block next to it
 PSEUDO_STRIDE = 3  # rows of a stretch self-training reads: every third frame
@@ -96,10 +96,12 @@ def train_rows(
     *,
     front: SpectralConfig | None = None,
     more: tuple[np.ndarray, np.ndarray] | None = None,
+    prior: np.ndarray | None = None,
 ) -> WindowClassifier:
     """``epochs`` passes of AdamW over rows ``x (N, W·F)`` with classes ``y (N,)`` (at most ``config.max_steps``);
     ``config.augment``'s draws need the frames' layout, ``front``. ``more``: rows ``pool[index]`` after ``x`` (``y``
-    covers both), read where they are: the batches of ``x`` and ``pool[index]`` concatenated, without the copy."""
+    covers both), read where they are: the batches of ``x`` and ``pool[index]`` concatenated, without the copy.
+    ``prior``: the classes' shares ``config.balance`` evens out (default: their shares of ``y``)."""
     gen = torch.Generator().manual_seed(seed)
     draws = RowDraws(seed, dropout=model.config.dropout)
     augment = config.augment if front is not None and config.augment.active else None
@@ -107,6 +109,8 @@ def train_rows(
         x, more = np.concatenate([x, more[0][more[1]]]), None
     rows = _Rows(torch.from_numpy(np.ascontiguousarray(x, np.float32)), more)
     yt = torch.from_numpy(np.asarray(y, np.int64))
+    k = model.config.n_classes
+    loss_of = BalancedLoss(config.balance, class_shares(y, k) if prior is None else np.asarray(prior))
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay, fused=True)
     per_epoch = -(-len(rows) // config.batch)
     epochs = max(1, min(epochs, config.max_steps // max(per_epoch, 1)))
@@ -115,7 +119,7 @@ def train_rows(
     for _ in range(epochs):
         if cancel():
             raise Cancelled("classifier training cancelled")
-        for idx in torch.randperm(len(rows), generator=gen).split(config.batch)[:left]:
+        for idx in epoch_order(yt, config.balance, gen).split(config.batch)[:left]:
             left -= 1
             xb, idx = rows.take(idx)
             if augment is not None:
@@ -123,7 +127,7 @@ def train_rows(
             frames = model.standardise(xb)  # (B, W, F)
             noise, keep = draws(frames.shape)  # (B, W, F) each
             frames = frames.add_(noise, alpha=config.noise)  # in standardised units
-            loss = F.cross_entropy(model.frame_logits(frames, keep=keep), yt[idx])
+            loss = loss_of(model.frame_logits(frames, keep=keep), yt[idx])
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -443,11 +447,14 @@ def fit_window_classifier(
     for model in models:
         scale_head(model, temperature)
     metrics["calibration"] = {"temperature": temperature, "on": source if temperature != 1.0 else None, "n": len(truth)}
+    drift = fit_drift(models, trained_rows, oof_rows, seed=config.seed)
+    if blocked.k > 1 and (relation := held_out_relation(drift, models, oof_rows, oof_classes)):
+        metrics["drift_accuracy"] = relation
     return ClassifierFit(
         models,
         metrics,
         histories,
         [blocked.held_out(f) for f in range(blocked.k)],
         [(p.segment, p.start, p.stop) for p in blocked.pieces],
-        drift=fit_drift(models, trained_rows, oof_rows, seed=config.seed),
+        drift=drift,
     )

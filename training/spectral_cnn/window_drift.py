@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from ..drift_accuracy import accuracy_by_drift
 from .spectra import SpectralSteps, stacked_frames
 from .window_classifier import WindowClassifier
 
@@ -180,14 +181,43 @@ def fit_drift(
     return DriftReference(tuple(refs), tuple(inputs), np.asarray(scales, np.float32), neighbours, quantile)
 
 
+def member_drift(reference: DriftReference, m: int, model: WindowClassifier, rows: np.ndarray) -> np.ndarray:
+    """Drift ``(N,)`` of stacked-frame rows ``(N, W·F)`` as member ``m`` alone scores them."""
+    ref = (reference.references[m], reference.inputs[m])
+    dist = _distances(ref, member_views(model, rows), reference.neighbours, skip_self=False)  # (N, 2)
+    return (dist / reference.scales[m]).max(axis=1)
+
+
 def drift_of_rows(reference: DriftReference, models: Sequence[WindowClassifier], rows: np.ndarray) -> np.ndarray:
     """Drift ``(N,)`` of stacked-frame rows ``(N, W·F)``: the members' mean of the larger scaled view distance."""
     total = np.zeros(len(rows), np.float32)
     for m, model in enumerate(models):
-        ref = (reference.references[m], reference.inputs[m])
-        dist = _distances(ref, member_views(model, rows), reference.neighbours, skip_self=False)  # (N, 2)
-        total += (dist / reference.scales[m]).max(axis=1)
+        total += member_drift(reference, m, model, rows)
     return total / len(models)
+
+
+def held_out_relation(
+    reference: DriftReference,
+    models: Sequence[WindowClassifier],
+    held: Sequence[np.ndarray],
+    classes: Sequence[np.ndarray],
+) -> dict | None:
+    """The relation between drift and accuracy (:func:`training.drift_accuracy.accuracy_by_drift`) on each
+    member's held-out rows ``held[m] (N_m, W·F)`` of classes ``classes[m] (N_m,)``, each scored by that member
+    alone: the one that never trained on them."""
+    drift, correct = [], []
+    for m, (model, rows, y) in enumerate(zip(models, held, classes, strict=True)):
+        if len(rows) == 0:
+            continue
+        drift.append(member_drift(reference, m, model, rows))
+        with torch.inference_mode():
+            logits = torch.cat(
+                [model.logits(torch.from_numpy(c)) for c in np.array_split(rows, -(-len(rows) // QUERY_CHUNK))]
+            )
+        correct.append(logits.argmax(1).numpy() == np.asarray(y))
+    if not drift:
+        return None
+    return accuracy_by_drift(np.concatenate(drift), np.concatenate(correct))
 
 
 def drift_of_log(reference: DriftReference, models: Sequence[WindowClassifier], features: SpectralSteps) -> np.ndarray:

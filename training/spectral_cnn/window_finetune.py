@@ -23,11 +23,12 @@ import numpy as np
 from ..fitting import ClassifierFit, Segment
 from ..metrics import classification_metrics
 from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from .class_balance import class_shares
 from .fit_window import frame_rows, predict_steps, train_rows
 from .spectra import SpectralSteps
 from .window_classifier import WindowClassifier
 from .window_config import WindowFitConfig
-from .window_drift import fit_drift
+from .window_drift import fit_drift, held_out_relation
 
 
 def assign_folds(labels: Sequence[int], known: Sequence[int], k: int) -> list[int]:
@@ -101,6 +102,10 @@ def fine_tune_window_classifier(
     is_new[list(new)] = True
     rows = [frame_rows(features[i], a, b) for i, a, b, _ in segments]  # (n_i, W·F) one per completed frame
     rng = np.random.default_rng(config.seed)
+    # the balance evens out the whole label set's shares, not those of the new labels and their replayed rows
+    prior = class_shares(
+        np.concatenate([np.full(len(r), s[3]) for r, s in zip(rows, segments, strict=True)]), len(classes)
+    )
     tune = replace(config, lr=config.lr * lr_scale, max_steps=steps)
     models = []
     for m, old in enumerate(previous):
@@ -118,7 +123,7 @@ def fine_tune_window_classifier(
                 take = rng.choice(len(x_old), min(len(x_old), max(len(x_new), config.batch)), replace=False)
                 x_new, y_new = np.concatenate([x_new, x_old[take]]), np.concatenate([y_new, y_old[take]])
             if len(x_new):
-                model = train_rows(model, x_new, y_new, steps, tune, config.seed + m + 1, cancel)
+                model = train_rows(model, x_new, y_new, steps, tune, config.seed + m + 1, cancel, prior=prior)
         models.append(model)
         if progress:
             progress(Progress("classifier", m + 1, k, 1, 1, 1, 1, 0.0, None, None, time.monotonic() - t0))
@@ -143,6 +148,13 @@ def fine_tune_window_classifier(
     if not any(len(t) for t in trained):  # a single fold model trains on its own fold
         trained = [stacked(np.arange(len(segments)))] * k
     drift = fit_drift(models, trained, held, seed=config.seed)
+    if k > 1:
+        held_y = [
+            np.concatenate([np.full(len(rows[i]), segments[i][3]) for i in np.flatnonzero(fold_of == m)] or [[]])
+            for m in range(k)
+        ]
+        if relation := held_out_relation(drift, models, held, held_y):
+            metrics["drift_accuracy"] = relation
     return ClassifierFit(
         models,
         metrics,

@@ -307,6 +307,7 @@ def classify(
     mapping: Path | None = None,
     allow_gaps: bool = False,
     rate: float | None = None,
+    smooth: float | None = None,
 ) -> int:
     """Per-timestep terrain predictions for log files with an exported bundle (no session needed).
 
@@ -322,6 +323,9 @@ def classify(
             `[csv]` section included).
         allow_gaps: Accept NaN/inf samples and dropouts, recording them as gaps instead of refusing the file.
         rate: Rate (Hz) of the aligned time base; default: the fastest stream's median rate.
+        smooth: Smooth the probabilities with an HMM whose terrain lasts this many seconds on average
+            (forward-backward over each file; each file's line says how late the robot's causal filter would
+            follow a change). Off by default.
     """
     from sessions import load_mapping
 
@@ -333,7 +337,7 @@ def classify(
         allow_gaps=allow_gaps,
         camera_fps=0,  # predictions need no pictures: image topics are not decoded
     )
-    code, lines = classify_files(bundle, files, out, options)
+    code, lines = classify_files(bundle, files, out, options, smooth_s=smooth)
     for line in lines:
         print(line, file=sys.stderr if line.startswith(("error:", "warning:")) else sys.stdout)
     return code

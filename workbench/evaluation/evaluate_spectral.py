@@ -23,6 +23,7 @@ from training import (
     WindowFitConfig,
     classification_metrics,
     drift_of_rows,
+    expected_accuracy,
     expected_calibration_error,
     fit_window_classifier,
     frame_features,
@@ -64,6 +65,34 @@ def drift_figures(drift: np.ndarray, right: np.ndarray) -> dict:
         "accuracy_not_drifted": float(right[~drifted].mean()) if (~drifted).any() else float("nan"),
         "drift_error_auroc": auroc,
     }
+
+
+def run_expectations(
+    fit_metrics: dict, drift: np.ndarray, probs: np.ndarray, y_true: np.ndarray, run: np.ndarray
+) -> list[dict]:
+    """Per held-out run, what the fit expected it to score and what it scored: from its windows' drift ``(N,)``,
+    probabilities ``(N, K)``, truth ``(N,)`` and run ``(N,)``. ``expected`` is what ``classify`` prints
+    (:func:`training.expected_accuracy`); ``capped`` that at the card's figure, ``confidence`` the mean top
+    probability, ``card`` the fit's headline figure: the rules it was chosen against."""
+    card = (fit_metrics.get("estimate") or {}).get("accuracy")
+    relation = fit_metrics.get("drift_accuracy")
+    out = []
+    for r in np.unique(run):
+        mine = run == r
+        expected = expected_accuracy(relation, drift[mine])
+        out.append(
+            {
+                "run": int(r),
+                "windows": int(mine.sum()),
+                "accuracy": float((probs[mine].argmax(1) == y_true[mine]).mean()),
+                "expected": expected,
+                "capped": None if expected is None or card is None else min(expected, card),
+                "confidence": float(probs[mine].max(1).mean()),
+                "median_drift": float(np.median(drift[mine])),
+                "card": card,
+            }
+        )
+    return out
 
 
 def _pct(x: float) -> str:
@@ -131,7 +160,9 @@ def borealtc_window_protocol(
         m["calibration_error"] = expected_calibration_error(probs, y_true)
         m["temperature"] = cfit.metrics["calibration"]["temperature"]
         m["pseudo_stretches"] = cfit.metrics["pseudo_stretches"]
-        m.update(drift_figures(drift_of_rows(cfit.drift, cfit.models, x), probs.argmax(1) == y_true))
+        drift = drift_of_rows(cfit.drift, cfit.models, x)  # (N,)
+        m.update(drift_figures(drift, probs.argmax(1) == y_true))
+        m["runs"] = run_expectations(cfit.metrics, drift, probs, y_true, run_of[test_idx][owner])
         results.append(FoldResult(fold, m["accuracy"], m["macro_f1"], len(x), len(chosen), time.monotonic() - t0, m))
         log(
             f"fold {fold} ({split}): accuracy {m['accuracy']:.2%}, macro-F1 {m['macro_f1']:.3f} on {len(x)} windows "

@@ -14,7 +14,9 @@ from typing import TYPE_CHECKING
 import labeling
 from sessions import IngestError, Session, WorkbenchError
 
+from ..expectations import FileExpectation, file_expectation
 from .charts import DRIFT
+from .status_bar import MISSED
 from .uploads import MAX_UPLOAD_MB, UPLOAD_SUFFIXES, forget_upload, safe_name
 
 if TYPE_CHECKING:
@@ -34,13 +36,19 @@ def _duration(seconds: float) -> str:
     return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
 
 
-def logs_table_html(session: Session, drifted: Mapping[int, float | None] | None = None) -> str:
+def logs_table_html(
+    session: Session,
+    drifted: Mapping[int, float | None] | None = None,
+    expected: Mapping[int, FileExpectation | None] | None = None,
+) -> str:
     """An HTML table of the session's logs (name, format, duration, rate, channels, labelled time and, once the
-    model gives a drift score, the share of each log unlike anything labelled).
+    model gives a drift score, the share of each log unlike anything labelled and the accuracy expected at its
+    drift, in red when 10 points or more below the card's figure, as ``classify`` warns).
 
     Args:
         session: The session.
         drifted: Per log id, the share of its time with a drift score above 1 (``None``: not scored).
+        expected: Per log id, its expectation (:func:`workbench.expectations.file_expectation`).
     """
     logs = session.logs()
     if not logs:
@@ -50,6 +58,7 @@ def logs_table_html(session: Session, drifted: Mapping[int, float | None] | None
         labelled[seg.log_id] = labelled.get(seg.log_id, 0) + seg.length
     rows = []
     drift_column = bool(drifted) and any(v is not None for v in drifted.values())
+    expect_column = bool(expected) and any(e is not None and e.expected is not None for e in expected.values())
     for log in logs:
         lab = labelled.get(log.id, 0) / max(log.n_samples, 1)
         title = html.escape(f"{log.format}: {log.source_path}", quote=True)
@@ -59,6 +68,8 @@ def logs_table_html(session: Session, drifted: Mapping[int, float | None] | None
             strong = share is not None and share > 0.5
             text = "–" if share is None else f"{share:.0%}"
             cell = f"<td class='n'>{f'<b style=color:{DRIFT}>{text}</b>' if strong else text}</td>"
+        if expect_column:
+            cell += _expected_cell(expected.get(log.id))  # type: ignore[union-attr]
         rows.append(
             f"<tr><td class='n'>{log.id}</td><td title='{title}'>{html.escape(log.name)}</td>"
             f"<td class='n'>{_duration(log.duration_s)}</td><td class='n'>{log.rate_hz:g}</td>"
@@ -71,6 +82,12 @@ def logs_table_html(session: Session, drifted: Mapping[int, float | None] | None
         if drift_column
         else ""
     )
+    if expect_column:
+        card = next(e.card for e in expected.values() if e is not None and e.card is not None)  # type: ignore[union-attr]
+        head += (
+            f"<th class='n' title='accuracy expected at the log&#39;s drift, from the relation the model measured on "
+            f"its held-out folds; red: 10 points or more below the card&#39;s {card:.0%}'>expect</th>"
+        )
     total = sum(log.duration_s for log in logs)
     return (
         _STYLE
@@ -82,6 +99,13 @@ def logs_table_html(session: Session, drifted: Mapping[int, float | None] | None
         + "".join(rows)
         + "</table>"
     )
+
+
+def _expected_cell(e: FileExpectation | None) -> str:
+    if e is None or e.expected is None:
+        return "<td class='n'>–</td>"
+    text = f"{e.expected:.0%}"
+    return f"<td class='n'>{f'<b style=color:{MISSED}>{text}</b>' if e.below_card else text}</td>"
 
 
 class DataPanel:
@@ -101,8 +125,13 @@ class DataPanel:
 
     def refresh(self) -> None:
         scores = self.host.state.scores.scores
+        session = self.host.state.session
         drifted = {i: labeling.drifted_share(s.drift) for i, s in scores.items()}
-        self.logs.content = logs_table_html(self.host.state.session, drifted)
+        classifier = session.active_model("classifier")
+        metrics = classifier.metrics if classifier is not None else {}
+        names = {x.id: x.name for x in session.logs()}
+        expected = {i: file_expectation(names.get(i, str(i)), s.drift, metrics) for i, s in scores.items()}
+        self.logs.content = logs_table_html(session, drifted, expected)
 
     def _take_upload(self) -> None:
         refused: str | None = None

@@ -14,6 +14,7 @@ if TYPE_CHECKING:
 
 RETRAIN = "Retrain"
 EXPORT = "Export"
+MISSED = "#c62828"  # what the model misses or is expected to miss: a terrain, a log
 
 
 def status_html(host: PanelHost) -> str:
@@ -57,7 +58,7 @@ def figure_html(m: dict) -> str:
         if words is None:
             return " · <span style='color:#b26a00'>accuracy not measurable yet</span>"
         missed = missed_words(missed_terrains(estimate)).removeprefix("the model ")  # the line names the model
-        misses = f" · <b style='color:#c62828'>{html.escape(missed)}</b>" if missed else ""
+        misses = f" · <b style='color:{MISSED}'>{html.escape(missed)}</b>" if missed else ""
         if estimate["kind"] == HELD_OUT:
             return f" · {html.escape(words)}{misses}"
         return (

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -264,3 +265,14 @@ def test_classify_reads_files_as_ingest_does(tmp_path: Path, capsys, monkeypatch
     assert (pred["terrain"].iloc[200:] == "hard").mean() > 0.9
     assert run(*args, "--allow-gaps", "--rate", "50") == 2
     assert "the model runs at 100 Hz" in capsys.readouterr().err
+    # the optional HMM: the probabilities written are smoothed, and the line says the robot's causal delay
+    assert run(*args, "--allow-gaps", "--smooth", "5", "--out", tmp_path / "smooth.csv") == 0
+    said = capsys.readouterr().out
+    assert re.search(
+        r"new: smoothed \(an HMM, 5 s on a terrain on average\); .* follow a terrain change [\d.]+ s late", said
+    )
+    smooth = pd.read_csv(tmp_path / "smooth.csv")
+    assert len(smooth) == len(pred) and not np.allclose(smooth["p_hard"], pred["p_hard"])
+    assert (smooth["terrain"].iloc[200:] == "hard").mean() >= (pred["terrain"].iloc[200:] == "hard").mean()
+    assert run(*args, "--allow-gaps", "--smooth", "0") == 2
+    assert "--smooth 0: the time on a terrain must be a positive number" in capsys.readouterr().err

@@ -1,0 +1,69 @@
+"""Issue 54's expected-accuracy check on BorealTC: folds by run (5 outer folds), 10 % of the training partitions
+labelled; for every held-out run, the accuracy ``classify`` expects at its drift against the accuracy it scored on
+its 1.7 s windows (the target: within 10 points on 80 % of runs). Also printed, the rules it was chosen against
+(on inner folds): the card's figure alone, the relation capped at it, and the mean top probability.
+
+    python benchmarks/expected_borealtc.py [--seed S] [--inner F] [--balance B]
+
+``--inner F`` screens on outer fold F's training runs (5 inner folds by run over them; F's test runs are never
+read). About 2 minutes on 2 cores. Skips with a reason when ``../shared/data/borealtc`` is absent.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from borealtc_runs import RATE_HZ, borealtc_arguments, borealtc_runs
+
+WITHIN = 0.10
+
+
+def main() -> int:
+    args = borealtc_arguments(__doc__)
+    opts = args.parse_args()
+    if (data := borealtc_runs(opts)) is None:
+        return 0
+    runs, labels, classes, fit = data
+    from workbench.evaluation import borealtc_window_protocol
+
+    t0 = time.monotonic()
+    results = borealtc_window_protocol(
+        runs,
+        labels,
+        classes,
+        rate_hz=RATE_HZ,
+        labelled=0.1,
+        split="runs",
+        seed=opts.seed,
+        fit=fit,
+        log=lambda _: None,
+    )
+    rows = [r for res in results for r in res.metrics["runs"]]
+    truth = np.asarray([r["accuracy"] for r in rows])
+    rules = {
+        "expected (classify)": [r["expected"] for r in rows],
+        "the card's figure": [r["card"] for r in rows],
+        "the relation capped at the card": [r["capped"] for r in rows],
+        "mean top probability": [r["confidence"] for r in rows],
+    }
+    print(f"{len(rows)} held-out runs; accuracy per run: median {np.median(truth):.1%}, lowest {truth.min():.1%}")
+    for name, values in rules.items():
+        v = np.asarray([np.nan if x is None else x for x in values], float)
+        within = np.abs(v - truth) <= WITHIN + 1e-9
+        print(
+            f"{name}: within 10 points on {within.mean():.0%} of runs (target 80 %), mean error "
+            f"{np.nanmean(v - truth) * 100:+.1f} points, mean absolute {np.nanmean(np.abs(v - truth)) * 100:.1f}"
+        )
+    low = truth < np.asarray([r["card"] for r in rows]) - WITHIN
+    warned = np.asarray([r["expected"] is not None and r["card"] - r["expected"] >= WITHIN for r in rows])
+    print(
+        f"runs 10 points or more under the card: {low.sum()}; warned: {warned.sum()} "
+        f"({(warned & low).sum()} of them rightly)"
+    )
+    print(f"{time.monotonic() - t0:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

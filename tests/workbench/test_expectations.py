@@ -1,0 +1,70 @@
+"""What `classify` and the Data tab say per file: its drift, the accuracy expected at it, and one warning line when
+that is 10 points or more below the card's figure (or, without a relation, when most of the file is drifted)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from training import accuracy_by_drift
+from workbench.expectations import card_accuracy, file_expectation
+
+
+def metrics() -> dict:
+    rng = np.random.default_rng(0)
+    drift = rng.gamma(2.0, 0.3, 4000)
+    right = rng.random(4000) < np.clip(0.95 - 0.3 * drift, 0.35, 0.95)
+    return {
+        "estimate": {"accuracy": 0.82},
+        "accuracy": 0.9,
+        "out_of_fold": True,
+        "drift_accuracy": accuracy_by_drift(drift, right),
+    }
+
+
+def test_a_file_like_the_labelled_time_gets_no_warning_and_a_far_one_does() -> None:
+    m = metrics()
+    assert card_accuracy(m) == 0.82
+    like = file_expectation("walk3.csv", np.full(500, 0.3), m)
+    assert like is not None and like.expected > 0.8 and not like.below_card and like.warning() is None
+    assert (
+        like.line()
+        == f"walk3.csv: median drift 0.30, 0% of it above 1; expected accuracy {like.expected:.0%} (the card: 82%)"
+    )
+    far = file_expectation("odd.csv", np.full(500, 1.9), m)
+    assert far.below_card and far.expected <= 0.72
+    warning = far.warning()
+    assert (
+        warning.startswith(f"warning: odd.csv: expected accuracy {far.expected:.0%}, ")
+        and "points below the card's 82%" in warning
+    )
+
+
+def test_without_a_relation_the_drifted_share_decides_and_without_drift_nothing_is_said() -> None:
+    m = {"estimate": {"accuracy": 0.82}}
+    mostly = file_expectation("odd.csv", np.full(100, 1.5), m)
+    assert mostly.expected is None and "unlike anything labelled" in mostly.warning()
+    assert mostly.line() == "odd.csv: median drift 1.50, 100% of it above 1"
+    assert file_expectation("ok.csv", np.full(100, 0.5), m).warning() is None
+    assert file_expectation("any.csv", None, m) is None
+    assert card_accuracy({"accuracy": 0.9, "out_of_fold": False}) is None  # a training fit's figure is no card
+
+
+def test_the_data_tab_shows_each_logs_expected_accuracy_in_red_when_far_under_the_card(tmp_path) -> None:
+    from tests.conftest import new_session
+    from workbench.demo import generate_demo_logs
+    from workbench.ui.panel_data import logs_table_html
+    from workbench.ui.status_bar import MISSED
+
+    s = new_session(tmp_path / "s")
+    s.ingest(generate_demo_logs(tmp_path / "logs", n_logs=2, minutes=0.2, seed=1))
+    (a, b), m = s.logs(), metrics()
+    expected = {
+        a.id: file_expectation(a.name, np.full(50, 0.3), m),
+        b.id: file_expectation(b.name, np.full(50, 1.9), m),
+    }
+    html = logs_table_html(s, {a.id: 0.0, b.id: 1.0}, expected)
+    assert ">expect</th>" in html and "the card&#39;s 82%" in html
+    assert f"<td class='n'>{expected[a.id].expected:.0%}</td>" in html
+    assert f"<b style=color:{MISSED}>{expected[b.id].expected:.0%}</b>" in html
+    assert ">expect</th>" not in logs_table_html(s, {a.id: 0.0, b.id: 1.0})  # no relation: no column
+    s.close()
