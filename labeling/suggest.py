@@ -29,6 +29,9 @@ LOG_DECAY, CLASS_DECAY, NEIGHBOUR_DECAY = 0.7, 0.8, 0.5
 NOVELTY_FLOOR, CLUSTER_DECAY, PREFILTER = 0.25, 0.05, 10
 DRIFT_PRIORITY = 1.0  # added to a drifted candidate's score (others lie in [0, 1]): drifted time is offered first
 DRIFT_CAP = 4.0  # a drifted candidate's own score is weighted by its drift, up to this
+MISSED_RECALL = 0.5  # a terrain measured under this recall is one the model misses (training.MISSED_RECALL)
+MISSED_BOOST = 6.0  # a candidate with all its probability on a fully missed terrain counts (1 + this) times
+MISSED_SAY = 0.1  # the pull (missed share x probability) from which the reason names the missed terrain
 
 
 @dataclass(frozen=True)
@@ -127,6 +130,7 @@ def suggest(
     min_len: int = 100,
     window: int = 25,
     embeddings: Sequence[np.ndarray] | None = None,
+    recall: np.ndarray | None = None,
     seed: int = 0,
 ) -> list[Suggestion]:
     """The next ``n`` segments to label.
@@ -146,6 +150,9 @@ def suggest(
             candidates' mean feature vectors and takes the most typical member of each cluster first, holding back
             segments like labelled ones: before a classifier exists this alone ranks (covering the kinds of
             terrain), after it the clusters keep the uncertain picks diverse.
+        recall: ``(K,)`` each class's measured recall (NaN: not measured). ``combined`` favours candidates the
+            model gives some probability to a class it misses (recall under ``MISSED_RECALL``): a missed terrain is
+            rarely the guess, so its probability, not the guess, says where it may be; the reason names it.
         seed: Seed of ``random`` (other strategies are deterministic; ties break by log then start).
 
     Returns:
@@ -166,6 +173,9 @@ def suggest(
     if strategy == "combined" and guess is not None and label_counts is not None and len(label_counts):
         rare = class_weights(label_counts)[guess]
     base = base * rare
+    pull, pulled = _missed_pull(mean_probs, recall) if strategy == "combined" else (None, None)
+    if pull is not None:
+        base = base * (1.0 + MISSED_BOOST * pull)
 
     cluster = np.full(len(cands), -1)
     if strategy == "combined" and embeddings is not None:
@@ -212,6 +222,10 @@ def suggest(
         reason = _reason(why[i], mean_probs[i] if mean_probs is not None else None, classes, rare[i])
         if why[i] == "drift" and drift is not None:
             reason = f"unlike anything labelled (drift {drift[i]:.1f})" + reason[len("unlike anything labelled") :]
+        if pull is not None and pulled is not None and recall is not None and pull[i] >= MISSED_SAY:
+            k = int(pulled[i])
+            missed = classes[k] if k < len(classes) else f"class {k}"
+            reason += f"; may be {missed}, which the model misses ({100 * recall[k]:.0f} % recall)"
         out.append(Suggestion(int(logs[i]), int(starts[i]), int(stops[i]), float(base[i] * factor[i]), reason, g, rank))
     return out
 
@@ -315,6 +329,22 @@ def _base_scores(strategy: Strategy, parts: dict[str, np.ndarray], n: int, seed:
     names = list(weighted)
     stack = np.stack([weighted[k] for k in names])  # (kinds, N)
     return stack.sum(axis=0), [names[i] for i in stack.argmax(axis=0)]
+
+
+def _missed_pull(
+    mean_probs: np.ndarray | None, recall: np.ndarray | None
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Per candidate, how strongly it may hold a missed class (``(N,)``: the largest of each missed class's
+    probability times how far its recall is under ``MISSED_RECALL``, as a share of it) and which class that is
+    ``(N,)``; ``(None, None)`` without probabilities or a missed class."""
+    if mean_probs is None or recall is None or len(recall) != mean_probs.shape[1]:
+        return None, None
+    r = np.asarray(recall, np.float64)
+    missing = np.where(np.isfinite(r), np.clip((MISSED_RECALL - r) / MISSED_RECALL, 0.0, 1.0), 0.0)  # (K,)
+    if not missing.any():
+        return None, None
+    weighted = mean_probs * missing  # (N, K)
+    return weighted.max(axis=1), weighted.argmax(axis=1)
 
 
 def _reason(driver: str, probs: np.ndarray | None, classes: Sequence[str], rarity: float) -> str:

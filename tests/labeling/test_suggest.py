@@ -164,3 +164,23 @@ def test_combined_offers_the_drifted_log_first_and_says_why() -> None:
     assert [s.log for s in suggest(scores, strategy="entropy", n=3, max_len=200, min_len=50)] == [
         s.log for s in suggest(make_scores([2000, 2000, 2000], 3, 7), strategy="entropy", n=3, max_len=200, min_len=50)
     ]
+
+
+def test_combined_asks_for_a_terrain_the_model_misses_and_names_it() -> None:
+    # three logs; in the last the model is surer (a, 0.75) than in the others (a or b), but gives the rest to c, a
+    # terrain it misses (20 % recall): that log is offered first, and the reason says what it may be
+    n, surprise = 2000, np.ones(2000)
+    plain = np.tile([0.5, 0.5, 0.0], (n, 1))
+    maybe_c = np.tile([0.75, 0.0, 0.25], (n, 1))
+    scores = [LogScores(surprise, p, np.full(n, 0.1)) for p in (plain, plain, maybe_c)]
+    kw = dict(strategy="combined", n=3, max_len=200, min_len=50, classes=["a", "b", "c"])
+    assert suggest(scores, **kw)[0].log != 2  # without the recalls, the surer log comes last
+    got = suggest(scores, recall=np.array([0.9, 0.8, 0.2]), **kw)
+    assert got[0].log == 2, got
+    assert got[0].reason.endswith("may be c, which the model misses (20 % recall)"), got[0].reason
+    assert not any("misses" in s.reason for s in got if s.log != 2)
+    # recalls all above one half (or unmeasured), or another strategy: no terrain is missed, nothing is named
+    for recall in (np.array([0.9, 0.8, 0.7]), np.array([0.9, np.nan, np.nan])):
+        assert not any("misses" in s.reason for s in suggest(scores, recall=recall, **kw))
+    entropy = suggest(scores, recall=np.array([0.9, 0.8, 0.2]), **{**kw, "strategy": "entropy"})
+    assert not any("misses" in s.reason for s in entropy)

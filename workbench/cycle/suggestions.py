@@ -44,6 +44,11 @@ def suggest_for_session(
         if s.terrain in classes:
             counts[classes.index(s.terrain)] += s.length
     max_len, min_len = suggestion_lengths(logs[0].rate_hz)
+    classifier = session.active_model("classifier")
+    per_terrain = ((classifier.metrics.get("estimate") or {}) if classifier is not None else {}).get("per_terrain", {})
+    recall = np.asarray(
+        [r if (r := (per_terrain.get(c) or {}).get("recall")) is not None else np.nan for c in classes], np.float64
+    )
     out = labeling.suggest(
         [scores.scores[x.id] for x in logs],
         labelled=labelled,
@@ -55,5 +60,6 @@ def suggest_for_session(
         max_len=max_len,
         min_len=min_len,
         embeddings=[scores.embeddings[x.id] for x in logs],
+        recall=recall,
     )
     return [(logs[s.log], s) for s in out]
