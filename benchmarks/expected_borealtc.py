@@ -40,6 +40,12 @@ def main() -> int:
         log=lambda _: None,
     )
     rows = [r for res in results for r in res.metrics["runs"]]
+    confusion = sum(np.asarray(r.metrics["confusion"]) for r in results)  # (K, K) every test window
+    recall = confusion.diagonal() / np.maximum(confusion.sum(axis=1), 1)
+    print(
+        f"balance {fit.balance}: accuracy {confusion.trace() / confusion.sum():.1%} over every test window, "
+        f"balanced {recall.mean():.1%}; mean of the folds {np.mean([r.accuracy for r in results]):.1%}"
+    )
     truth = np.asarray([r["accuracy"] for r in rows])
     rules = {
         "expected (classify)": [r["expected"] for r in rows],

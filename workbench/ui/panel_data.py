@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 _STYLE = (
     "<style>.wb-table{border-collapse:collapse;width:100%;font-size:0.8em;white-space:nowrap}"
     ".wb-table th,.wb-table td{padding:3px 5px;border-bottom:1px solid #e0e0e0;text-align:left}"
-    ".wb-table th{color:#666;font-weight:500}"
+    ".wb-table th{color:#666;font-weight:500;white-space:normal;vertical-align:bottom}"
     ".wb-table td.n,.wb-table th.n{text-align:right;font-variant-numeric:tabular-nums}</style>"
 )
 
