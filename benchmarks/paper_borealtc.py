@@ -1,11 +1,15 @@
 """Paper-scale runs on BorealTC: both model families on both protocols, and the label-efficiency simulation.
 
-    python benchmarks/paper_borealtc.py [protocol|simulate|all]
+    python benchmarks/paper_borealtc.py [protocol|simulate|issue54|all]
 
 ``protocol``: the default family (about 2 minutes on 2 CPU cores) and the paper family (about an hour per split) on
 the authors' partition folds and on folds holding out whole runs, 10 % of the training partitions labelled.
 ``simulate``: random against the suggested labels, 5 seeds (seed s runs outer fold s + 1), 8 rounds of 10 whole
 partitions, for the default family (about 15 minutes) and the paper family (hours).
+
+``issue54``: the default family's minority row (each terrain kept at a tenth of its time), the expected accuracy per
+held-out run against what it scored, and the card against ``workbench evaluate session`` on BorealTC sessions (about
+an hour in all; each script's output is written to ``benchmarks/results/issue-54-*.txt``).
 
 Writes Markdown reports (and the simulation plot) to ``benchmarks/results/``. Skips with a reason when
 ``../shared/data/borealtc`` is absent (a user's clone).
@@ -13,6 +17,7 @@ Writes Markdown reports (and the simulation plot) to ``benchmarks/results/``. Sk
 
 from __future__ import annotations
 
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -20,6 +25,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "borealtc"
 RESULTS = ROOT / "benchmarks" / "results"
+ISSUE54 = (  # (name, script, arguments): each prints its own table
+    ("minority", "minority_borealtc.py"),
+    ("expected", "expected_borealtc.py"),
+    ("card-pieces", "card_vs_session_borealtc.py", "pieces"),
+    ("card-runs", "card_vs_session_borealtc.py", "runs"),
+)
 
 
 def main(which: str = "all") -> int:
@@ -55,6 +66,13 @@ def main(which: str = "all") -> int:
         )
         (RESULTS / "borealtc-simulate.md").write_text(report + f"\n\n{time.monotonic() - t:.0f} s\n")
         print(report)
+    if which in ("issue54", "all"):
+        for name, script, *args in ISSUE54:
+            out = subprocess.run(
+                [sys.executable, str(ROOT / "benchmarks" / script), *args], capture_output=True, text=True
+            )
+            (RESULTS / f"issue-54-{name}.txt").write_text(out.stdout + out.stderr)
+            print(f"## {name}\n\n{out.stdout}{out.stderr}", flush=True)
     return 0
 
 
