@@ -68,3 +68,17 @@ def test_the_data_tab_shows_each_logs_expected_accuracy_in_red_when_far_under_th
     assert f"<b style=color:{MISSED}>{expected[b.id].expected:.0%}</b>" in html
     assert ">expect</th>" not in logs_table_html(s, {a.id: 0.0, b.id: 1.0})  # no relation: no column
     s.close()
+
+
+def test_the_card_says_what_the_logs_with_no_label_are_expected_to_score() -> None:
+    from dataclasses import replace
+    from pathlib import Path
+
+    from training import DriftReference, load_bundle
+    from workbench.export import model_card
+
+    golden = load_bundle(Path(__file__).parents[1] / "training" / "golden" / "default")  # saved before drift existed
+    bundle = replace(golden, drift=DriftReference((np.zeros((2, 4)),), (np.zeros((2, 3)),), np.ones((1, 2))))
+    card = model_card(bundle, version=1, session="s", drifted={"a": 0.1}, unlabelled={"a": (0.9, 100), "b": (0.5, 300)})
+    assert "the 2 logs with no label are expected to score **60%**" in card  # weighted by their steps
+    assert "logs with no label" not in model_card(bundle, version=1, session="s", drifted={"a": 0.1})
