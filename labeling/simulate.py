@@ -26,6 +26,7 @@ class Round:
     scores: list[LogScores]  # per pool log
     accuracy: float  # on held-out data; NaN when nothing is trained yet
     macro_f1: float = float("nan")
+    recall: np.ndarray | None = None  # (K,) each class's measured recall (NaN: unmeasured): the missed terrains
 
 
 Learner = Callable[[Sequence[Labelled]], Round]
@@ -98,6 +99,7 @@ def simulate(
             max_len=max_len,
             min_len=min_len,
             embeddings=embeddings,
+            recall=state.recall,
             seed=seed * 1000 + r,
         )
         if not picks:

@@ -59,7 +59,8 @@ def evaluate(
         labelled: Fraction labelled: of the training partitions (borealtc), of the training logs' time (demo).
         model: The model family ("default": spectral window classifier with self-training; "paper": the paper's
             two LSTMs); borealtc also takes both.
-        split: borealtc: the authors' partition folds, folds holding out whole runs, or both.
+        split: borealtc: the authors' partition folds, folds holding out whole runs, or both (with --simulate:
+            runs holds out whole runs, otherwise the partition folds).
         variant: borealtc, paper family: "shared": stage 1 trains once on all partitions' signals (no labels);
             "strict": stage 1 never sees the test partitions; "both".
         hidden: LSTM width of both stages.
@@ -115,6 +116,7 @@ def evaluate(
                 members=members,
                 stage1=stage1,
                 device=device,
+                split=split,
             )
         )
         return

@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from sklearn.model_selection import StratifiedKFold
 
 import labeling
 from training import (
@@ -33,7 +32,7 @@ from ..cycle import STRETCH_S, SUGGESTION_S, consistency_pairs, score_logs, sugg
 from ..retrain import RETRAIN
 from .curves_plot import plot_curves
 from .evaluate_spectral import window_inputs
-from .evaluate_windows import partitions, windows
+from .evaluate_windows import outer_folds, partitions, windows
 from .sim_stage1 import frame_stage1, log_spectra, unit_spectra
 from .window_learner import WindowLearner
 
@@ -65,6 +64,9 @@ class SimSettings:
     # Default family: the stage 1 drawing the surprise and the suggestions' embeddings: its own next-frame predictor
     # ("own", as `workbench train` trains it) or the paper's LSTM (as sessions trained before it had), to compare.
     stage1: Literal["own", "lstm"] = "own"
+    # BorealTC: the outer folds stratified over partitions (the authors') or holding out whole runs (the test
+    # partitions' runs never in the pool)
+    split: Literal["partitions", "runs"] = "partitions"
 
 
 class FeatureLearner:
@@ -330,7 +332,7 @@ def simulate_partitions(
         )
         feats = [o.features(settings.feature_mode) for o in outs]
         errors = [np.square(o.error).mean(1) for o in outs]
-    folds = list(StratifiedKFold(5, shuffle=True, random_state=0).split(np.zeros(len(y)), y))
+    folds = outer_folds(y, run_of, split=settings.split, folds=5, seed=0)  # the protocol's, either split
     in_fold = [np.isin([i for i, _, _ in units], folds[f][0]).nonzero()[0] for f in range(len(folds))]
     cfg2 = TrainConfig(
         max_epochs=settings.stage2_epochs,

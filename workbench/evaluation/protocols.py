@@ -310,8 +310,10 @@ def simulate(
     members: int = 3,
     stage1: str = "own",
     device: str = "cpu",
+    split: str = "partitions",
 ) -> str:
-    """The label-efficiency simulation on ``folder`` (see :mod:`workbench.evaluation.label_efficiency`)."""
+    """The label-efficiency simulation on ``folder`` (see :mod:`workbench.evaluation.label_efficiency`); BorealTC's
+    folds over partitions or (``split="runs"``) holding out whole runs."""
     from labeling import STRATEGIES
 
     from .label_efficiency import SimSettings, simulate_logs, simulate_partitions
@@ -333,6 +335,7 @@ def simulate(
         folds=members,
         stage1=stage1,
         device=device,
+        split="runs" if split == "runs" else "partitions",
     )
     recs, notes = load_recordings(folder)
     for n in notes:

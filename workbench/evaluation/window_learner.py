@@ -61,4 +61,8 @@ class WindowLearner:
         scores = score_logs(fit.models, self.pool, self.pool_error, drift=fit.drift, batch=256)  # as the UI scores
         y_true, y_pred = self.test_predict(fit.models)
         m = classification_metrics(y_true, y_pred, self.classes)
-        return labeling.Round(scores, m["accuracy"], m["macro_f1"])
+        per = (fit.metrics.get("estimate") or {}).get("per_terrain", {})  # what the session's suggestions read
+        recall = np.asarray(
+            [v if (v := (per.get(c) or {}).get("recall")) is not None else np.nan for c in self.classes]
+        )
+        return labeling.Round(scores, m["accuracy"], m["macro_f1"], recall)

@@ -168,3 +168,26 @@ def test_device_reaches_every_fit_and_pass(monkeypatch, tmp_path: Path) -> None:
     passes = {"fit_predictor", "fit_classifier", "run_predictor", "run_classifiers", "score_logs"}
     assert {name for name, _ in seen} == passes
     assert [s for s in seen if s[1] != "cuda"] == []
+
+
+def test_simulate_partitions_by_runs_takes_the_protocols_folds_over_runs(monkeypatch) -> None:
+    """The folds are the protocol's (``outer_folds``, whose runs split holds whole runs out: test_evaluate_windows)."""
+    import workbench.evaluation.label_efficiency as ws
+
+    asked = []
+
+    class Stop(Exception):
+        pass
+
+    def spy(y, run_of, *, split, folds, seed):
+        asked.append((split, len(set(run_of.tolist()))))
+        raise Stop
+
+    monkeypatch.setattr(ws, "outer_folds", spy)
+    for split in ("runs", "partitions"):
+        with pytest.raises(Stop):
+            settings = replace(TINY, strategies=("random",), split=split)
+            simulate_partitions(
+                _runs(), [r % 2 for r in range(6)], ["a", "b"], rate_hz=20.0, settings=settings, out=None, log=print
+            )
+    assert asked == [("runs", 6), ("partitions", 6)]
