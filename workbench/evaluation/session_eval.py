@@ -144,6 +144,7 @@ def evaluate_session(
     at = [classes.index(c) for c in in_use]
     reference_logs = {c: sum(any(t == c for _, _, t in truth[logs[x].id]) for x in judged) for c in in_use}
     recall_rows = []
+    balanced = float(np.mean([m["per_class_recall"][c] for c in in_use if c in m["per_class_recall"]] or [np.nan]))
     for c in in_use:
         if c in m["per_class_recall"]:
             extra = f" ({unmeasured[c] / rate:.0f} s not measurable)" if c in unmeasured else ""
@@ -167,8 +168,9 @@ def evaluate_session(
         "| --- | --- | --- | --- |",
         *rows,
         "",
-        f"**Accuracy {100 * m['accuracy']:.2f} %, macro-F1 {m['macro_f1']:.3f}** over the held-out reference time "
-        "of terrains labelled outside its fold.",
+        f"**Accuracy {100 * m['accuracy']:.2f} %, balanced {100 * balanced:.2f} %, macro-F1 {m['macro_f1']:.3f}** "
+        "over the held-out reference time of terrains labelled outside its fold (balanced: the mean of the "
+        "terrains' recalls).",
         "",
         "| terrain | recall (%) |",
         "| --- | --- |",

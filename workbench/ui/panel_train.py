@@ -120,7 +120,12 @@ class TrainPanel:
             if v.stage == "classifier":
                 held, estimate = m.get("held_out_logs"), m.get("estimate")
                 if estimate:
-                    figure = f"{estimate_headline(estimate) or 'accuracy not measurable'}, {estimate['note']}, "
+                    balanced = estimate.get("balanced_accuracy")
+                    figure = (
+                        f"{estimate_headline(estimate) or 'accuracy not measurable'}, "
+                        + (f"balanced {100 * balanced:.0f} %, " if balanced is not None else "")
+                        + f"{estimate['note']}, "
+                    )
                 else:  # a version from before the estimate, a quick fine-tune, the paper family
                     figure = (f"acc {100 * held['accuracy']:.1f} % on held-out logs, " if held else "") + (
                         f"acc {100 * m.get('accuracy', float('nan')):.1f} % (same logs), "

@@ -63,6 +63,10 @@ def test_reference_from_a_file_scores_held_out_logs(three_logs: Path, tmp_path: 
     assert f"stage 2 of the {family} family" in out
     accuracy = float(re.search(r"\*\*Accuracy ([0-9.]+) %", out).group(1))
     assert 0.0 <= accuracy <= 100.0
+    section = out.split("| terrain | recall (%) |")[1].split("Confusion")[0]
+    recalls = [float(r) for r in re.findall(r"^\| \S+ \| ([0-9.]+)(?: \(|\s*\|)", section, re.M)]
+    balanced = float(re.search(r"balanced ([0-9.]+) %", out).group(1))
+    assert recalls and abs(balanced - sum(recalls) / len(recalls)) < 0.1, (balanced, recalls)  # the recalls' mean
     assert re.search(r"\| ice \| not measurable by held-out logs: reference in 1 log\(s\)", out), out
     header, _, *rows_after = out.split("Confusion")[1].splitlines()[2:]  # after the heading and a blank line
     confusion = [line for line in rows_after if line.startswith("| ")]
