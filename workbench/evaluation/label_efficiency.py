@@ -465,5 +465,6 @@ def simulate_partitions(
         embeddings=lambda s: [feats[u] for u in in_fold[s % len(folds)]],
         log=log,
     )
-    title = "BorealTC (partition protocol" + (f", {pieces} suggestions a partition)" if pieces > 1 else ")")
+    protocol = "folds holding out whole runs" if settings.split == "runs" else "partition protocol"
+    title = f"BorealTC ({protocol}" + (f", {pieces} suggestions a partition)" if pieces > 1 else ")")
     return report(curves, total=total, rate_hz=rate_hz, title=title, out=out)

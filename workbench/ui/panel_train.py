@@ -136,6 +136,11 @@ class TrainPanel:
                     f"{m.get('labelled_seconds', 0):.0f} s labelled"
                     + (", quick fine-tune" if v.config.get("new_labels") is not None else "")
                 )
+            elif "copy_last_mse" in m:  # the default family's next-frame predictor: a fixed number of steps
+                what = (
+                    f"next-frame error {m.get('train_mse', float('nan')):.3f} against "
+                    f"{m['copy_last_mse']:.3f} for copying the last frame"
+                )
             else:
                 what = f"val MSE {m.get('val_mse', float('nan')):.4f}, {m.get('epochs', '?')} epochs"
             act = " <b style='color:#2e7d32'>active</b>" if v.active else ""
