@@ -52,6 +52,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "missed_terrains",
             "missed_words",
             "terrain_estimate",
+            "terrain_recalls",
         ),
         "drift_accuracy": ("accuracy_by_drift", "expected_accuracy"),
         "normalizer": ("Normalizer", "Rows"),

@@ -96,6 +96,15 @@ def missed_terrains(estimate: Mapping, *, below: float = MISSED_RECALL) -> list[
     return sorted(low, key=lambda x: x[1])
 
 
+def terrain_recalls(estimate: Mapping | None, classes: Sequence[str]) -> np.ndarray:
+    """Each of ``classes``' measured recall in ``estimate["per_terrain"]``, ``(K,)``, NaN where none was measured:
+    what the suggestions read to ask for a missed terrain."""
+    per = (estimate or {}).get("per_terrain") or {}
+    return np.asarray(
+        [r if (r := (per.get(c) or {}).get("recall")) is not None else np.nan for c in classes], np.float64
+    )
+
+
 def missed_words(missed: Sequence[tuple[str, float]]) -> str:
     """``"the model misses sand (15 % recall), grass (40 %)"``; empty when nothing is missed."""
     if not missed:

@@ -71,3 +71,14 @@ def test_a_terrain_under_half_recall_is_named_first_in_the_note() -> None:
     assert missed_terrains(fine) == [] and "misses" not in fine["note"]  # 50 % is not under half
     # an estimate saved before the names existed still gives them
     assert missed_terrains({"per_terrain": {"sand": {"recall": 0.1}, "ice": {"recall": None}}}) == [("sand", 0.1)]
+
+
+def test_terrain_recalls_line_up_with_the_classes_and_leave_the_unmeasured_as_nan() -> None:
+    import numpy as np
+
+    from training import terrain_recalls
+
+    estimate = {"per_terrain": {"sand": {"recall": 0.2}, "grass": {"recall": None}}}
+    got = terrain_recalls(estimate, ["grass", "sand", "ice"])
+    assert got[1] == 0.2 and np.isnan(got[0]) and np.isnan(got[2])
+    assert np.isnan(terrain_recalls(None, ["a"])).all()

@@ -448,7 +448,8 @@ def fit_window_classifier(
         scale_head(model, temperature)
     metrics["calibration"] = {"temperature": temperature, "on": source if temperature != 1.0 else None, "n": len(truth)}
     drift = fit_drift(models, trained_rows, oof_rows, seed=config.seed)
-    if blocked.k > 1 and (relation := held_out_relation(drift, models, oof_rows, oof_classes)):
+    right = [logits.argmax(1) == y for logits, y in zip(oof_logits, oof_classes, strict=True)]
+    if blocked.k > 1 and (relation := held_out_relation(drift, models, oof_rows, right)):
         metrics["drift_accuracy"] = relation
     return ClassifierFit(
         models,

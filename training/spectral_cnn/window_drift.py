@@ -200,24 +200,15 @@ def held_out_relation(
     reference: DriftReference,
     models: Sequence[WindowClassifier],
     held: Sequence[np.ndarray],
-    classes: Sequence[np.ndarray],
+    right: Sequence[np.ndarray],
 ) -> dict | None:
     """The relation between drift and accuracy (:func:`training.drift_accuracy.accuracy_by_drift`) on each
-    member's held-out rows ``held[m] (N_m, W·F)`` of classes ``classes[m] (N_m,)``, each scored by that member
-    alone: the one that never trained on them."""
-    drift, correct = [], []
-    for m, (model, rows, y) in enumerate(zip(models, held, classes, strict=True)):
-        if len(rows) == 0:
-            continue
-        drift.append(member_drift(reference, m, model, rows))
-        with torch.inference_mode():
-            logits = torch.cat(
-                [model.logits(torch.from_numpy(c)) for c in np.array_split(rows, -(-len(rows) // QUERY_CHUNK))]
-            )
-        correct.append(logits.argmax(1).numpy() == np.asarray(y))
-    if not drift:
+    member's held-out rows ``held[m] (N_m, W·F)``, whether member ``m`` predicted each right ``right[m] (N_m,)``,
+    each row's drift scored by that member alone: the one that never trained on it."""
+    drift = [member_drift(reference, m, model, rows) for m, (model, rows) in enumerate(zip(models, held, strict=True))]
+    if not any(len(d) for d in drift):
         return None
-    return accuracy_by_drift(np.concatenate(drift), np.concatenate(correct))
+    return accuracy_by_drift(np.concatenate(drift), np.concatenate([np.asarray(r, bool) for r in right]))
 
 
 def drift_of_log(reference: DriftReference, models: Sequence[WindowClassifier], features: SpectralSteps) -> np.ndarray:

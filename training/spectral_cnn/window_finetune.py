@@ -24,7 +24,7 @@ from ..fitting import ClassifierFit, Segment
 from ..metrics import classification_metrics
 from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
 from .class_balance import class_shares
-from .fit_window import frame_rows, predict_steps, train_rows
+from .fit_window import frame_rows, predict_steps, row_logits, train_rows
 from .spectra import SpectralSteps
 from .window_classifier import WindowClassifier
 from .window_config import WindowFitConfig
@@ -153,7 +153,8 @@ def fine_tune_window_classifier(
             np.concatenate([np.full(len(rows[i]), segments[i][3]) for i in np.flatnonzero(fold_of == m)] or [[]])
             for m in range(k)
         ]
-        if relation := held_out_relation(drift, models, held, held_y):
+        right = [row_logits(model, x).argmax(1) == y for model, x, y in zip(models, held, held_y, strict=True)]
+        if relation := held_out_relation(drift, models, held, right):
             metrics["drift_accuracy"] = relation
     return ClassifierFit(
         models,

@@ -6,6 +6,7 @@ import numpy as np
 
 import labeling
 from sessions import LogInfo, Session
+from training import terrain_recalls
 
 from .scores import SessionScores
 
@@ -45,10 +46,7 @@ def suggest_for_session(
             counts[classes.index(s.terrain)] += s.length
     max_len, min_len = suggestion_lengths(logs[0].rate_hz)
     classifier = session.active_model("classifier")
-    per_terrain = ((classifier.metrics.get("estimate") or {}) if classifier is not None else {}).get("per_terrain", {})
-    recall = np.asarray(
-        [r if (r := (per_terrain.get(c) or {}).get("recall")) is not None else np.nan for c in classes], np.float64
-    )
+    recall = terrain_recalls(classifier.metrics.get("estimate") if classifier is not None else None, classes)
     out = labeling.suggest(
         [scores.scores[x.id] for x in logs],
         labelled=labelled,

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 import labeling
-from training import SpectralSteps, WindowFitConfig, classification_metrics, fit_window_classifier
+from training import SpectralSteps, WindowFitConfig, classification_metrics, fit_window_classifier, terrain_recalls
 
 from ..cycle import free_stretches, score_logs
 
@@ -61,8 +61,5 @@ class WindowLearner:
         scores = score_logs(fit.models, self.pool, self.pool_error, drift=fit.drift, batch=256)  # as the UI scores
         y_true, y_pred = self.test_predict(fit.models)
         m = classification_metrics(y_true, y_pred, self.classes)
-        per = (fit.metrics.get("estimate") or {}).get("per_terrain", {})  # what the session's suggestions read
-        recall = np.asarray(
-            [v if (v := (per.get(c) or {}).get("recall")) is not None else np.nan for c in self.classes]
-        )
+        recall = terrain_recalls(fit.metrics.get("estimate"), self.classes)  # what the session's suggestions read
         return labeling.Round(scores, m["accuracy"], m["macro_f1"], recall)
