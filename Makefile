@@ -7,7 +7,7 @@ PIP := $(PY) -m pip
 STAMP := $(VENV)/.installed
 PORT ?= 8080
 
-.PHONY: install demo test lint format browser stress bench paper screenshot clean
+.PHONY: install demo test lint format browser stress bench paper screenshot aeon-golden clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -61,5 +61,12 @@ paper: install
 screenshot: install browser
 	WORKBENCH_DOCS_SCREENSHOT=1 $(PY) -m pytest -q tests/browser/test_first_screen.py -k test_the_first_screen_is_drawn
 
+# the numbers aeon's MiniRocket computes, that tests/training/test_rocket_transform.py checks ours against; in an
+# environment of its own, since aeon 1.6 pins NumPy below the version the workbench runs
+aeon-golden:
+	test -x .venv-aeon/bin/python || $(PYTHON) -m venv .venv-aeon
+	.venv-aeon/bin/python -m pip install -q aeon==1.6.0
+	.venv-aeon/bin/python tests/training/golden/make_minirocket_golden.py
+
 clean:
-	rm -rf $(VENV) demo-session test-artifacts .pytest_cache .ruff_cache
+	rm -rf $(VENV) .venv-aeon demo-session test-artifacts .pytest_cache .ruff_cache

@@ -7,9 +7,11 @@ the authors' partition folds and on folds holding out whole runs, 10 % of the tr
 ``simulate``: random against the suggested labels, 5 seeds (seed s runs outer fold s + 1), 8 rounds of 10 whole
 partitions, for the default family (about 15 minutes) and the paper family (hours).
 
-``issue54``: the default family's minority row (each terrain kept at a tenth of its time), the expected accuracy per
-held-out run against what it scored, and the card against ``workbench evaluate session`` on BorealTC sessions (about
-an hour in all; each script's output is written to ``benchmarks/results/issue-54-*.txt``).
+``issue54``: the runs split at 5, 10, 25 and 100 % of labels for the default family, MiniRocket with a ridge head
+and their mean (an ensemble member), the default family's minority row (each terrain kept at a tenth of its time),
+the expected accuracy per held-out run against what it scored, the card against ``workbench evaluate session`` on
+BorealTC sessions, and the label efficiency on folds by run (``workbench evaluate borealtc --simulate --split runs``,
+3 seeds); about two hours in all, each output written to ``benchmarks/results/issue-54-*.txt``.
 
 Writes Markdown reports (and the simulation plot) to ``benchmarks/results/``. Skips with a reason when
 ``../shared/data/borealtc`` is absent (a user's clone).
@@ -25,11 +27,27 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "borealtc"
 RESULTS = ROOT / "benchmarks" / "results"
-ISSUE54 = (  # (name, script, arguments): each prints its own table
-    ("minority", "minority_borealtc.py"),
-    ("expected", "expected_borealtc.py"),
-    ("card-pieces", "card_vs_session_borealtc.py", "pieces"),
-    ("card-runs", "card_vs_session_borealtc.py", "runs"),
+BENCH = str(ROOT / "benchmarks")
+SIMULATE_RUNS = (
+    "--simulate",
+    "--split",
+    "runs",
+    "--model",
+    "default",
+    "--seeds",
+    "3",
+    "--rounds",
+    "8",
+    "--batch",
+    "10",
+)
+ISSUE54 = (  # (name, arguments to python): each prints its own table
+    ("labels", [f"{BENCH}/minirocket_borealtc.py"]),  # the runs split at 5/10/25/100 %: default, MiniRocket, mean
+    ("minority", [f"{BENCH}/minority_borealtc.py"]),
+    ("expected", [f"{BENCH}/expected_borealtc.py"]),
+    ("card-pieces", [f"{BENCH}/card_vs_session_borealtc.py", "pieces"]),
+    ("card-runs", [f"{BENCH}/card_vs_session_borealtc.py", "runs"]),
+    ("efficiency-runs", ["-m", "workbench.cli", "evaluate", "borealtc", str(DATA), *SIMULATE_RUNS]),
 )
 
 
@@ -67,10 +85,8 @@ def main(which: str = "all") -> int:
         (RESULTS / "borealtc-simulate.md").write_text(report + f"\n\n{time.monotonic() - t:.0f} s\n")
         print(report)
     if which in ("issue54", "all"):
-        for name, script, *args in ISSUE54:
-            out = subprocess.run(
-                [sys.executable, str(ROOT / "benchmarks" / script), *args], capture_output=True, text=True
-            )
+        for name, args in ISSUE54:
+            out = subprocess.run([sys.executable, *args], capture_output=True, text=True, cwd=ROOT)
             (RESULTS / f"issue-54-{name}.txt").write_text(out.stdout + out.stderr)
             print(f"## {name}\n\n{out.stdout}{out.stderr}", flush=True)
     return 0

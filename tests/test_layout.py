@@ -184,7 +184,7 @@ def test_help_and_settings_never_load_torch() -> None:
 
 # --- rooms: one per model family, the workbench's top level small, no circles -------------------------------------
 
-FAMILY_ROOMS = ("paper_lstm", "spectral_cnn")
+FAMILY_ROOMS = ("minirocket", "paper_lstm", "spectral_cnn")
 
 
 def _module_name(path) -> str:

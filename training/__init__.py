@@ -3,6 +3,7 @@
 Rooms (one per family, found by name through :mod:`.registry`):
     ``spectral_cnn``  the default family: short-time spectra and a small convolutional network (``--model default``)
     ``paper_lstm``    the paper's two stacked LSTMs (``--model paper``)
+    ``minirocket``    MiniRocket's fixed convolutions and a ridge head (``--model minirocket``)
 and ``runtime``, what ships to a robot: ``bundle`` (a model as files), ``stream`` (one sample at a time),
 ``onnx_export``.
 
@@ -40,7 +41,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "checkpoint": ("Checkpoint", "load_checkpoint", "save_checkpoint"),
         "cpu_threads": ("free_cpus", "threads_for", "use_free_cpus", "usable_cpus"),
         "fitting": ("ClassifierFit", "Segment", "fold_indices", "to_dict"),
-        "blocking": ("Block", "BlockedFolds", "blocked_folds", "cut_blocks"),
+        "blocking": ("Block", "BlockedFolds", "blocked_folds", "cut_blocks", "log_folds"),
         "estimates": (
             "HELD_OUT",
             "MISSED_RECALL",
@@ -125,6 +126,21 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "split_channels",
             "stacked_frames",
             "summary_windows",
+        ),
+        # MiniRocket's room
+        "minirocket": (
+            "ROCKET_KIND",
+            "RawSteps",
+            "RocketClassifier",
+            "RocketClassifierConfig",
+            "RocketConfig",
+            "RocketParameters",
+            "RocketTransform",
+            "aeon_parameters",
+            "fit_rocket",
+            "fit_rocket_classifier",
+            "fit_rocket_steps",
+            "rocket_features",
         ),
     },
     globals(),

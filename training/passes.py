@@ -109,3 +109,15 @@ def run_classifiers(
 
     ensemble_pass(models, features, keep, chunk=chunk, batch=batch, device=device)
     return out
+
+
+def per_distinct_row(logits: Callable[[torch.Tensor], torch.Tensor], features: torch.Tensor) -> torch.Tensor:
+    """``logits`` of ``features (B, T, D)`` computed once per run of identical consecutive rows and repeated:
+    ``(B, T, K)``. A window family's input changes once per hop (a frame, a window of samples), so at 100 Hz most
+    steps repeat the one before, and the network runs twenty times less."""
+    b, t, d = features.shape
+    flat = features.reshape(b * t, d)  # (B·T, D)
+    new = torch.ones(b * t, dtype=torch.bool, device=flat.device)
+    new[1:] = (flat[1:] != flat[:-1]).any(dim=1)
+    which = torch.cumsum(new.long(), 0) - 1  # (B·T,) index of each row's distinct run
+    return logits(flat[new])[which].reshape(b, t, -1)

@@ -26,6 +26,7 @@ Bundle = Any
 FAMILY_ROOMS: dict[str, str] = {
     "default": "spectral_cnn",  # short-time log spectra and a small convolutional network, with self-training
     "paper": "paper_lstm",  # the paper's method: two stacked LSTMs (a predictor, then a classifier on its states)
+    "minirocket": "minirocket",  # MiniRocket: fixed convolutions of the samples, a ridge head; the default stage 1
 }
 DEFAULT_FAMILY = "default"
 
@@ -39,7 +40,8 @@ class Family:
         summary: What it is, in a sentence (``workbench train --help``, the model card).
         kind: The ``kind`` its stage-2 config carries in a bundle's ``model.json``.
         stage2_inputs: What the workbench computes for its stage 2 from a log: ``"frames"`` (the spectral front
-            end's frames, cached per log) or ``"stage1"`` (the LSTM predictor's outputs, cached per log).
+            end's frames, cached per log), ``"windows"`` (the normalised samples themselves, a window per hop read
+            on demand: ``RawSteps``) or ``"stage1"`` (the LSTM predictor's outputs, cached per log).
         new_classifier: An untrained stage-2 module from a bundle's classifier config (a dict of its fields).
         stream_step: ``(bundle, streams=, precision=)`` -> the NumPy runtime's step: called with ``(B, C)`` raw
             samples it returns ``(B, K)`` probabilities; ``reset()`` forgets every stream's past.
@@ -53,9 +55,10 @@ class Family:
         after_first: State inputs with no output that are set to ones after a stream's first step.
         describe: ``bundle`` -> the model card's sentences on what the bundle's models are.
         onnx_usage: ``bundle`` -> the model card's sentence on the exported step's inputs and outputs.
-        fit: A ``"frames"`` family's stage 2 from scratch: ``(features, segments, classes, *, config, stretches,
-            progress, cancel)`` -> ``ClassifierFit``, where ``features`` are ``SpectralSteps``, ``config`` a
-            ``WindowFitConfig`` and ``stretches`` unlabelled ``(log, start, stop)`` for self-training. ``None`` for
+        fit: A ``"frames"`` or ``"windows"`` family's stage 2 from scratch: ``(features, segments, classes, *,
+            config, stretches, progress, cancel)`` -> ``ClassifierFit``, where ``features`` are ``SpectralSteps``
+            (``RawSteps``), ``config`` a ``WindowFitConfig`` and ``stretches`` unlabelled ``(log, start, stop)`` for
+            self-training. ``None`` for
             the paper family, whose fit (``fit_classifier``: warm start, replayed labels, consistency pairs) the
             cycle calls itself.
         fine_tune: The quick Retrain: ``(features, segments, classes, models, *, folds, new, steps, lr_scale,
@@ -70,7 +73,7 @@ class Family:
     name: str
     summary: str
     kind: str
-    stage2_inputs: Literal["frames", "stage1"]
+    stage2_inputs: Literal["frames", "windows", "stage1"]
     new_classifier: Callable[[dict], nn.Module]
     stream_step: Callable[..., Any]
     precisions: tuple[str, ...]

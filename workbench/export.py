@@ -434,8 +434,8 @@ def classify_files(
     if arrays:
         from .cycle import in_memory_features, score_logs
 
-        if bundle.stage2_family().stage2_inputs == "frames":
-            # the predictions file holds no surprise: a frames family's stage 2 never reads stage 1, so it is skipped
+        if bundle.stage2_family().stage2_inputs in ("frames", "windows"):
+            # the predictions file holds no surprise: these families' stage 2 never reads stage 1, so it is skipped
             features = in_memory_features(arrays, bundle, bundle.spectral)
             surprise = [np.zeros(len(a), np.float32) for a in arrays]
         else:

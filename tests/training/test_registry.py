@@ -41,9 +41,10 @@ def _log(terrain: int, n: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def test_families_are_found_by_name_and_unknown_ones_are_refused() -> None:
-    assert family_names() == ("default", "paper")
+    assert family_names() == ("default", "minirocket", "paper")
     assert family("default").stage2_inputs == "frames" and family("paper").stage2_inputs == "stage1"
-    with pytest.raises(KeyError, match="unknown model family 'logreg'; choose one of default, paper"):
+    assert family("minirocket").stage2_inputs == "windows" and family("minirocket").stage1 == "next-frame"
+    with pytest.raises(KeyError, match="unknown model family 'logreg'; choose one of default, minirocket, paper"):
         family("logreg")
 
 
@@ -55,7 +56,7 @@ def test_a_third_family_is_one_room_and_one_registry_line(tmp_path: Path) -> Non
     feats = [SpectralSteps(log_frames(x, front, transform=norm), len(x), front) for x in logs]
     segments = [(i, 200, 1000, k) for i, k in enumerate((0, 1, 0, 1))]
     with registered():
-        assert family_names() == ("default", "logreg", "paper")
+        assert family_names() == ("default", "logreg", "minirocket", "paper")
         fit = family("logreg").fit(feats, segments, ("grass", "ice"), config=WindowFitConfig(k_folds=2))
         assert fit.metrics["accuracy"] > 0.9  # the two terrains differ in their spectra
         bundle = ModelBundle(

@@ -231,12 +231,22 @@ def _spectral(directory: Path, cfg: dict) -> SpectralConfig | None:
         0 < spectral.hop <= spectral.frame <= 1 << 16
         and 0 < spectral.window <= 1 << 12
         and all(0 <= c < n for c in (*spectral.fast, *spectral.slow))
-        and (not cfg.get("classifier") or cfg["classifier"]["n_features"] == spectral.step_width)
+        and _reads_front_end(cfg.get("classifier"), spectral, n)
         and (not _frame_kind(cfg) or cfg["predictor"]["n_features"] == spectral.width)
     )
     if not sane:
         raise BundleError(f"{directory}: model.json's spectral front end does not fit its channels and classifier")
     return spectral
+
+
+def _reads_front_end(classifier: dict | None, spectral: SpectralConfig, channels: int) -> bool:
+    """The classifier's inputs fit the bundle: a frames classifier's width is the front end's step, a windows
+    classifier (MiniRocket, whose config has no ``n_features``) reads the bundle's channels."""
+    if not classifier:
+        return True
+    if "n_features" in classifier:
+        return classifier["n_features"] == spectral.step_width
+    return int(classifier.get("channels", channels)) == channels
 
 
 def _header_shapes(path: Path) -> dict[str, tuple[int, ...]]:

@@ -21,15 +21,13 @@ screened) scored 81.8 % against 81.3 %.
 from __future__ import annotations
 
 import time
-import warnings
 from collections.abc import Sequence
 from functools import partial
 
 import numpy as np
 import torch
-from sklearn.model_selection import GroupKFold, StratifiedGroupKFold
 
-from ..blocking import blocked_folds
+from ..blocking import blocked_folds, log_folds
 from ..estimates import terrain_estimate
 from ..fit_threads import INIT_LOCK, fit_workers, run_fits
 from ..fitting import ClassifierFit, Segment
@@ -206,59 +204,6 @@ def _pseudo_labels(
     return np.concatenate(index), np.concatenate(ys), taken
 
 
-LOG_FOLD_DRAWS = 20  # shuffles of the folds over logs tried; the one that measures the most labelled time is kept
-
-
-def _log_folds(segments: Sequence[Segment], k: int, groups: Sequence[int]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Folds over segments that hold out whole recordings (``groups[log]``, at most ``k`` folds), terrains spread
-    over them as evenly as whole recordings allow; none when fewer than two are labelled or a fold's training part
-    would hold one terrain only.
-
-    scikit-learn's stratified group folds can hold out every recording of a terrain at once (six logs, two per
-    terrain, three folds: each fold held out one terrain's pair, and nothing was measured), so ``LOG_FOLD_DRAWS`` of
-    its shuffles and as many dealings of each terrain's recordings to the folds in turn are tried, and the one whose
-    held-out segments' terrains stay most in training, by labelled time, is kept.
-    """
-    logs = np.asarray([groups[s[0]] for s in segments])
-    n_logs = len(np.unique(logs))
-    if n_logs < 2:
-        return []
-    labels = np.asarray([s[3] for s in segments])
-    length = np.asarray([s[2] - s[1] for s in segments])
-
-    def measured(folds: list[tuple[np.ndarray, np.ndarray]]) -> int:
-        return sum(int(length[va][np.isin(labels[va], labels[tr])].sum()) for tr, va in folds)
-
-    def dealt(seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Recordings ordered by their main terrain (shuffled within it) and dealt to the folds in turn: a
-        terrain's recordings land in different folds."""
-        rng = np.random.default_rng(seed)
-        ids = np.unique(logs)
-        main = [np.bincount(labels[logs == g], weights=length[logs == g]).argmax() for g in ids]
-        order = ids[np.lexsort((rng.random(len(ids)), main))]
-        fold_of = {int(g): i % min(k, n_logs) for i, g in enumerate(order)}
-        which = np.asarray([fold_of[int(g)] for g in logs])
-        return [(np.flatnonzero(which != f), np.flatnonzero(which == f)) for f in range(min(k, n_logs))]
-
-    candidates = []
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # "least populated class has only N members"
-        for draw in range(LOG_FOLD_DRAWS):
-            try:
-                splitter = StratifiedGroupKFold(min(k, n_logs), shuffle=True, random_state=draw)
-                candidates.append(list(splitter.split(logs, labels, groups=logs)))
-            except ValueError:  # every terrain has fewer segments than folds: whole logs, unstratified
-                candidates.append(list(GroupKFold(min(k, n_logs)).split(logs, groups=logs)))
-            candidates.append(dealt(draw))
-    best: list[tuple[np.ndarray, np.ndarray]] = []
-    for folds in candidates:
-        if any(len(set(labels[tr].tolist())) < 2 for tr, _ in folds):
-            continue
-        if not best or measured(folds) > measured(best):
-            best = folds
-    return best
-
-
 def fit_window_classifier(
     features: Sequence[SpectralSteps],
     segments: Sequence[Segment],
@@ -361,7 +306,7 @@ def fit_window_classifier(
     group_of = list(range(len(features))) if groups is None else [int(g) for g in groups]
     logs_per_class = {c: len({group_of[s[0]] for s in segments if s[3] == c}) for c in {s[3] for s in segments}}
     shared = any(n >= 2 for n in logs_per_class.values())  # a terrain in two logs: held-out logs can measure it
-    by_log = _log_folds(segments, config.k_folds, group_of) if config.held_out and shared else []
+    by_log = log_folds(segments, config.k_folds, group_of) if config.held_out and shared else []
     total = blocked.k + len(by_log)
 
     def member(f: int) -> tuple[WindowClassifier, int, set[int], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -21,6 +21,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from ..passes import per_distinct_row
+
 WINDOW_KIND = "frames"  # the ``kind`` in a bundle's classifier config that names this module
 SPREAD_EPS = 1e-6  # added to the pooled variance: a window of identical frames (a log's start) has none
 OLD_WINDOW_KINDS = ("window",)  # the linear model on summaries that preceded it: refused with a hint to retrain
@@ -120,12 +122,7 @@ class WindowClassifier(nn.Module):
         A step's input changes only when a frame completes (every ``hop`` steps), so the network runs once per
         distinct consecutive row and the result is repeated: twenty times less work at 100 Hz.
         """
-        b, t, d = features.shape
-        flat = features.reshape(b * t, d)  # (B·T, D)
-        new = torch.ones(b * t, dtype=torch.bool, device=flat.device)
-        new[1:] = (flat[1:] != flat[:-1]).any(dim=1)
-        which = torch.cumsum(new.long(), 0) - 1  # (B·T,) index of each row's distinct run
-        return self.logits(flat[new])[which].reshape(b, t, -1), None
+        return per_distinct_row(self.logits, features), None
 
     def set_standardisation(self, mean: np.ndarray, std: np.ndarray) -> None:
         """Standardise each frame's features with ``mean`` and ``std`` ``(F,)`` (features with no spread centred)."""

@@ -19,6 +19,8 @@ from .front_end import (
     log_frame_files,
     spectral_features,
     unlabelled_stretches,
+    window_features,
+    window_sizes,
 )
 from .score_store import StoredScores, queue_key, store_queue, store_scores, stored_queue, stored_scores
 from .scores import EMBEDDING_MODE, SessionScores, compute_scores, score_logs, score_session, stage1_embedding
@@ -89,4 +91,6 @@ __all__ = [
     "train_predictor",
     "train_stage1",
     "unlabelled_stretches",
+    "window_features",
+    "window_sizes",
 ]

@@ -10,15 +10,17 @@ import json
 import os
 import uuid
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 
 import labeling
 from sessions import LogInfo, Segment, Session
-from training import ModelBundle, Normalizer, SpectralConfig, SpectralSteps, log_frames
+from training import ModelBundle, Normalizer, RawSteps, SpectralConfig, SpectralSteps, log_frames
 
 SAMPLE_S = 600.0  # seconds of each of the first logs read to tell fast channels from slow ones
 STRETCH_S = 5.0  # longest unlabelled stretch self-training judges as one (BorealTC's partition, where it was measured)
+WINDOW_S = 1.7  # a "windows" family's input (MiniRocket's): BorealTC's window, the default family's span
 
 
 def choose_front_end(session: Session, logs: Sequence[LogInfo]) -> SpectralConfig:
@@ -30,7 +32,10 @@ def choose_front_end(session: Session, logs: Sequence[LogInfo]) -> SpectralConfi
 
 
 def _digest(normalizer: Normalizer, config: SpectralConfig) -> str:
-    text = json.dumps({"normalizer": normalizer.to_dict(), "front": config.to_dict()}, sort_keys=True)
+    # frames do not depend on how many of them a step reads: every span shares one cache (keyed as 7 frames were
+    # before a classifier could read another number, so older caches stay valid)
+    front = replace(config, window=SpectralConfig.window).to_dict()
+    text = json.dumps({"normalizer": normalizer.to_dict(), "front": front}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
@@ -85,9 +90,32 @@ def spectral_features(
 
 def in_memory_features(
     arrays: Sequence[np.ndarray], bundle: ModelBundle, config: SpectralConfig
-) -> list[SpectralSteps]:
-    """Per-step inputs of raw ``(T, C)`` arrays outside a session (``classify``, evaluations)."""
+) -> list[SpectralSteps] | list[RawSteps]:
+    """Per-step inputs of raw ``(T, C)`` arrays outside a session (``classify``, evaluations): the front end's
+    frames, or the windows a ``"windows"`` family's classifier reads."""
+    if bundle.classifiers and bundle.stage2_family().stage2_inputs == "windows":
+        length, hop = window_sizes(bundle)
+        return [RawSteps(a, length=length, hop=hop, transform=bundle.normalizer) for a in arrays]
     return [SpectralSteps(log_frames(a, config, transform=bundle.normalizer), len(a), config) for a in arrays]
+
+
+def window_sizes(bundle: ModelBundle, front: SpectralConfig | None = None) -> tuple[int, int]:
+    """A ``"windows"`` family's samples per window and between windows: its trained classifier's, else
+    :data:`WINDOW_S` at the bundle's rate, every hop of the front end (``front``, else the bundle's)."""
+    if bundle.classifiers and bundle.stage2_family().stage2_inputs == "windows":
+        cfg = bundle.classifiers[0].config
+        return int(cfg.length), int(cfg.hop)
+    front = front or bundle.spectral
+    hop = front.hop if front is not None else max(1, round(0.2 * bundle.rate_hz))
+    return max(9, round(WINDOW_S * bundle.rate_hz)), hop
+
+
+def window_features(
+    session: Session, bundle: ModelBundle, logs: Sequence[LogInfo], sizes: tuple[int, int]
+) -> list[RawSteps]:
+    """Per log, a ``"windows"`` family's per-step inputs: the session's rows, read a slice at a time."""
+    length, hop = sizes
+    return [RawSteps(session.rows(x.id), length=length, hop=hop, transform=bundle.normalizer) for x in logs]
 
 
 def free_stretches(

@@ -29,7 +29,7 @@ from training import (
     load_bundle,
 )
 
-from .front_end import spectral_features
+from .front_end import spectral_features, window_features, window_sizes
 from .stage_inputs import stage1_outputs
 from .train_stages import active_bundle, model_logs
 
@@ -125,8 +125,11 @@ def _score_session_logs(
     outs = stage1_outputs(session, predictor, bundle, logs)  # memory-mapped
     if classifier is None:
         return logs, outs, score_logs((), (), [outs[x.id].surprise() for x in logs])
-    if classifier.stage2_family().stage2_inputs == "frames":  # the front end's frames, cached per log
+    inputs = classifier.stage2_family().stage2_inputs
+    if inputs == "frames":  # the front end's frames, cached per log
         features = spectral_features(session, bundle, logs, classifier.spectral)
+    elif inputs == "windows":  # the samples themselves, read a slice at a time
+        features = window_features(session, bundle, logs, window_sizes(classifier))
     else:  # the paper family's classifier: its predictor is an LSTM (train_classifier saw to it)
         features = [outs[x.id].lazy(classifier.feature_mode) for x in logs]
     surprise = [outs[x.id].surprise() for x in logs]

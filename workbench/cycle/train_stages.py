@@ -40,7 +40,7 @@ from training import (
 
 from ..retrain import RETRAIN
 from .fold_record import labels_record, new_labels, recorded_pieces
-from .front_end import choose_front_end, spectral_features, unlabelled_stretches
+from .front_end import choose_front_end, spectral_features, unlabelled_stretches, window_features, window_sizes
 from .stage_inputs import consistency_pairs, signal_change_points, stage2_features
 
 MODEL_FAMILIES = family_names()  # `--model`: the registry's names (training.registry), the default first
@@ -267,7 +267,7 @@ def train_classifier(
         cancel: Polled after every step (paper) or fit (default).
     """
     fam = stage1_family(session, model)
-    if fam.stage2_inputs == "frames":
+    if fam.stage2_inputs in ("frames", "windows"):
         settings = window or RETRAIN.window
         if warm_start and warm_epochs is not None and fam.fine_tune is not None:
             quick = _fine_tune_window(session, fam, settings, progress=progress, cancel=cancel)
@@ -340,9 +340,14 @@ def _train_window(
     logs = model_logs(session, bundle.channels)
     classes, used, segments = _labelled(session, logs)
     front = front_end_of(session, bundle, logs)
-    features = spectral_features(session, bundle, logs, front)
+    if fam.stage2_inputs == "frames":  # the span a step reads: asked for, else the active classifier's
+        front = replace(front, window=_frames_window(session, fam, settings, front, logs[0].rate_hz))
+    if fam.stage2_inputs == "windows":  # the samples themselves, a window per hop of the front end
+        features = window_features(session, bundle, logs, window_sizes(bundle, front))
+    else:
+        features = spectral_features(session, bundle, logs, front)
     stretches = []
-    if settings.self_training:
+    if settings.self_training and fam.stage2_inputs == "frames":
         stretches = unlabelled_stretches(logs, used, lambda x: signal_change_points(session, x), shortest=front.span)
     params = {"model": fam.name, "window": to_dict(settings), "segments": len(segments)}
     with recorded_run(session, "classifier", params) as result:
@@ -364,10 +369,22 @@ def _train_window(
                 "predictor": p_version.id,
                 "warm_start": False,
                 "self_training_stretches": len(stretches),
+                "frames": front.window,
             },
         )
         result["version"] = version.id
     return version
+
+
+def _frames_window(session: Session, fam: Family, settings: WindowFitConfig, front: SpectralConfig, rate: float) -> int:
+    """Frames a step of a frames family reads: ``settings.span_s`` in frames, else the active classifier's when it is
+    of this family (a Retrain keeps the span ``workbench train --span`` chose), else the front end's."""
+    if settings.span_s is not None:
+        return front.with_span(settings.span_s, rate).window
+    previous = session.active_model("classifier")
+    if previous is not None and previous.config.get("model") == fam.name and previous.config.get("frames"):
+        return int(previous.config["frames"])
+    return front.window
 
 
 def _fine_tune_window(

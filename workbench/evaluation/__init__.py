@@ -16,6 +16,7 @@ from .evaluate_windows import (
     windows,
 )
 from .label_efficiency import SimSettings, report, simulate_logs, simulate_partitions
+from .protocol_members import FoldData, Member, RocketMember, cut_windows
 from .protocols import (
     BOREALTC_PUBLISHED,
     evaluate_borealtc,
@@ -30,12 +31,16 @@ from .session_eval import evaluate_session
 
 __all__ = [
     "BOREALTC_PUBLISHED",
+    "FoldData",
     "FoldResult",
+    "Member",
+    "RocketMember",
     "SimSettings",
     "Split",
     "WindowProtocol",
     "borealtc_protocol",
     "borealtc_window_protocol",
+    "cut_windows",
     "evaluate_borealtc",
     "evaluate_demo",
     "evaluate_qcat",

@@ -33,6 +33,7 @@ from training import (
 )
 
 from .evaluate_windows import FoldResult, Split, WindowProtocol, labelled_subset, outer_folds, partitions
+from .protocol_members import FoldData, Member, cut_windows
 
 
 def window_inputs(
@@ -112,6 +113,7 @@ def borealtc_window_protocol(
     seed: int = 0,
     log: Callable[[str], None] = print,
     train_filter: Callable[[int, np.ndarray, np.ndarray], np.ndarray] | None = None,
+    member: Member | None = None,
 ) -> list[FoldResult]:
     """Run the protocol for the default family; one result per outer fold.
 
@@ -129,6 +131,9 @@ def borealtc_window_protocol(
         train_filter: ``(fold, training partition indices, every partition's class) -> the indices kept``: a
             protocol that trains on less of some terrain (the minority row, ``benchmarks/minority_borealtc.py``);
             the test folds are unchanged.
+        member: A second model fitted on the same fold (:class:`.protocol_members.FoldData`) that returns its
+            probabilities of the same test windows: scored alone (``metrics["member"]``) and averaged with the
+            default family's (``metrics["ensemble"]``).
     """
     protocol = protocol or WindowProtocol()
     size, win, stride = (round(s * rate_hz) for s in (protocol.partition_s, protocol.window_s, protocol.stride_s))
@@ -145,7 +150,7 @@ def borealtc_window_protocol(
             train_idx = np.asarray(train_filter(fold, train_idx, y))
         train = [parts[i] for i in train_idx]
         normalizer = Normalizer.fit(train)
-        config = SpectralConfig.for_log(np.concatenate(train[:50]), rate_hz)
+        config = replace(SpectralConfig.for_log(np.concatenate(train[:50]), rate_hz), window=protocol.frames)
         features = [SpectralSteps(log_frames(p, config, transform=normalizer), len(p), config) for p in train]
         chosen = set(labelled_subset(train_idx, y, labelled, seed=seed + fold).tolist())
         first = config.span - 1  # the first step whose window holds full frames only
@@ -163,6 +168,25 @@ def borealtc_window_protocol(
         drift = drift_of_rows(cfit.drift, cfit.models, x)  # (N,)
         m.update(drift_figures(drift, probs.argmax(1) == y_true))
         m["runs"] = run_expectations(cfit.metrics, drift, probs, y_true, run_of[test_idx][owner])
+        if member is not None:
+            test = [normalizer(parts[i]) for i in test_idx]
+            raw, raw_owner = cut_windows(test, win, stride)
+            assert np.array_equal(raw_owner, owner)  # the same windows as the default family's, in order
+            chosen_at = np.asarray([j for j, i in enumerate(train_idx) if i in chosen])
+            other = member(
+                FoldData(
+                    fold,
+                    [normalizer(p) for p in train],
+                    y[train_idx],
+                    chosen_at,
+                    run_of[train_idx],
+                    raw,
+                    len(classes),
+                    seed,
+                )
+            )
+            m["member"] = classification_metrics(y_true, other.argmax(1), classes)
+            m["ensemble"] = classification_metrics(y_true, (probs + other).argmax(1), classes)
         results.append(FoldResult(fold, m["accuracy"], m["macro_f1"], len(x), len(chosen), time.monotonic() - t0, m))
         log(
             f"fold {fold} ({split}): accuracy {m['accuracy']:.2%}, macro-F1 {m['macro_f1']:.3f} on {len(x)} windows "
@@ -170,5 +194,10 @@ def borealtc_window_protocol(
             f"calibration error {m['calibration_error']:.3f} at temperature {m['temperature']:.2f}, "
             f"drifted {m['drifted_share']:.0%} of windows: accuracy {_pct(m['accuracy_drifted'])} there, "
             f"{_pct(m['accuracy_not_drifted'])} elsewhere; {time.monotonic() - t0:.0f} s)"
+            + (
+                f"; member {m['member']['accuracy']:.2%}, ensemble {m['ensemble']['accuracy']:.2%}"
+                if member is not None
+                else ""
+            )
         )
     return results

@@ -36,6 +36,7 @@ class WindowProtocol:
     stride_s: float = 0.1
     folds: int = 5
     train_stride_s: float | None = None  # stage 2 trains on windows at this stride; None: on whole partitions
+    frames: int = 7  # default family: frames a step reads (7 frames of 0.4 s every 0.2 s span 1.6 s, for 1.7 s)
 
 
 @dataclass

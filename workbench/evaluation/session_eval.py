@@ -33,6 +33,8 @@ from ..cycle import (
     stage1_outputs,
     stage2_features,
     unlabelled_stretches,
+    window_features,
+    window_sizes,
 )
 from ..retrain import RETRAIN
 
@@ -76,8 +78,10 @@ def evaluate_session(
     feature_mode = recipe.get("feature_mode", PAPER_FEATURES)
     config = replace(config or RETRAIN.classifier, seed=seed)
     window = replace(RETRAIN.window, seed=seed)
-    front = front_end_of(session, bundle, logs) if fam.stage2_inputs == "frames" else None
-    if front is not None:
+    front = front_end_of(session, bundle, logs) if fam.stage2_inputs in ("frames", "windows") else None
+    if front is not None and fam.stage2_inputs == "windows":
+        features = window_features(session, bundle, logs, window_sizes(bundle, front))
+    elif front is not None:
         features = spectral_features(session, bundle, logs, front)
     else:
         require_lstm(session, p_version, bundle)
@@ -197,7 +201,7 @@ def _enough_reference(judged: Sequence[object], path: Path) -> None:
 
 
 def _recipe(fam: Family, hidden: int, feature_mode: str) -> str:
-    if fam.stage2_inputs == "frames":
+    if fam.stage2_inputs in ("frames", "windows"):
         return f"stage 2 of the {fam.name} family ({fam.summary})"
     return f"stage 2 of the {fam.name} family (LSTM of {hidden} units on `{feature_mode}` features)"
 
