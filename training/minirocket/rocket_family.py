@@ -47,9 +47,10 @@ def _fit(*args: Any, **kwargs: Any) -> ClassifierFit:
 
 def _onnx_usage(bundle: ModelBundle) -> str:
     return (
-        "`classifier_stream.onnx` is the same step: inputs `x (B, C)`, `ring (B, L, C)`, `count (B, 1)`, "
-        "`window (B, L, C)` (all zeros at a stream's start); outputs `probs (B, K)` and the new `ring, count, "
-        "window`, fed back at the next sample. It classifies the window of the last hop at every call."
+        "`classifier_stream.onnx` is the same step: inputs `x (B, C)`, `ring (B, L, C)`, `count (B, 1)` (zeros at a "
+        "stream's start) and `probs_in (B, K)` (at a stream's start, the probabilities of an empty window: "
+        "`training.family('minirocket').zero_state(bundle, B)`); outputs `probs (B, K)` and the new `ring, count, "
+        "probs_in`, fed back at the next sample. It classifies a stream only at its hops."
     )
 
 

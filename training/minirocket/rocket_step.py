@@ -6,7 +6,7 @@ last hop's window the same way).
 through the same PyTorch modules as the offline pass (the transform's comparisons with its biases make any other
 order of sums differ by a position now and then), once per hop. The members share one transform: its features
 are computed once and every head reads them. :class:`RocketStepModel` is the step for the ONNX export, its state
-explicit; it classifies the window held as of the last hop at every call.
+explicit; it classifies only the streams at a hop.
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from .rocket_classifier import RocketClassifier
 if TYPE_CHECKING:
     from ..runtime import ModelBundle
 
-INPUTS = ("x", "ring", "count", "window")
-OUTPUTS = ("probs", "ring_out", "count_out", "window_out")
+INPUTS = ("x", "ring", "count", "probs_in")
+OUTPUTS = ("probs", "ring_out", "count_out", "probs_out")
 
 
 def _members(bundle: ModelBundle) -> list[RocketClassifier]:
@@ -79,8 +79,12 @@ class RocketStepModel(nn.Module):
     """One step of the MiniRocket family for ``B`` streams, for the ONNX export; states are explicit.
 
     Inputs: ``x (B, C)`` raw sample; ``ring (B, L, C)`` the last ``length`` normalised samples, oldest first;
-    ``count (B, 1)`` samples seen; ``window (B, L, C)`` the ring as of the last hop. All zeros at a stream's start.
-    Outputs: ``probs (B, K)`` the ensemble's mean for ``window``, then the new ``ring, count, window``.
+    ``count (B, 1)`` samples seen; ``probs (B, K)`` the last probabilities (at a stream's start those of an all-zero
+    window, as the offline pass gives before a log's first hop: ``zero_state``). Outputs: ``probs (B, K)``, then the
+    new ``ring, count`` and ``probs`` again as the next state.
+
+    Only the streams at a hop are classified: their rows are gathered, so between hops the transform runs on no row
+    at all and a call costs the ring's shift (a graph has no branch to skip it with).
     """
 
     def __init__(self, bundle: ModelBundle) -> None:
@@ -91,18 +95,21 @@ class RocketStepModel(nn.Module):
         self.register_buffer("mean", torch.from_numpy(bundle.normalizer.mean))
         self.register_buffer("std", torch.from_numpy(bundle.normalizer.std))
 
-    def forward(self, x, ring, count, window):
+    def forward(self, x, ring, count, probs):
         z = (x - self.mean) / self.std  # (B, C)
         ring = torch.cat([ring[:, 1:], z[:, None]], dim=1)  # (B, L, C)
         count = count + 1.0
-        done = torch.remainder(count, self.hop) == 0  # (B, 1)
-        window = torch.where(done[:, :, None], ring, window)
-        probs = ensemble_probs(list(self.members), window.flatten(1))  # (B, K)
-        return probs, ring, count, window
+        at_hop = torch.nonzero(torch.remainder(count[:, 0], self.hop) == 0)[:, 0]  # (H,) streams at a hop
+        new = ensemble_probs(list(self.members), ring.index_select(0, at_hop).flatten(1))  # (H, K)
+        probs = probs.index_copy(0, at_hop, new)
+        return probs, ring, count, probs
 
 
 def zero_state(bundle: ModelBundle, streams: int = 1) -> dict[str, np.ndarray]:
-    """The inputs of a stream's first step, apart from ``x``."""
-    cfg = _members(bundle)[0].config
+    """The inputs of a stream's first step, apart from ``x``: an empty ring, and the probabilities of its window."""
+    members = _members(bundle)
+    cfg = members[0].config
     ring = np.zeros((streams, cfg.length, cfg.channels), np.float32)
-    return {"ring": ring, "count": np.zeros((streams, 1), np.float32), "window": ring.copy()}
+    with torch.inference_mode():
+        probs = ensemble_probs(members, torch.zeros(1, cfg.length * cfg.channels)).numpy()  # (1, K)
+    return {"ring": ring, "count": np.zeros((streams, 1), np.float32), "probs_in": np.repeat(probs, streams, 0)}
