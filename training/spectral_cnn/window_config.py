@@ -67,8 +67,8 @@ class WindowFitConfig:
         span_s: Seconds of signal a step reads, in frames of the front end (``SpectralConfig.with_span``):
             ``None`` keeps the front end's 1.6 s, or in a session the span of its active classifier of this family
             (``workbench train --span``). On BorealTC's inner folds by run 3.4 s gained 1.1 points at 10 % of
-            labels and 2.5 at 100 % (``benchmarks/minirocket_borealtc.py --span 3.4``); a longer span answers a
-            change of terrain later.
+            labels and 2.5 at 100 % (``benchmarks/minirocket_borealtc.py --span 3.4``); on demo walks whose terrain
+            changes every 20 s it lost 6.7 points (``benchmarks/span_demo.py``).
     """
 
     k_folds: int = 5
