@@ -60,10 +60,7 @@ class _Rows:
             steps = self.steps.get(log)
             if steps is None:
                 continue
-            lo, hi = np.searchsorted(steps, a), np.searchsorted(steps, b)
-            if hi == lo and b > a:  # no hop inside: the row of its last step
-                lo = max(int(np.searchsorted(steps, b - 1)), 0)
-                hi = lo + int(lo < len(steps) and steps[lo] == b - 1)
+            lo, hi = np.searchsorted(steps, a), np.searchsorted(steps, b)  # a piece the guards cut short may have none
             xs.append(self.x[log][lo:hi])
             ys.append(self.y[log][lo:hi])
         if not xs:
