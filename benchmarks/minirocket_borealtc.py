@@ -41,12 +41,12 @@ def main() -> int:
     runs, labels, classes, fit = data
     if opts.hidden:
         fit = replace(fit, hidden=opts.hidden)
+    member = None if opts.no_member else RocketMember(stride=round(opts.stride * RATE_HZ), biases_from=opts.biases)
     # the default family's frames: 0.4 s every 0.2 s, as many as the span holds (7 for 1.7 s, 16 for 3.4 s)
     protocol = WindowProtocol(window_s=opts.span, frames=int((opts.span - 0.4) / 0.2 + 1e-9) + 1)
     print(f"span {opts.span} s ({protocol.frames} frames), width {fit.hidden}, MiniRocket biases from {opts.biases}")
-    member = None if opts.no_member else RocketMember(stride=round(opts.stride * RATE_HZ), biases_from=opts.biases)
-    print("| labelled | default: accuracy / balanced | MiniRocket | mean of both | s |")
-    print("| --- | --- | --- | --- | --- |")
+    columns = ["default: accuracy / balanced"] + ([] if member is None else ["MiniRocket", "mean of both"])
+    print(f"| labelled | {' | '.join(columns)} | s |\n|{' --- |' * (len(columns) + 2)}")
     for share in opts.labelled:
         t0 = time.monotonic()
         res = borealtc_window_protocol(
