@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -69,12 +69,6 @@ class SpectralConfig:
     def span(self) -> int:
         """Samples one summary covers."""
         return self.frame + (self.window - 1) * self.hop
-
-    def with_span(self, seconds: float, rate_hz: float) -> SpectralConfig:
-        """The same front end with as many frames a step as ``seconds`` of signal hold (at least one): 1.6 s is 7
-        frames of 0.4 s every 0.2 s, 3.4 s is 16."""
-        frames = round((seconds * rate_hz - self.frame) / self.hop) + 1
-        return replace(self, window=max(1, int(frames)))
 
     @classmethod
     def for_log(cls, x: np.ndarray, rate_hz: float, *, detrend: bool = False) -> SpectralConfig:

@@ -64,11 +64,6 @@ class WindowFitConfig:
         held_out: Also measure accuracy on held-out logs (folds over logs: as many fits again).
         calibrate: Divide the members' logits by a temperature fitted on held-out predictions.
         seed: Seed of the folds, initial weights and batches.
-        span_s: Seconds of signal a step reads, in frames of the front end (``SpectralConfig.with_span``):
-            ``None`` keeps the front end's 1.6 s, or in a session the span of its active classifier of this family
-            (``workbench train --span``). On BorealTC's inner folds by run 3.4 s gained 1.1 points at 10 % of
-            labels and 2.5 at 100 % (``benchmarks/minirocket_borealtc.py --span 3.4``); on demo walks whose terrain
-            changes every 20 s it lost 6.7 points (``benchmarks/span_demo.py``).
     """
 
     k_folds: int = 5
@@ -88,4 +83,3 @@ class WindowFitConfig:
     held_out: bool = True
     calibrate: bool = True
     seed: int = 0
-    span_s: float | None = None

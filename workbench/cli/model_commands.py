@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Literal
 
@@ -96,7 +95,6 @@ def train(
     batch_size: int = 512,
     bf16: bool = True,
     consistency: float = TrainConfig.consistency,
-    span: float | None = None,
 ) -> None:
     """Train the predictor (stage 1, all logs, no labels) and/or the classifier (stage 2, labelled segments).
 
@@ -123,10 +121,6 @@ def train(
         bf16: On CUDA, run the LSTMs under bfloat16 autocast.
         consistency: Stage 2: weight of the term asking unlabelled neighbouring windows of a log for the same
             class (0, the default: labels alone; 3: as BorealTC's simulation; up to 15× slower on long logs).
-        span: Default family: seconds of signal each step's classification reads (unset: 1.6 s, or the span of
-            the session's active default classifier; a Retrain keeps it). 3.4 s gained 1 to 2.5 points on
-            BorealTC's held-out runs, whose terrain holds for minutes, and lost 7 on demo walks whose terrain
-            changes every 20 s: a longer span reads across each change.
     """
     from training import distributed
 
@@ -140,8 +134,6 @@ def train(
         )
     if consistency < 0:
         raise WorkbenchError(f"--consistency must be 0 or more, got {consistency}")
-    if span is not None and not 0.4 <= span <= 60.0:
-        raise WorkbenchError(f"--span must be 0.4 to 60 seconds, got {span}")
     config = TrainConfig(
         max_epochs=max_epochs,
         patience=patience,
@@ -164,7 +156,7 @@ def train(
                 if stage in ("predictor", "all"):
                     _on_free_cpus(lambda: _train_predictor(s, config, hidden, model))
                 if stage in ("classifier", "all"):
-                    _train_classifier(s, config, hidden, feature_mode, stage, model, span)
+                    _train_classifier(s, config, hidden, feature_mode, stage, model)
     finally:
         distributed.leave()
     if distributed.launched():
@@ -233,16 +225,9 @@ def _train_predictor(s: Session, config: TrainConfig, hidden: int, model: str | 
 
 
 def _train_classifier(
-    s: Session,
-    config: TrainConfig,
-    hidden: int,
-    feature_mode: FeatureMode,
-    stage: str,
-    model: str | None,
-    span: float | None = None,
+    s: Session, config: TrainConfig, hidden: int, feature_mode: FeatureMode, stage: str, model: str | None
 ) -> None:
     from .. import cycle
-    from ..retrain import RETRAIN
 
     terrains = {seg.terrain for seg in s.segments()}
     if stage == "all" and len(terrains) < 2:
@@ -250,9 +235,8 @@ def _train_classifier(
         return
     bar = _Bar("classifier")
     try:
-        window = None if span is None else replace(RETRAIN.window, span_s=span)
         v = cycle.train_classifier(
-            s, model=model, config=config, window=window, feature_mode=feature_mode, hidden=hidden, progress=bar
+            s, model=model, config=config, feature_mode=feature_mode, hidden=hidden, progress=bar
         )
     finally:
         bar.close()

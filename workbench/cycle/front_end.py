@@ -10,7 +10,6 @@ import json
 import os
 import uuid
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 
 import numpy as np
 
@@ -32,10 +31,7 @@ def choose_front_end(session: Session, logs: Sequence[LogInfo]) -> SpectralConfi
 
 
 def _digest(normalizer: Normalizer, config: SpectralConfig) -> str:
-    # frames do not depend on how many of them a step reads: every span shares one cache (keyed as 7 frames were
-    # before a classifier could read another number, so older caches stay valid)
-    front = replace(config, window=SpectralConfig.window).to_dict()
-    text = json.dumps({"normalizer": normalizer.to_dict(), "front": front}, sort_keys=True)
+    text = json.dumps({"normalizer": normalizer.to_dict(), "front": config.to_dict()}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 

@@ -340,8 +340,6 @@ def _train_window(
     logs = model_logs(session, bundle.channels)
     classes, used, segments = _labelled(session, logs)
     front = front_end_of(session, bundle, logs)
-    if fam.stage2_inputs == "frames":  # the span a step reads: asked for, else the active classifier's
-        front = replace(front, window=_frames_window(session, fam, settings, front, logs[0].rate_hz))
     if fam.stage2_inputs == "windows":  # the samples themselves, a window per hop of the front end
         features = window_features(session, bundle, logs, window_sizes(bundle, front))
     else:
@@ -369,22 +367,10 @@ def _train_window(
                 "predictor": p_version.id,
                 "warm_start": False,
                 "self_training_stretches": len(stretches),
-                "frames": front.window,
             },
         )
         result["version"] = version.id
     return version
-
-
-def _frames_window(session: Session, fam: Family, settings: WindowFitConfig, front: SpectralConfig, rate: float) -> int:
-    """Frames a step of a frames family reads: ``settings.span_s`` in frames, else the active classifier's when it is
-    of this family (a Retrain keeps the span ``workbench train --span`` chose), else the front end's."""
-    if settings.span_s is not None:
-        return front.with_span(settings.span_s, rate).window
-    previous = session.active_model("classifier")
-    if previous is not None and previous.config.get("model") == fam.name and previous.config.get("frames"):
-        return int(previous.config["frames"])
-    return front.window
 
 
 def _fine_tune_window(

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +16,6 @@ from workbench import cycle
 from workbench.cycle import score_session, signal_change_points, unlabelled_stretches
 from workbench.demo import seed_labels
 from workbench.export import classify_files, export_all
-from workbench.retrain import RETRAIN
 
 from .test_cycle import TINY
 
@@ -226,28 +224,6 @@ def test_a_third_family_trains_scores_and_exports_in_a_session_with_no_workbench
         assert "checked with onnxruntime" in written["classifier_stream.onnx"]
         assert "Logreg family" in (tmp_path / "export" / "bundle" / "MODEL_CARD.md").read_text()
     cycle.train_classifier(session, model="default")  # the session's other tests expect the default active
-
-
-def test_a_longer_span_is_kept_by_a_retrain_reads_the_same_frames_and_streams_the_offline_numbers(
-    session: Session,
-) -> None:
-    """``workbench train --span 3.4``: 16 frames a step instead of 7, from the frames already cached; a Retrain
-    (no span given) keeps it; the stream gives the scores' numbers."""
-    caches = sorted(p.name for p in session.path.rglob("frames-*"))
-    longer = replace(RETRAIN.window, epochs=20, refit_epochs=10, span_s=3.4)  # as fast as fast_window_fits
-    version = cycle.train_classifier(session, model="default", window=longer)
-    _, bundle = cycle.active_bundle(session)
-    assert bundle.spectral.window == 16 and version.config["frames"] == 16
-    assert sorted(p.name for p in session.path.rglob("frames-*")) == caches  # one cache for every span
-    again = cycle.train_classifier(session)
-    assert again.config["frames"] == 16 and load_bundle(session.path / again.path).spectral.window == 16
-    log = session.logs()[0]
-    scored = score_session(session, [log.id])[log.id]
-    _, bundle = cycle.active_bundle(session)
-    streamed = StreamingClassifier(bundle).run(np.asarray(session.array(log.id))[:2000])
-    np.testing.assert_allclose(streamed, scored.probs[:2000], atol=1e-5)
-    back = cycle.train_classifier(session, model="default", window=replace(longer, span_s=1.6))
-    assert back.config["frames"] == 7
 
 
 def test_the_minirocket_family_trains_scores_streams_and_exports_in_a_session(session: Session, tmp_path: Path) -> None:
