@@ -5,8 +5,8 @@ its ONNX graph run.
 Per dilation, each kernel's channels are summed first (one matrix product: the convolution is linear), then one
 grouped ``conv1d`` applies the 84 nine-tap filters, and every position is compared with every bias: operators ONNX
 has, and several times faster than aeon's order of sums written in torch. Checked against aeon's numbers
-(``tests/training/test_rocket_transform.py``): equal but where a sum lands within float32 rounding of a bias (2 of
-29,988 features there, each by one position). The classifier puts its inputs on a grid where every sum is exact
+(``tests/training/test_rocket_transform.py``): equal but where a sum lands within float32 rounding of a bias (1 of
+29,988 features there, by one position). The classifier puts its inputs on a grid where every sum is exact
 (``rocket_kernels.GRID``), so there the order of sums cannot matter.
 """
 

@@ -3,6 +3,7 @@ changes made by other processes."""
 
 from __future__ import annotations
 
+import sqlite3
 import threading
 from dataclasses import replace
 from pathlib import Path
@@ -52,8 +53,17 @@ class WorkbenchApp:
         self.uploads = UploadBudget()  # what every client together may be sending at once
 
         def connect(client) -> None:
+            if self._stop.is_set():
+                return  # the server is stopping: a page that connects now has nothing to be built from
             limit_uploads(client, self.uploads, self._upload_refused)  # before its upload button exists
-            view = ClientView(client, self.state, self.job)
+            try:
+                view = ClientView(client, self.state, self.job)
+            except sqlite3.ProgrammingError:
+                # the session closed under a page still being built (a stop racing a connect): nothing to show,
+                # and no traceback on the terminal of someone who pressed Ctrl+C
+                if self._stop.is_set():
+                    return
+                raise
             with self._views_lock:
                 self.views[client.client_id] = view
 
