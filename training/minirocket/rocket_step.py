@@ -34,9 +34,16 @@ def _members(bundle: ModelBundle) -> list[RocketClassifier]:
     return members
 
 
-def ensemble_probs(members: list[RocketClassifier], windows: torch.Tensor) -> torch.Tensor:
-    """The members' mean probabilities of ``windows (B, L·C)``: ``(B, K)``; one transform when they share it."""
-    shared = all(torch.equal(m.transform.biases, members[0].transform.biases) for m in members[1:])
+def shares_transform(members: list[RocketClassifier]) -> bool:
+    """Every member's transform is the first's (masks and biases): one fit's ensemble, whose folds differ in heads."""
+    first = members[0].transform
+    return all(torch.equal(m.transform.masks, first.masks) and torch.equal(m.transform.biases, first.biases)
+               for m in members[1:])  # fmt: skip
+
+
+def ensemble_probs(members: list[RocketClassifier], windows: torch.Tensor, *, shared: bool) -> torch.Tensor:
+    """The members' mean probabilities of ``windows (B, L·C)``: ``(B, K)``; the transform once when they share it
+    (:func:`shares_transform`, decided once by the caller, not at every hop)."""
     if not shared:
         return torch.stack([torch.softmax(m.logits(windows), -1) for m in members]).mean(0)
     feats = members[0].transformed(windows)  # (B, F) the shared transform's, once
@@ -48,6 +55,7 @@ class RocketStep:
 
     def __init__(self, bundle: ModelBundle, *, streams: int = 1) -> None:
         self.members = _members(bundle)
+        self.shared = shares_transform(self.members)
         cfg = self.members[0].config
         self.length, self.hop, self.channels = cfg.length, cfg.hop, cfg.channels
         self.normalizer = bundle.normalizer
@@ -64,7 +72,8 @@ class RocketStep:
 
     @torch.inference_mode()
     def _classify(self) -> np.ndarray:
-        return ensemble_probs(self.members, torch.from_numpy(self.ring.reshape(len(self.ring), -1))).numpy()
+        windows = torch.from_numpy(self.ring.reshape(len(self.ring), -1))
+        return ensemble_probs(self.members, windows, shared=self.shared).numpy()
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         self.ring[:, :-1] = self.ring[:, 1:]
@@ -90,6 +99,7 @@ class RocketStepModel(nn.Module):
     def __init__(self, bundle: ModelBundle) -> None:
         super().__init__()
         self.members = nn.ModuleList(_members(bundle))
+        self.shared = shares_transform(list(self.members))
         cfg = self.members[0].config
         self.hop = cfg.hop
         self.register_buffer("mean", torch.from_numpy(bundle.normalizer.mean))
@@ -100,7 +110,7 @@ class RocketStepModel(nn.Module):
         ring = torch.cat([ring[:, 1:], z[:, None]], dim=1)  # (B, L, C)
         count = count + 1.0
         at_hop = torch.nonzero(torch.remainder(count[:, 0], self.hop) == 0)[:, 0]  # (H,) streams at a hop
-        new = ensemble_probs(list(self.members), ring.index_select(0, at_hop).flatten(1))  # (H, K)
+        new = ensemble_probs(list(self.members), ring.index_select(0, at_hop).flatten(1), shared=self.shared)  # (H, K)
         probs = probs.index_copy(0, at_hop, new)
         return probs, ring, count, probs
 
@@ -111,5 +121,6 @@ def zero_state(bundle: ModelBundle, streams: int = 1) -> dict[str, np.ndarray]:
     cfg = members[0].config
     ring = np.zeros((streams, cfg.length, cfg.channels), np.float32)
     with torch.inference_mode():
-        probs = ensemble_probs(members, torch.zeros(1, cfg.length * cfg.channels)).numpy()  # (1, K)
+        zero = torch.zeros(1, cfg.length * cfg.channels)
+        probs = ensemble_probs(members, zero, shared=shares_transform(members)).numpy()  # (1, K)
     return {"ring": ring, "count": np.zeros((streams, 1), np.float32), "probs_in": np.repeat(probs, streams, 0)}
