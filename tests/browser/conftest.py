@@ -30,6 +30,10 @@ CHROMIUM_FLAGS = [
     "--no-first-run",
 ]
 ARTIFACTS = REPO / "test-artifacts"
+# How long a page may take to show what the server did. A label round trip is ~70 ms when idle, but `make test` runs
+# two workers on two cores beside Chromium's software WebGL and the server, and CI machines are slower still: a
+# 10 s wait failed there twice. A wait that passes returns as soon as the text shows, so a long bound costs nothing.
+UI_WAIT_MS = 30_000
 
 
 def free_port() -> int:
@@ -127,8 +131,8 @@ def open_tab(page, name: str) -> None:
     for _ in range(5):
         close_notifications(page)
         try:
-            tab.click(timeout=3_000)
+            tab.click(timeout=5_000)
             return
         except Exception:
             continue  # a new notification arrived over the tab
-    tab.click(timeout=3_000)
+    tab.click(timeout=UI_WAIT_MS)

@@ -16,7 +16,7 @@ import pytest
 from sessions import Session
 from tests.conftest import REPO
 
-from .conftest import ARTIFACTS, Server, close_notifications, open_tab, save_screenshot, shared_page
+from .conftest import ARTIFACTS, UI_WAIT_MS, Server, close_notifications, open_tab, save_screenshot, shared_page
 from .test_workbench_ui import TINY, blur, open_workbench, rows, set_cursor, tiny_trained_session, wait_until
 
 pytestmark = pytest.mark.browser
@@ -64,10 +64,10 @@ def test_the_first_screen_is_drawn_from_the_kept_scoring(screen: Screen) -> None
     started = time.monotonic()
     page.goto(server.url)
     page.get_by_text("segments suggested").wait_for(timeout=30_000)  # the queue, without a scoring pass
-    page.get_by_text(re.compile(r"^default v\d+")).first.wait_for(timeout=10_000)  # the status line: the model
-    page.get_by_role("button", name="Retrain", exact=True).wait_for(timeout=10_000)
-    page.get_by_role("button", name="Export", exact=True).wait_for(timeout=10_000)
-    page.locator("img[data-frame]").wait_for(timeout=10_000)  # the camera, at the cursor
+    page.get_by_text(re.compile(r"^default v\d+")).first.wait_for(timeout=UI_WAIT_MS)  # the status line: the model
+    page.get_by_role("button", name="Retrain", exact=True).wait_for(timeout=UI_WAIT_MS)
+    page.get_by_role("button", name="Export", exact=True).wait_for(timeout=UI_WAIT_MS)
+    page.locator("img[data-frame]").wait_for(timeout=UI_WAIT_MS)  # the camera, at the cursor
     drawn = time.monotonic() - started
     (ARTIFACTS / "first-screen.txt").parent.mkdir(exist_ok=True)
     (ARTIFACTS / "first-screen.txt").write_text(f"suggestions, status line and camera drawn {drawn:.1f} s after goto\n")
@@ -92,16 +92,16 @@ def test_the_camera_frame_follows_the_cursor(screen: Screen) -> None:
     if "cursor 0.00 s" not in page.inner_text("body"):  # the first test did not get as far as the page
         open_workbench(page, screen.server.url)
     frame = page.locator("img[data-frame]")
-    frame.wait_for(timeout=10_000)
+    frame.wait_for(timeout=UI_WAIT_MS)
     numbers = []
     for cursor in (2.0, 12.0, 25.0):
         set_cursor(page, cursor)
-        wait_until(lambda c=cursor: abs(shown_at(page) - c) <= 0.35, timeout=10, what=f"the frame at {cursor} s")
+        wait_until(lambda c=cursor: abs(shown_at(page) - c) <= 0.35, timeout=30, what=f"the frame at {cursor} s")
         numbers.append(int(frame.get_attribute("data-frame")))
     assert numbers == sorted(numbers) and len(set(numbers)) == 3
     before = frame.get_attribute("src")
     page.keyboard.press("ArrowRight")  # the cursor moves 1/20 of the window: 1.5 s at 30 s, three frames on
-    wait_until(lambda: frame.get_attribute("src") != before, timeout=10, what="a new frame after the arrow key")
+    wait_until(lambda: frame.get_attribute("src") != before, timeout=30, what="a new frame after the arrow key")
     save_screenshot(page, "camera-follows-cursor")
 
 
@@ -114,7 +114,7 @@ def test_a_predicted_stretch_is_accepted_with_one_key_and_undone(screen: Screen)
     open_tab(page, "Label")
     blur(page)
     page.keyboard.press("j")
-    page.get_by_text(re.compile(r"Stretch \d+ of \d+")).first.wait_for(timeout=10_000)
+    page.get_by_text(re.compile(r"Stretch \d+ of \d+")).first.wait_for(timeout=UI_WAIT_MS)
     close_notifications(page)
     save_screenshot(page, "stretch-review")
     page.keyboard.press("y")
@@ -124,7 +124,7 @@ def test_a_predicted_stretch_is_accepted_with_one_key_and_undone(screen: Screen)
     assert len({r[3] for r in accepted}) == 1 and accepted[0][3] in classes
     for g, a, b, _, _ in accepted:  # only unlabelled time
         assert not any(g == h and a < y and x < b for h, x, y in labelled), (accepted, sorted(labelled))
-    page.get_by_text("Accepted").first.wait_for(timeout=10_000)
+    page.get_by_text("Accepted").first.wait_for(timeout=UI_WAIT_MS)
     save_screenshot(page, "stretch-accepted")
     close_notifications(page)
     blur(page)

@@ -9,7 +9,7 @@ import pytest
 from tests.conftest import new_session
 from workbench.cli import main
 
-from .conftest import open_tab, save_screenshot
+from .conftest import UI_WAIT_MS, open_tab, save_screenshot
 
 pytestmark = pytest.mark.browser
 
@@ -56,7 +56,7 @@ def test_a_new_session_asks_for_terrains_and_the_page_follows_a_log_ingested_els
     page.goto(server.url)
     page.get_by_text("walk_000").first.wait_for(timeout=30_000)
     open_tab(page, "Label")
-    page.get_by_text("No terrains yet.").wait_for(timeout=10_000)  # the hint, with its Terrains folder open
+    page.get_by_text("No terrains yet.").wait_for(timeout=UI_WAIT_MS)  # the hint, with its Terrains folder open
     save_screenshot(page, "no-terrains-yet")
     name = page.locator(
         "xpath=//label[text()='Name']/ancestor::div[contains(@class,'mantine-Flex-root')][1]//input"
@@ -64,7 +64,7 @@ def test_a_new_session_asks_for_terrains_and_the_page_follows_a_log_ingested_els
     name.fill("wet-floor")
     name.press("Tab")
     page.get_by_role("button", name="Add terrain").click()
-    page.get_by_text("No terrains yet.").wait_for(state="hidden", timeout=10_000)
+    page.get_by_text("No terrains yet.").wait_for(state="hidden", timeout=UI_WAIT_MS)
     with Session.open(session) as s:
         assert [t.name for t in s.terrains()] == ["wet-floor"]
 

@@ -20,7 +20,7 @@ from sessions import Session
 from tests.conftest import new_session
 from training import TrainConfig
 
-from .conftest import Server, open_tab, save_screenshot, shared_page
+from .conftest import UI_WAIT_MS, Server, open_tab, save_screenshot, shared_page
 
 pytestmark = pytest.mark.browser
 TINY = ("--hidden", "8", "--stage1-epochs", "2", "--stage2-epochs", "3")
@@ -121,7 +121,7 @@ def set_cursor(page, seconds: float) -> None:
     )
     box.fill(str(seconds))
     box.press("Tab")
-    page.get_by_text(f"cursor {seconds:.2f} s").wait_for(timeout=10_000)
+    page.get_by_text(f"cursor {seconds:.2f} s").wait_for(timeout=UI_WAIT_MS)
     blur(page)
 
 
@@ -140,10 +140,10 @@ def test_label_with_hotkeys_retrain_suggest_and_download(workbench: Workbench) -
     page.keyboard.press("b")
     set_cursor(page, t + 2)
     page.keyboard.press("e")
-    page.get_by_text(f"range {t:.2f}–{t + 2:.2f} s").wait_for(timeout=10_000)
+    page.get_by_text(f"range {t:.2f}–{t + 2:.2f} s").wait_for(timeout=UI_WAIT_MS)
     page.keyboard.press("2")
     page.keyboard.press("Enter")
-    page.get_by_text("Saved").first.wait_for(timeout=10_000)
+    page.get_by_text("Saved").first.wait_for(timeout=UI_WAIT_MS)
     added = [r for r in rows(session_path) if r not in before]
     assert added == [(1, round(100 * t), round(100 * t) + 200, "grass", "manual")]
     save_screenshot(page, "workbench-main")
@@ -166,12 +166,12 @@ def test_label_with_hotkeys_retrain_suggest_and_download(workbench: Workbench) -
     page.get_by_text("segments suggested").wait_for(timeout=60_000)
     # each suggestion of the table shows its camera frame, small (the demo walks have a camera)
     thumbs = page.locator("img.wb-thumb")
-    thumbs.first.wait_for(timeout=10_000)
+    thumbs.first.wait_for(timeout=UI_WAIT_MS)
     picture = Image.open(io.BytesIO(base64.b64decode(thumbs.first.get_attribute("src").split(",", 1)[1])))
     assert picture.format == "JPEG" and picture.width == 112 and thumbs.count() >= 2
     blur(page)
     page.keyboard.press("n")
-    page.get_by_text("model's guess").wait_for(timeout=10_000)
+    page.get_by_text("model's guess").wait_for(timeout=UI_WAIT_MS)
     # the 1 s piece sits in a window of CONTEXT_S (10 s), clipped only at the ends of the log
     shown = re.search(r"([\d.]+)–([\d.]+) s of (\d+) s", page.get_by_text(" s of ").first.inner_text())
     a, b, duration = (float(x) for x in shown.groups())
@@ -199,17 +199,17 @@ def test_a_second_browser_sees_the_first_ones_label(workbench: Workbench, browse
     open_workbench(second, workbench.server.url)
     open_tab(second, "Label")
     n = len(rows(session_path))
-    second.get_by_text(f"{n} segments labelled").wait_for(timeout=10_000)
+    second.get_by_text(f"{n} segments labelled").wait_for(timeout=UI_WAIT_MS)
     t = free_seconds(session_path, 1, 2.5)
     set_cursor(first, t)
     first.keyboard.press("b")
     set_cursor(first, t + 2.5)
     first.keyboard.press("e")
-    first.get_by_text(f"range {t:.2f}–{t + 2.5:.2f} s").wait_for(timeout=10_000)  # the server has the range
+    first.get_by_text(f"range {t:.2f}–{t + 2.5:.2f} s").wait_for(timeout=UI_WAIT_MS)  # the server has the range
     first.keyboard.press("4")
     first.keyboard.press("Enter")
-    first.get_by_text("Saved").first.wait_for(timeout=10_000)
-    second.get_by_text(f"{n + 1} segments labelled").wait_for(timeout=10_000)
+    first.get_by_text("Saved").first.wait_for(timeout=UI_WAIT_MS)
+    second.get_by_text(f"{n + 1} segments labelled").wait_for(timeout=UI_WAIT_MS)
     assert len(rows(session_path)) == n + 1
     # the second browser kept its own view: its cursor did not move with the first one's
     assert "cursor 0.00 s" in second.inner_text("body")
@@ -236,5 +236,5 @@ def test_upload_ingests_a_log_and_refuses_a_broken_file(workbench: Workbench, tm
     assert not (session_path / "uploads" / "broken.mcap").exists()
     upload.set_input_files(str(good))
     page.get_by_text("Ingested").first.wait_for(timeout=60_000)
-    page.get_by_text("3 logs").wait_for(timeout=10_000)
+    page.get_by_text("3 logs").wait_for(timeout=UI_WAIT_MS)
     assert [x.name for x in Session.open(session_path).logs()][-1] == "field_run"
