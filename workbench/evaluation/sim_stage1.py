@@ -10,6 +10,7 @@ import numpy as np
 from training import (
     FrameOutputs,
     FramePredictorConfig,
+    FramePredictorFit,
     Normalizer,
     SpectralConfig,
     SpectralSteps,
@@ -26,12 +27,17 @@ def log_spectra(logs: Sequence[np.ndarray], normalizer: Normalizer, rate_hz: flo
 
 
 def frame_stage1(
-    train: Sequence[np.ndarray], pieces: Sequence[SpectralSteps], front: SpectralConfig
+    train: Sequence[np.ndarray],
+    pieces: Sequence[SpectralSteps],
+    front: SpectralConfig,
+    *,
+    steps: int = FramePredictorFit.steps,
 ) -> tuple[list[np.ndarray], list]:
     """The default family's own stage 1, as ``workbench train`` fits it: the next-frame predictor on the frames of
     every log (``train``, no labels); then per piece (a log, or a stretch of one read from a fresh start) its
-    per-step surprise ``(T,)`` and embedding ``(T, H)``."""
-    model, _ = fit_frame_predictor(list(train), config=FramePredictorConfig(front.width))
+    per-step surprise ``(T,)`` and embedding ``(T, H)``; ``steps``: the fit's budget (``FramePredictorFit.steps``)."""
+    fit = FramePredictorFit(steps=steps)
+    model, _ = fit_frame_predictor(list(train), config=FramePredictorConfig(front.width), fit=fit)
     outs = [FrameOutputs(*frame_surprise(model, s.frames), len(s), front) for s in pieces]
     return [o.surprise() for o in outs], [o.embedding() for o in outs]
 
