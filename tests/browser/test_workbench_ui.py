@@ -91,6 +91,14 @@ def free_seconds(path: Path, log_id: int, length: float, *, after: float = 1.0) 
     return t
 
 
+def shown_log(page, path: Path) -> int:
+    """The id of the log the page shows (from the legend's name): an earlier test may have left another log on
+    screen (a suggestion's), and a range typed there must be free in that log."""
+    name = re.search(r"(\S+) · [\d.]+–[\d.]+ s of \d+ s", page.inner_text("body")).group(1)
+    with sqlite3.connect(path / "session.sqlite") as conn:
+        return conn.execute("SELECT id FROM logs WHERE name = ?", (name,)).fetchone()[0]
+
+
 def wait_until(check, timeout: float = 30.0, what: str = "condition"):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -207,7 +215,7 @@ def test_a_second_browser_sees_the_first_ones_label(workbench: Workbench, browse
     open_tab(second, "Label")
     n = len(rows(session_path))
     second.get_by_text(f"{n} segments labelled").wait_for(timeout=UI_WAIT_MS)
-    t = free_seconds(session_path, 1, 2.5)
+    t = free_seconds(session_path, shown_log(first, session_path), 2.5)
     set_cursor(first, t)
     press_b(first, t)
     set_cursor(first, t + 2.5)
