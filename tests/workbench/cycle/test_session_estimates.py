@@ -16,6 +16,8 @@ from workbench.export import export_all
 
 from .test_cycle import TINY
 
+pytestmark = pytest.mark.usefixtures("fast_window_fits")  # which figure the estimate is, not how high
+
 
 @pytest.fixture(scope="module")
 def one_run_per_terrain(tmp_path_factory: pytest.TempPathFactory) -> Path:

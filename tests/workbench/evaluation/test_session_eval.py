@@ -15,6 +15,8 @@ from workbench import cycle
 from workbench.cli import main
 from workbench.demo import generate_demo_logs, seed_labels
 
+pytestmark = pytest.mark.usefixtures("fast_window_fits")  # the report, not the accuracy, is under test
+
 
 @pytest.fixture(params=["default", "paper"])
 def three_logs(tmp_path: Path, request) -> Path:
