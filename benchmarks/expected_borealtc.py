@@ -1,9 +1,7 @@
 """Issue 54's expected-accuracy check on BorealTC: folds by run (5 outer folds), 10 % of the training partitions
 labelled; for every held-out run, the accuracy ``classify`` expects at its drift against the accuracy it scored on
 its 1.7 s windows (the target: within 10 points on 80 % of runs). Also printed, the rules it was chosen against
-(on inner folds): the card's figure alone, the relation capped at it, the mean top probability, and average
-thresholded confidence (ATC, Garg et al. 2022: the share of a run's windows whose top probability is above the
-threshold that the held-out blocks' rows are above as often as they were right).
+(on inner folds): the card's figure alone, the relation capped at it, and the mean top probability.
 
     python benchmarks/expected_borealtc.py [--seed S] [--inner F] [--balance B]
 
@@ -54,11 +52,6 @@ def main() -> int:
         "the card's figure": [r["card"] for r in rows],
         "the relation capped at the card": [r["capped"] for r in rows],
         "mean top probability": [r["confidence"] for r in rows],
-        "thresholded confidence (ATC)": [r["thresholded"] for r in rows],
-        "the relation and ATC averaged": [
-            None if r["expected"] is None or r["thresholded"] is None else (r["expected"] + r["thresholded"]) / 2
-            for r in rows
-        ],
     }
     print(f"{len(rows)} held-out runs; accuracy per run: median {np.median(truth):.1%}, lowest {truth.min():.1%}")
     for name, values in rules.items():

@@ -55,7 +55,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "terrain_estimate",
             "terrain_recalls",
         ),
-        "drift_accuracy": ("accuracy_by_drift", "confidence_threshold", "expected_accuracy", "thresholded_confidence"),
+        "drift_accuracy": ("accuracy_by_drift", "expected_accuracy"),
         "normalizer": ("Normalizer", "Rows"),
         "passes": ("ensemble_pass", "padded_groups", "run_classifiers"),
         "metrics": ("classification_metrics", "expected_calibration_error"),

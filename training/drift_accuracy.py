@@ -72,23 +72,3 @@ def expected_accuracy(relation: Mapping | None, drift: np.ndarray) -> float | No
     if len(drift) == 0:
         return None
     return float(np.interp(drift, np.asarray(relation["drift"]), np.asarray(relation["accuracy"])).mean())
-
-
-def confidence_threshold(confidence: np.ndarray, correct: np.ndarray) -> float | None:
-    """The top-probability threshold of average thresholded confidence (ATC; Garg et al., ICLR 2022): on held-out
-    rows ``(N,)`` (each row's calibrated top probability, whether it was right), the threshold above which the share
-    of rows equals their accuracy. A new file's expected accuracy is then its share of steps above it
-    (:func:`thresholded_confidence`). ``None`` with fewer than ``MIN_ROWS`` rows."""
-    confidence = np.asarray(confidence, np.float64)
-    correct = np.asarray(correct, np.float64)
-    if len(confidence) < MIN_ROWS:
-        return None
-    return float(np.quantile(confidence, 1.0 - correct.mean()))
-
-
-def thresholded_confidence(threshold: float | None, probs: np.ndarray) -> float | None:
-    """ATC's expected accuracy of a file: the share of its steps' probabilities ``(T, K)`` whose top one is above
-    ``threshold``; ``None`` without a threshold or steps."""
-    if threshold is None or len(probs) == 0:
-        return None
-    return float((np.asarray(probs).max(axis=1) > threshold).mean())

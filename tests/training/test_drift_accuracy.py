@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from training import accuracy_by_drift, confidence_threshold, expected_accuracy, thresholded_confidence
+from training import accuracy_by_drift, expected_accuracy
 from training.drift_accuracy import MIN_ROWS
 
 
@@ -37,17 +37,3 @@ def test_too_few_rows_or_no_drift_give_no_relation_or_expectation() -> None:
     assert relation is not None
     assert expected_accuracy(None, np.ones(10)) is None
     assert expected_accuracy(relation, np.full(5, np.nan)) is None
-
-
-def test_thresholded_confidence_reads_held_out_accuracy_back_and_falls_with_a_files_confidence() -> None:
-    rng = np.random.default_rng(3)
-    top = rng.uniform(0.4, 1.0, 4000)  # (N,) held-out rows' calibrated top probabilities
-    right = rng.random(4000) < top  # calibrated: right as often as the probability says
-    threshold = confidence_threshold(top, right)
-    assert threshold is not None and 0.4 < threshold < 1.0
-    probs = np.stack([top, (1.0 - top) / 2, (1.0 - top) / 2], axis=1)  # (N, 3): top is the largest
-    assert abs(thresholded_confidence(threshold, probs) - right.mean()) < 0.01  # the held-out rows' own accuracy
-    unsure = np.tile([0.45, 0.3, 0.25], (100, 1))  # (100, 3) a file the model is unsure on
-    assert thresholded_confidence(threshold, unsure) < 0.2
-    assert confidence_threshold(top[: MIN_ROWS - 1], right[: MIN_ROWS - 1]) is None
-    assert thresholded_confidence(None, probs) is None

@@ -28,7 +28,6 @@ import numpy as np
 import torch
 
 from ..blocking import blocked_folds, log_folds
-from ..drift_accuracy import confidence_threshold
 from ..estimates import terrain_estimate
 from ..fit_threads import INIT_LOCK, fit_workers, run_fits
 from ..fitting import ClassifierFit, Segment
@@ -397,11 +396,6 @@ def fit_window_classifier(
     right = [logits.argmax(1) == y for logits, y in zip(oof_logits, oof_classes, strict=True)]
     if blocked.k > 1 and (relation := held_out_relation(drift, models, oof_rows, right)):
         metrics["drift_accuracy"] = relation
-    if blocked.k > 1 and len(oof_logits):
-        top = [torch.softmax(torch.as_tensor(x) / temperature, dim=1).amax(1).numpy() for x in oof_logits]  # (N_m,)
-        threshold = confidence_threshold(np.concatenate(top), np.concatenate(right))
-        if threshold is not None:
-            metrics["confidence_threshold"] = threshold
     return ClassifierFit(
         models,
         metrics,

@@ -30,7 +30,6 @@ from training import (
     log_frames,
     run_classifiers,
     stacked_frames,
-    thresholded_confidence,
 )
 
 from .evaluate_windows import FoldResult, Split, WindowProtocol, labelled_subset, outer_folds, partitions
@@ -90,7 +89,6 @@ def run_expectations(
                 "expected": expected,
                 "capped": None if expected is None or card is None else min(expected, card),
                 "confidence": float(probs[mine].max(1).mean()),
-                "thresholded": thresholded_confidence(fit_metrics.get("confidence_threshold"), probs[mine]),
                 "median_drift": float(np.median(drift[mine])),
                 "card": card,
             }
