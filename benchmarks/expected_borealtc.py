@@ -1,7 +1,9 @@
 """Issue 54's expected-accuracy check on BorealTC: folds by run (5 outer folds), 10 % of the training partitions
-labelled; for every held-out run, the accuracy ``classify`` expects at its drift against the accuracy it scored on
-its 1.7 s windows (the target: within 10 points on 80 % of runs). Also printed, the rules it was chosen against
-(on inner folds): the card's figure alone, the relation capped at it, and the mean top probability.
+labelled; for every held-out run, the accuracy ``classify`` expects against the accuracy it scored on its 1.7 s
+windows (the target: within 10 points on 80 % of runs): by its stretches (the share of its windows predicted as its
+most predicted terrain: each run is one terrain, one stretch) and at its drift. Also printed, the rules they were
+chosen against (on inner folds): the card's figure alone, the relation capped at it, the mean top probability, and
+the two averaged.
 
     python benchmarks/expected_borealtc.py [--seed S] [--inner F] [--balance B]
 
@@ -48,10 +50,14 @@ def main() -> int:
     )
     truth = np.asarray([r["accuracy"] for r in rows])
     rules = {
-        "expected (classify)": [r["expected"] for r in rows],
+        # what `classify` prints: each run is one terrain and scored as one stretch here (classify cuts a file at
+        # its change points)
+        "expected by its stretches (classify)": [r["purity"] for r in rows],
+        "expected at its drift (classify)": [r["expected"] for r in rows],
         "the card's figure": [r["card"] for r in rows],
         "the relation capped at the card": [r["capped"] for r in rows],
         "mean top probability": [r["confidence"] for r in rows],
+        "the two averaged": [None if r["expected"] is None else (r["expected"] + r["purity"]) / 2 for r in rows],
     }
     print(f"{len(rows)} held-out runs; accuracy per run: median {np.median(truth):.1%}, lowest {truth.min():.1%}")
     for name, values in rules.items():
@@ -62,7 +68,12 @@ def main() -> int:
             f"{np.nanmean(v - truth) * 100:+.1f} points, mean absolute {np.nanmean(np.abs(v - truth)) * 100:.1f}"
         )
     low = truth < np.asarray([r["card"] for r in rows]) - WITHIN
-    warned = np.asarray([r["expected"] is not None and r["card"] - r["expected"] >= WITHIN for r in rows])
+    warned = np.asarray(
+        [
+            (r["expected"] is not None and r["card"] - r["expected"] >= WITHIN) or r["card"] - r["purity"] >= WITHIN
+            for r in rows
+        ]
+    )
     print(
         f"runs 10 points or more under the card: {low.sum()}; warned: {warned.sum()} "
         f"({(warned & low).sum()} of them rightly)"

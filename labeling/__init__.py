@@ -3,7 +3,7 @@
 NumPy in, NumPy out: no torch, no UI, no session (``workbench`` wires it to the model and the store).
 """
 
-from .changepoints import Snap, block_summary, change_points, snap_range, spans
+from .changepoints import Snap, block_summary, change_points, snap_range, spans, stretch_agreement
 from .simulate import (
     CurvePoint,
     Labelled,
@@ -75,6 +75,7 @@ __all__ = [
     "smooth",
     "snap_range",
     "spans",
+    "stretch_agreement",
     "suggest",
     "table",
     "time_to_reach",

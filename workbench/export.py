@@ -432,7 +432,7 @@ def classify_files(
     except WorkbenchError as exc:
         return 2, [*lines, f"error: {exc}"]
     if arrays:
-        from .cycle import in_memory_features, score_logs
+        from .cycle import in_memory_features, log_change_points, score_logs
 
         if bundle.stage2_family().stage2_inputs in ("frames", "windows"):
             # the predictions file holds no surprise: these families' stage 2 never reads stage 1, so it is skipped
@@ -443,8 +443,11 @@ def classify_files(
             features = [o.lazy(bundle.feature_mode) for o in outs]
             surprise = [o.surprise() for o in outs]
         scored = score_logs(bundle.classifiers, features, surprise, drift=bundle.drift)
-        for name, s in zip(names, scored, strict=True):  # per file: its drift and what to expect at it
-            if (expect := file_expectation(name, s.drift, bundle.metrics)) is not None:
+        own_surprise = bundle.stage2_family().stage2_inputs not in ("frames", "windows")
+        for name, a, s in zip(names, arrays, scored, strict=True):  # per file: its drift and what to expect on it
+            points = log_change_points(a, s.surprise if own_surprise else None, rate_hz=bundle.rate_hz)
+            expect = file_expectation(name, s.drift, bundle.metrics, predicted=s.probs.argmax(1), change_points=points)
+            if expect is not None:
                 lines += [expect.line(), *filter(None, [expect.warning()])]
         if smooth_s is not None:
             hmm = TerrainFilter.for_dwell(smooth_s, bundle.rate_hz, len(bundle.classes))

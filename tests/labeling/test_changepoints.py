@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from labeling import block_summary, change_points, snap_range, spans
+from labeling import block_summary, change_points, snap_range, spans, stretch_agreement
 
 
 def steps(seed: int = 0) -> tuple[np.ndarray, list[int]]:
@@ -69,3 +69,12 @@ def test_spans_tile_the_log_without_overlap(length: int, points: list[int], max_
     assert all(b1 <= a2 for (_, b1), (a2, _) in itertools.pairwise(got))
     if min_len == 1:
         assert sum(b - a for a, b in got) == length
+
+
+def test_stretch_agreement_counts_the_steps_of_each_stretchs_most_frequent_label() -> None:
+    labels = np.asarray([0, 0, 1, 0, 2, 2, 2, 1, 1, 1])
+    assert stretch_agreement(labels, np.asarray([4, 7])) == (3 + 3 + 3) / 10  # [0,4) three 0s; [4,7); [7,10)
+    assert stretch_agreement(labels, np.asarray([])) == 4 / 10  # one stretch: its most frequent label, 1 (four)
+    assert stretch_agreement(labels, np.arange(1, 10)) == 1.0  # every step its own stretch
+    assert stretch_agreement(labels, np.asarray([-3, 0, 10, 40])) == 4 / 10  # points outside the steps cut nothing
+    assert stretch_agreement(np.asarray([], int), np.asarray([2])) is None

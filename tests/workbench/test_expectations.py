@@ -1,5 +1,6 @@
-"""What `classify` and the Data tab say per file: its drift, the accuracy expected at it, and one warning line when
-that is 10 points or more below the card's figure (or, without a relation, when most of the file is drifted)."""
+"""What `classify` and the Data tab say per file: its drift, the accuracy expected at its drift and by its stretches,
+and one warning line when either is 10 points or more below the card's figure (or, without a relation, when most of
+the file is drifted)."""
 
 from __future__ import annotations
 
@@ -28,7 +29,8 @@ def test_a_file_like_the_labelled_time_gets_no_warning_and_a_far_one_does() -> N
     assert like is not None and like.expected > 0.8 and not like.below_card and like.warning() is None
     assert (
         like.line()
-        == f"walk3.csv: median drift 0.30, 0% of it above 1; expected accuracy {like.expected:.0%} (the card: 82%)"
+        == f"walk3.csv: median drift 0.30, 0% of it above 1; expected accuracy {like.expected:.0%} at its drift "
+        "(the card: 82%)"
     )
     far = file_expectation("odd.csv", np.full(500, 1.9), m)
     assert far.below_card and far.expected <= 0.72
@@ -37,6 +39,23 @@ def test_a_file_like_the_labelled_time_gets_no_warning_and_a_far_one_does() -> N
         warning.startswith(f"warning: odd.csv: expected accuracy {far.expected:.0%}, ")
         and "points below the card's 82%" in warning
     )
+
+
+def test_predictions_that_change_within_a_stretch_lower_the_expectation_and_warn() -> None:
+    m = metrics()
+    points = np.asarray([50, 350])  # stretches [0, 50), [50, 350), [350, 400)
+    steady = np.r_[np.zeros(50), np.ones(300), np.full(50, 2)].astype(int)  # one terrain per stretch
+    like = file_expectation("walk3.csv", np.full(400, 0.3), m, predicted=steady, change_points=points)
+    assert like.agreement == 1.0 and like.warning() is None
+    assert like.line().endswith(
+        f"expected accuracy {like.expected:.0%} at its drift, at most 100% by its stretches (the card: 82%)"
+    )
+    flipping = steady.copy()
+    flipping[50:350:2] = 3  # half of the middle stretch flips to another terrain: 250 of 400 steps agree
+    odd = file_expectation("odd.csv", np.full(400, 0.3), m, predicted=flipping, change_points=points)
+    assert odd.agreement == 0.625 and odd.disagrees and not odd.below_card
+    assert odd.warning().startswith("warning: odd.csv: its predictions agree with their stretch's terrain on 62% of it")
+    assert "20 points below the card's 82%" in odd.warning()  # as the line prints them: 82 - 62
 
 
 def test_without_a_relation_the_drifted_share_decides_and_without_drift_nothing_is_said() -> None:
@@ -64,9 +83,13 @@ def test_the_data_tab_shows_each_logs_expected_accuracy_in_red_when_far_under_th
     }
     html = logs_table_html(s, {a.id: 0.0, b.id: 1.0}, expected)
     assert ">expect</th>" in html and "the card&#39;s 82%" in html
-    assert f"<td class='n'>{expected[a.id].expected:.0%}</td>" in html
+    assert f">{expected[a.id].expected:.0%}</td>" in html and f">{expected[a.id].expected:.0%}</b>" not in html
     assert f"<b style=color:{MISSED}>{expected[b.id].expected:.0%}</b>" in html
     assert ">expect</th>" not in logs_table_html(s, {a.id: 0.0, b.id: 1.0})  # no relation: no column
+    # with the worker's change points, a log whose predictions flip within a stretch is red too (the bound on hover)
+    flips = file_expectation(b.name, np.full(50, 0.3), m, predicted=np.arange(50) % 2, change_points=np.asarray([]))
+    html = logs_table_html(s, {a.id: 0.0, b.id: 0.0}, {a.id: expected[a.id], b.id: flips})
+    assert f"<b style=color:{MISSED}>{flips.expected:.0%}</b>" in html and "at most 50% by its stretches" in html
     s.close()
 
 

@@ -72,9 +72,11 @@ def run_expectations(
     fit_metrics: dict, drift: np.ndarray, probs: np.ndarray, y_true: np.ndarray, run: np.ndarray
 ) -> list[dict]:
     """Per held-out run, what the fit expected it to score and what it scored: from its windows' drift ``(N,)``,
-    probabilities ``(N, K)``, truth ``(N,)`` and run ``(N,)``. ``expected`` is what ``classify`` prints
-    (:func:`training.expected_accuracy`); ``capped`` that at the card's figure, ``confidence`` the mean top
-    probability, ``card`` the fit's headline figure: the rules it was chosen against."""
+    probabilities ``(N, K)``, truth ``(N,)`` and run ``(N,)``. ``expected`` is what ``classify`` prints at its drift
+    (:func:`training.expected_accuracy`), ``purity`` its windows' share predicted as its most predicted terrain
+    (what ``classify`` prints by a file's stretches, each run one terrain and one stretch); ``capped`` the drift's
+    figure capped at the card's, ``confidence`` the mean top probability, ``card`` the fit's headline figure: the
+    rules they were chosen against."""
     card = (fit_metrics.get("estimate") or {}).get("accuracy")
     relation = fit_metrics.get("drift_accuracy")
     out = []
@@ -89,6 +91,7 @@ def run_expectations(
                 "expected": expected,
                 "capped": None if expected is None or card is None else min(expected, card),
                 "confidence": float(probs[mine].max(1).mean()),
+                "purity": float(np.bincount(probs[mine].argmax(1)).max() / mine.sum()),
                 "median_drift": float(np.median(drift[mine])),
                 "card": card,
             }

@@ -58,7 +58,9 @@ def logs_table_html(
         labelled[seg.log_id] = labelled.get(seg.log_id, 0) + seg.length
     rows = []
     drift_column = bool(drifted) and any(v is not None for v in drifted.values())
-    expect_column = bool(expected) and any(e is not None and e.expected is not None for e in expected.values())
+    expect_column = bool(expected) and any(
+        e is not None and (e.expected is not None or e.agreement is not None) for e in expected.values()
+    )
     for log in logs:
         lab = labelled.get(log.id, 0) / max(log.n_samples, 1)
         title = html.escape(f"{log.format}: {log.source_path}", quote=True)
@@ -83,10 +85,12 @@ def logs_table_html(
         else ""
     )
     if expect_column:
-        card = next(e.card for e in expected.values() if e is not None and e.card is not None)  # type: ignore[union-attr]
+        card = next((e.card for e in expected.values() if e is not None and e.card is not None), None)  # type: ignore[union-attr]
+        below = "" if card is None else f"; red: 10 points or more below the card&#39;s {card:.0%}"
         head += (
-            f"<th class='n' title='accuracy expected at the log&#39;s drift, from the relation the model measured on "
-            f"its held-out folds; red: 10 points or more below the card&#39;s {card:.0%}'>expect</th>"
+            "<th class='n' title='accuracy expected on the log at its drift, else the share of its steps predicted "
+            "as their stretch&#39;s most predicted terrain (stretches between change points; both on hover)"
+            f"{below}'>expect</th>"
         )
     total = sum(log.duration_s for log in logs)
     return (
@@ -102,10 +106,12 @@ def logs_table_html(
 
 
 def _expected_cell(e: FileExpectation | None) -> str:
-    if e is None or e.expected is None:
+    if e is None or (e.expected is None and e.agreement is None):
         return "<td class='n'>–</td>"
-    text = f"{e.expected:.0%}"
-    return f"<td class='n'>{f'<b style=color:{MISSED}>{text}</b>' if e.below_card else text}</td>"
+    text = f"{e.expected if e.expected is not None else e.agreement:.0%}"
+    both = html.escape(e.line().split("; ", 1)[-1], quote=True)
+    strong = e.below_card or e.disagrees
+    return f"<td class='n' title='{both}'>{f'<b style=color:{MISSED}>{text}</b>' if strong else text}</td>"
 
 
 class DataPanel:
@@ -130,7 +136,17 @@ class DataPanel:
         classifier = session.active_model("classifier")
         metrics = classifier.metrics if classifier is not None else {}
         names = {x.id: x.name for x in session.logs()}
-        expected = {i: file_expectation(names.get(i, str(i)), s.drift, metrics) for i, s in scores.items()}
+        state = self.host.state
+        expected = {
+            i: file_expectation(
+                names.get(i, str(i)),
+                s.drift,
+                metrics,
+                predicted=None if s.probs is None else s.probs.argmax(1),
+                change_points=state.known_change_points(i),  # the worker's; none computed here, on the UI's thread
+            )
+            for i, s in scores.items()
+        }
         self.logs.content = logs_table_html(session, drifted, expected)
 
     def _take_upload(self) -> None:

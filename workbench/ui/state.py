@@ -305,6 +305,12 @@ class SharedState:
                 self._change_points[key] = cps
         return cps
 
+    def known_change_points(self, log_id: int) -> np.ndarray | None:
+        """A log's change points if the worker has found them for the current predictor, else ``None`` (never
+        computed here: a page's redraw must not wait for a pass over a log)."""
+        with self._lock:
+            return self._change_points.get((log_id, self.scores.predictor))
+
     def snap(self, log_id: int, start: int, stop: int) -> labeling.Snap:
         """Edges of a rough range moved to change points within 1 s (a proposal, not applied).
 

@@ -311,7 +311,7 @@ class ClientView:
                 self.suggest_panel.refresh()
             if event in ("job", "models", "scores"):
                 self.train_panel.refresh(event)
-            if event in ("labels", "models", "scores"):
+            if event in ("labels", "models", "scores", "suggestions"):  # a new queue: the worker has change points
                 self.data_panel.refresh()
             self.status_bar.refresh()
 
