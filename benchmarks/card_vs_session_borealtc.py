@@ -75,6 +75,7 @@ def main() -> int:
             export_all(s, Path(tmp) / "export")
             card = (Path(tmp) / "export" / "bundle" / "MODEL_CARD.md").read_text()
             print(next((x for x in card.splitlines() if "logs with no label" in x), "the card: no log without a label"))
+            print(next((x for x in card.splitlines() if "agree with the most predicted" in x), "no agreement line"))
             report = evaluate_session(s, seed=opts.seed, log=lambda _: None)
         print(report)
         held = re.search(r"\*\*Accuracy ([\d.]+) %", report)

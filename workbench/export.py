@@ -121,7 +121,10 @@ def _held_out_section(m: dict) -> list[str]:
 
 
 def _drift_section(
-    bundle: ModelBundle, drifted: Mapping[str, float] | None, unlabelled: Mapping[str, tuple[float, int]] | None = None
+    bundle: ModelBundle,
+    drifted: Mapping[str, float] | None,
+    unlabelled: Mapping[str, tuple[float, int]] | None = None,
+    agreement: float | None = None,
 ) -> list[str]:
     """The drift score and the temperature: what they mean and how much of the session lies past the line."""
     if bundle.drift is None:
@@ -159,6 +162,13 @@ def _drift_section(
             "figure, and still above it where every terrain is labelled in one run (docs/model.md).",
             "",
         ]
+        if agreement is not None:
+            lines += [
+                f"Their predictions agree with the most predicted terrain of their stretch on **{agreement:.0%}** of "
+                "their steps (stretches between change points): where each stretch is one terrain, they score at most "
+                "that, and that where each stretch's most predicted terrain is right (docs/model.md).",
+                "",
+            ]
     cal = bundle.metrics.get("calibration") or {}
     if cal.get("on"):
         lines += [
@@ -176,10 +186,12 @@ def model_card(
     session: str,
     drifted: Mapping[str, float] | None = None,
     unlabelled: Mapping[str, tuple[float, int]] | None = None,
+    unlabelled_agreement: float | None = None,
 ) -> str:
     """A Markdown description of a bundle: what it is, what it was trained on, how well it does, and where it does
     not know (``drifted``: per log name, the share of its time with a drift score above 1; ``unlabelled``: per log
-    with no label, the accuracy expected at its drift and its steps)."""
+    with no label, the accuracy expected at its drift and its steps; ``unlabelled_agreement``: the share of those
+    logs' steps predicted as their stretch's most predicted terrain)."""
     m, family = bundle.metrics, bundle.stage2_family()
     lines = [
         f"# Terrain classifier v{version}",
@@ -199,7 +211,7 @@ def model_card(
         f"({m.get('labelled_fraction', 0):.1%} of the time)",
         "",
         *_estimate_section(m),
-        *_drift_section(bundle, drifted, unlabelled),
+        *_drift_section(bundle, drifted, unlabelled, unlabelled_agreement),
         "## Out-of-fold metrics (same logs)",
         "",
         "Each labelled step predicted, in a pass over its whole log, by the fold model that did not train on it "
@@ -268,6 +280,21 @@ def export_all(
     return [(out / path.relative_to(tmp), what) for path, what in written]
 
 
+def _agreement(session: Session, scored: Mapping[int, labeling.LogScores]) -> float | None:
+    """The share of these logs' steps predicted as their stretch's most predicted terrain, the stretches cut at each
+    log's signal change points; ``None`` without predictions."""
+    from .cycle import signal_change_points
+
+    agree, steps = 0.0, 0
+    for log_id, s in scored.items():
+        if s.probs is None or not len(s.probs):
+            continue
+        share = labeling.stretch_agreement(s.probs.argmax(1), signal_change_points(session, session.log(log_id)))
+        agree += share * len(s.probs)  # type: ignore[operator]
+        steps += len(s.probs)
+    return agree / steps if steps else None
+
+
 def _write_export(
     session: Session,
     out: Path,
@@ -298,7 +325,16 @@ def _write_export(
         and (e := file_expectation(session.log(log_id).name, s.drift, bundle.metrics)) is not None
         and e.expected is not None
     }
-    card = model_card(bundle, version=version.id, session=session.path.name, drifted=drifted, unlabelled=unlabelled)
+    unlabelled_scores = {log_id: s for log_id, s in scored.items() if log_id not in labelled_logs}
+    agreement = _agreement(session, unlabelled_scores) if unlabelled else None
+    card = model_card(
+        bundle,
+        version=version.id,
+        session=session.path.name,
+        drifted=drifted,
+        unlabelled=unlabelled,
+        unlabelled_agreement=agreement,
+    )
     (out / "bundle" / "MODEL_CARD.md").write_text(card)
     written.append((out / "bundle", f"model bundle v{version.id} (safetensors + model.json + MODEL_CARD.md)"))
     onnx = export_onnx(bundle, out / "classifier_stream.onnx")

@@ -104,4 +104,9 @@ def test_the_card_says_what_the_logs_with_no_label_are_expected_to_score() -> No
     bundle = replace(golden, drift=DriftReference((np.zeros((2, 4)),), (np.zeros((2, 3)),), np.ones((1, 2))))
     card = model_card(bundle, version=1, session="s", drifted={"a": 0.1}, unlabelled={"a": (0.9, 100), "b": (0.5, 300)})
     assert "the 2 logs with no label are expected to score **60%**" in card  # weighted by their steps
+    assert "agree with the most predicted terrain" not in card
+    bounded = model_card(
+        bundle, version=1, session="s", drifted={"a": 0.1}, unlabelled={"a": (0.9, 100)}, unlabelled_agreement=0.7
+    )
+    assert "Their predictions agree with the most predicted terrain of their stretch on **70%**" in bounded
     assert "logs with no label" not in model_card(bundle, version=1, session="s", drifted={"a": 0.1})
