@@ -1,0 +1,190 @@
+"""The exported model card (``MODEL_CARD.md``): what a bundle is, what it was trained on, how well it does on new
+runs, and where it does not know."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from training import (
+    ModelBundle,
+    estimate_headline,
+    estimate_table,
+    parameter_count,
+)
+
+
+def _estimate_section(m: dict) -> list[str]:
+    """Per terrain the figure that exists for the labels the session has, and which it is (``training.estimates``)."""
+    estimate = m.get("estimate")
+    if not estimate:
+        return _held_out_section(m)
+    words = estimate_headline(estimate) or "not measurable"
+    balanced = estimate.get("balanced_accuracy")
+    return [
+        "## What to expect on new runs",
+        "",
+        f"**{words}**" + (f", balanced accuracy {balanced:.1%}" if balanced is not None else "") + ".",
+        "",
+        f"{estimate['note'][:1].upper()}{estimate['note'][1:]}." if estimate["note"] else "",
+        "",
+        "A terrain labelled in two logs or more is measured on held-out logs: each of its labelled steps predicted by "
+        "a model fitted without any label or signal of its log. A terrain labelled in one log cannot be (holding the "
+        "log out removes the terrain); it gets a same-run figure: contiguous blocks of its log held out, a guard "
+        "wider than the model's input between them and the training time. Same-run figures flatter what a new run "
+        "will score: its surface, speed and mounting were in training.",
+        "",
+        *estimate_table(estimate),
+        "",
+    ]
+
+
+def _held_out_section(m: dict) -> list[str]:
+    """The honest figure, when the fit measured it: accuracy on logs whose labels and signals trained nothing."""
+    held = m.get("held_out_logs")
+    if not held:
+        return []
+    return [
+        "## Held-out logs",
+        "",
+        f"Each labelled step predicted by a model fitted without any label or signal of its log ({held['folds']} "
+        f"folds over the {held['logs']} labelled logs). Expect this on logs the model never saw.",
+        "",
+        f"- accuracy: {held['accuracy']:.1%}",
+        f"- macro-F1: {held['macro_f1']:.3f}",
+        "",
+        "| terrain | recall |",
+        "| --- | --- |",
+        *[f"| {c} | {r:.1%} |" for c, r in held.get("per_class_recall", {}).items()],
+        "",
+    ]
+
+
+def _drift_section(
+    bundle: ModelBundle,
+    drifted: Mapping[str, float] | None,
+    unlabelled: Mapping[str, tuple[float, int]] | None = None,
+    agreement: float | None = None,
+) -> list[str]:
+    """The drift score and the temperature: what they mean and how much of the session lies past the line."""
+    if bundle.drift is None:
+        return []
+    q = bundle.drift.quantile
+    lines = [
+        "## Where the model does not know",
+        "",
+        "Each step gets a drift score: how far its input lies, in the classifier's embedding, from the labelled "
+        f"frames (the mean distance to the {bundle.drift.neighbours} nearest), in units of the distance that only "
+        f"{1 - q:.0%} of held-out labelled time exceeds. Above 1 the step is unlike anything labelled: the figures "
+        "above were measured on labelled time, so they do not hold there. `workbench classify` writes the score in "
+        "a `drift` column and warns for a file mostly above 1; the UI draws it as the drift row and suggests such "
+        "time first.",
+        "",
+    ]
+    if drifted:
+        total = float(np.mean(list(drifted.values())))
+        worst = sorted(drifted.items(), key=lambda kv: -kv[1])[:10]
+        lines += [
+            f"In this session, {total:.0%} of the logs' time (mean over {len(drifted)} logs) scores above 1.",
+            "",
+            "| log | time above 1 |",
+            "| --- | --- |",
+            *[f"| {name} | {share:.0%} |" for name, share in worst],
+            "",
+        ]
+    if unlabelled:
+        weight = np.asarray([n for _, n in unlabelled.values()], np.float64)
+        expected = float(np.average([e for e, _ in unlabelled.values()], weights=weight))
+        lines += [
+            f"At their drift, the {len(unlabelled)} logs with no label are expected to score **{expected:.0%}** "
+            "(each log's steps read through the relation between drift and accuracy measured on held-out labelled "
+            "blocks; `workbench classify` prints the same per file). Nearer what new runs score than a same-run "
+            "figure, and still above it where every terrain is labelled in one run (docs/model.md).",
+            "",
+        ]
+        if agreement is not None:
+            lines += [
+                f"Their predictions agree with the most predicted terrain of their stretch on **{agreement:.0%}** of "
+                "their steps (stretches between change points): where each stretch is one terrain, they score at most "
+                "that, and that where each stretch's most predicted terrain is right (docs/model.md).",
+                "",
+            ]
+    cal = bundle.metrics.get("calibration") or {}
+    if cal.get("on"):
+        lines += [
+            f"The ensemble's probabilities are calibrated: every member's logits are divided by "
+            f"{cal['temperature']:.2f}, fitted on {cal['n']:,} predictions of {cal['on']} (temperature scaling).",
+            "",
+        ]
+    return lines
+
+
+def model_card(
+    bundle: ModelBundle,
+    *,
+    version: int,
+    session: str,
+    drifted: Mapping[str, float] | None = None,
+    unlabelled: Mapping[str, tuple[float, int]] | None = None,
+    unlabelled_agreement: float | None = None,
+) -> str:
+    """A Markdown description of a bundle: what it is, what it was trained on, how well it does, and where it does
+    not know (``drifted``: per log name, the share of its time with a drift score above 1; ``unlabelled``: per log
+    with no label, the accuracy expected at its drift and its steps; ``unlabelled_agreement``: the share of those
+    logs' steps predicted as their stretch's most predicted terrain)."""
+    m, family = bundle.metrics, bundle.stage2_family()
+    lines = [
+        f"# Terrain classifier v{version}",
+        "",
+        f"From session `{session}`. {family.describe(bundle)} {parameter_count(bundle):,} parameters.",
+        "",
+        "## Inputs",
+        "",
+        f"{len(bundle.channels)} channels at {bundle.rate_hz:g} Hz, in this order (raw units; the model normalises):",
+        "",
+        ", ".join(f"`{c}`" for c in bundle.channels),
+        "",
+        "## Training data",
+        "",
+        f"- stage 1: {bundle.info.get('logs', '?')} logs, {bundle.info.get('timesteps', 0):,} timesteps",
+        f"- stage 2: {m.get('n_segments', '?')} labelled segments, {m.get('labelled_seconds', 0):.0f} s "
+        f"({m.get('labelled_fraction', 0):.1%} of the time)",
+        "",
+        *_estimate_section(m),
+        *_drift_section(bundle, drifted, unlabelled, unlabelled_agreement),
+        "## Out-of-fold metrics (same logs)",
+        "",
+        "Each labelled step predicted, in a pass over its whole log, by the fold model that did not train on it "
+        "(the default family holds out blocks of labelled time, so these are same-run figures for every terrain). "
+        "The other labelled time of the same logs did train that model, so these figures flatter what to expect on "
+        "logs the model never saw; `workbench evaluate session SESSION --reference FILE` measures that, holding out "
+        "whole logs.",
+        "",
+        f"- accuracy: {m.get('accuracy', float('nan')):.1%}",
+        f"- macro-F1: {m.get('macro_f1', float('nan')):.3f}",
+        "",
+        "| terrain | recall |",
+        "| --- | --- |",
+        *[f"| {c} | {r:.1%} |" for c, r in m.get("per_class_recall", {}).items()],
+        "",
+        "Confusion matrix (rows: true, columns: predicted):",
+        "",
+        "| | " + " | ".join(bundle.classes) + " |",
+        "| --- " * (len(bundle.classes) + 1) + "|",
+        *[
+            f"| {c} | " + " | ".join(str(v) for v in row) + " |"
+            for c, row in zip(bundle.classes, m.get("confusion", []), strict=False)
+        ],
+        "",
+        "## Use",
+        "",
+        "```python",
+        "from training import StreamingClassifier, load_bundle",
+        "clf = StreamingClassifier(load_bundle('bundle'))",
+        "probs = clf.step(sample)   # one raw sample (channels above) -> probabilities of " + ", ".join(bundle.classes),
+        "```",
+        "",
+        family.onnx_usage(bundle),
+    ]
+    return "\n".join(lines) + "\n"
