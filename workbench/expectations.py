@@ -8,9 +8,9 @@ Two figures, each from what the model does on the file, with no label read:
   where a stretch is one terrain, accuracy is at most this, and equal to it where the stretch's most predicted
   terrain is right. It cannot see a stretch the model gets wholly wrong, so it is printed as a bound.
 
-On BorealTC's held-out runs (each run one terrain, scored as one stretch) the agreement was within 10 points of what
-a run scored on 82 and 89 % of runs on two inner fold sets and 91 % on the test folds, the drift's figure on 40, 35
-and 46 %. On two new demo walks with a terrain patch every 20 s it said 87 and 89 % where they scored 70 and 48 %
+On BorealTC's held-out runs (each run one terrain, cut at its change points as here) the agreement was within 10
+points of what a run scored on 72 % of the test folds' runs (91 % with each run as one stretch), the drift's figure
+on 46 %. On two new demo walks with a terrain patch every 20 s it said 87 and 89 % where they scored 70 and 48 %
 (the drift's figure: 77 and 68 %, and a warning on the second). Either figure 10 points or more under the card warns.
 """
 

@@ -69,14 +69,20 @@ def drift_figures(drift: np.ndarray, right: np.ndarray) -> dict:
 
 
 def run_expectations(
-    fit_metrics: dict, drift: np.ndarray, probs: np.ndarray, y_true: np.ndarray, run: np.ndarray
+    fit_metrics: dict,
+    drift: np.ndarray,
+    probs: np.ndarray,
+    y_true: np.ndarray,
+    run: np.ndarray,
+    stretch: np.ndarray | None = None,
 ) -> list[dict]:
     """Per held-out run, what the fit expected it to score and what it scored: from its windows' drift ``(N,)``,
     probabilities ``(N, K)``, truth ``(N,)`` and run ``(N,)``. ``expected`` is what ``classify`` prints at its drift
     (:func:`training.expected_accuracy`), ``purity`` its windows' share predicted as its most predicted terrain
     (what ``classify`` prints by a file's stretches, each run one terrain and one stretch); ``capped`` the drift's
     figure capped at the card's, ``confidence`` the mean top probability, ``card`` the fit's headline figure: the
-    rules they were chosen against."""
+    rules they were chosen against. With ``stretch`` ``(N,)`` (each window's stretch of its run, as ``classify``
+    cuts a file at its change points), ``stretches`` is the same share per stretch: what ``classify`` prints."""
     card = (fit_metrics.get("estimate") or {}).get("accuracy")
     relation = fit_metrics.get("drift_accuracy")
     out = []
@@ -92,10 +98,46 @@ def run_expectations(
                 "capped": None if expected is None or card is None else min(expected, card),
                 "confidence": float(probs[mine].max(1).mean()),
                 "purity": float(np.bincount(probs[mine].argmax(1)).max() / mine.sum()),
+                "stretches": None
+                if stretch is None
+                else float(
+                    sum(np.bincount(probs[mine & (stretch == s)].argmax(1)).max() for s in np.unique(stretch[mine]))
+                    / mine.sum()
+                ),
                 "median_drift": float(np.median(drift[mine])),
                 "card": card,
             }
         )
+    return out
+
+
+def _window_stretches(
+    runs: Sequence[np.ndarray],
+    run_of: np.ndarray,
+    test_idx: np.ndarray,
+    owner: np.ndarray,
+    size: int,
+    win: int,
+    stride: int,
+    rate_hz: float,
+    cache: dict[int, np.ndarray],
+) -> np.ndarray:
+    """Each test window's stretch ``(N,)``: the index, within its run, of the stretch between the run's change
+    points (``log_change_points`` on the run's signals, as ``classify`` cuts a file) that holds its last sample."""
+    from ..cycle import log_change_points
+
+    first = {int(r): int(np.argmax(run_of == r)) for r in np.unique(run_of[test_idx])}  # a run's first partition
+    out = np.empty(len(owner), np.int64)
+    seen: dict[int, int] = {}  # windows so far of each test partition
+    for n, o in enumerate(owner):
+        i = int(test_idx[o])
+        r = int(run_of[i])
+        if r not in cache:
+            cache[r] = log_change_points(runs[r], None, rate_hz=rate_hz)
+        j = seen.get(o, 0)
+        seen[o] = j + 1
+        end = (i - first[r]) * size + j * stride + win - 1  # the window's last sample in its run
+        out[n] = r * 100_000 + int(np.searchsorted(cache[r], end, side="right"))
     return out
 
 
@@ -141,6 +183,7 @@ def borealtc_window_protocol(
     protocol = protocol or WindowProtocol()
     size, win, stride = (round(s * rate_hz) for s in (protocol.partition_s, protocol.window_s, protocol.stride_s))
     parts, y, run_of = partitions(runs, labels, size)
+    change_points: dict[int, np.ndarray] = {}  # per run, as `classify` finds them in a file (computed when needed)
     # held-out figures hold out whole runs, as a session whose logs are the runs would: the calibration is fitted
     # on them
     fit = replace(fit or WindowFitConfig(), seed=seed)
@@ -170,7 +213,8 @@ def borealtc_window_protocol(
         m["pseudo_stretches"] = cfit.metrics["pseudo_stretches"]
         drift = drift_of_rows(cfit.drift, cfit.models, x)  # (N,)
         m.update(drift_figures(drift, probs.argmax(1) == y_true))
-        m["runs"] = run_expectations(cfit.metrics, drift, probs, y_true, run_of[test_idx][owner])
+        stretch = _window_stretches(runs, run_of, test_idx, owner, size, win, stride, rate_hz, change_points)
+        m["runs"] = run_expectations(cfit.metrics, drift, probs, y_true, run_of[test_idx][owner], stretch)
         if member is not None:
             test = [normalizer(parts[i]) for i in test_idx]
             raw, raw_owner = cut_windows(test, win, stride)
