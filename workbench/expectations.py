@@ -72,18 +72,24 @@ class FileExpectation:
         """Whether its predictions' agreement within stretches is ``BELOW_CARD`` or more under the card's figure."""
         return self.agreement is not None and self.card is not None and self.card - self.agreement >= BELOW_CARD - 1e-9
 
-    def line(self) -> str:
-        """``"walk3.csv: median drift 0.62, 8 % of it above 1; expected accuracy 80 % at its drift, at most 88 % by
-        its stretches (the card: 82 %)"``."""
-        head = f"{self.name}: median drift {self.median_drift:.2f}, {self.drifted:.0%} of it above 1"
+    def figures(self) -> str | None:
+        """``"expected accuracy 80 % at its drift, at most 88 % by its stretches (the card: 82 %)"``; ``None``
+        when neither figure exists."""
         figures = [  # by its stretches is an upper bound where each stretch is one terrain: it reads as one
             *([] if self.expected is None else [f"{self.expected:.0%} at its drift"]),
             *([] if self.agreement is None else [f"at most {self.agreement:.0%} by its stretches"]),
         ]
         if not figures:
-            return head
+            return None
         card = f" (the card: {self.card:.0%})" if self.card is not None else ""
-        return f"{head}; expected accuracy {', '.join(figures)}{card}"
+        return f"expected accuracy {', '.join(figures)}{card}"
+
+    def line(self) -> str:
+        """``"walk3.csv: median drift 0.62, 8 % of it above 1; expected accuracy 80 % at its drift, at most 88 % by
+        its stretches (the card: 82 %)"``."""
+        head = f"{self.name}: median drift {self.median_drift:.2f}, {self.drifted:.0%} of it above 1"
+        figures = self.figures()
+        return head if figures is None else f"{head}; {figures}"
 
     def warning(self) -> str | None:
         """One line when the file is expected to score well below the card, or (with no relation) is mostly

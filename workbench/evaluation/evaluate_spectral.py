@@ -137,7 +137,7 @@ def _window_stretches(
         j = seen.get(o, 0)
         seen[o] = j + 1
         end = (i - first[r]) * size + j * stride + win - 1  # the window's last sample in its run
-        out[n] = r * 100_000 + int(np.searchsorted(cache[r], end, side="right"))
+        out[n] = np.searchsorted(cache[r], end, side="right")  # run_expectations reads it within the run
     return out
 
 

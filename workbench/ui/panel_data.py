@@ -109,7 +109,7 @@ def _expected_cell(e: FileExpectation | None) -> str:
     if e is None or (e.expected is None and e.agreement is None):
         return "<td class='n'>–</td>"
     text = f"{e.expected if e.expected is not None else e.agreement:.0%}"
-    both = html.escape(e.line().split("; ", 1)[-1], quote=True)
+    both = html.escape(e.figures() or "", quote=True)
     strong = e.below_card or e.disagrees
     return f"<td class='n' title='{both}'>{f'<b style=color:{MISSED}>{text}</b>' if strong else text}</td>"
 
