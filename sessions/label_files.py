@@ -9,8 +9,10 @@ import warnings
 from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import pandas as pd
+if TYPE_CHECKING:  # pandas loads where a table is read: commands that read none start sooner
+    import pandas as pd
 
 from .errors import LabelError
 from .label_studio import is_label_studio, label_studio_frame
@@ -36,6 +38,8 @@ FORMATS = {".csv": "csv", ".parquet": "parquet", ".json": "json"}
 
 def segments_frame(segments: list[Segment], logs: dict[int, LogInfo]) -> pd.DataFrame:
     """A table of segments with times in seconds (from the log's start) and in samples."""
+    import pandas as pd
+
     rows = []
     for s in segments:
         log = logs[s.log_id]
@@ -74,6 +78,8 @@ def neutralise_formulas(frame: pd.DataFrame) -> pd.DataFrame:
     Log names, file paths and authors are data: a log named ``=HYPERLINK(...)`` must not run when a colleague opens
     the exported CSV. Numbers are left alone (``-0.5`` is a number, not a formula).
     """
+    import pandas as pd
+
     out = frame.copy()
     for column in out.columns:
         if not pd.api.types.is_numeric_dtype(out[column]):
@@ -85,6 +91,8 @@ def neutralise_formulas(frame: pd.DataFrame) -> pd.DataFrame:
 
 def restore_formulas(frame: pd.DataFrame) -> pd.DataFrame:
     """Undo :func:`neutralise_formulas`, so a label file exported as CSV imports back to the same names."""
+    import pandas as pd
+
     for column in frame.columns:
         if pd.api.types.is_numeric_dtype(frame[column]):
             continue
@@ -115,6 +123,8 @@ def read_frame(path: Path, *, max_rows: int = MAX_LABEL_ROWS, logs: list[LogInfo
         LabelError: Unreadable, or over a limit: the file's bytes, a Parquet file's rows or decoded row groups, a
             JSON file's nesting.
     """
+    import pandas as pd
+
     fmt = file_format(path)
     try:
         size = path.stat().st_size

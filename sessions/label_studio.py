@@ -20,10 +20,13 @@ import math
 import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:  # pandas loads where a table is read: commands that read none start sooner
+    import pandas as pd
 
 from .errors import LabelError
 from .file_names import safe_file_name
@@ -108,6 +111,8 @@ def write_label_studio(
     Returns:
         The files written: the tasks file, the config, the CSVs.
     """
+    import pandas as pd
+
     folder = files_folder(out)
     folder.mkdir(parents=True, exist_ok=True)
     prefix = f"/data/local-files/?d={folder.name}/" if url_prefix is None else url_prefix
@@ -158,6 +163,8 @@ def label_studio_frame(tasks: list[dict], logs: Sequence[LogInfo], *, path: Path
         LabelError: A task naming no log of the session, a region without a terrain, an instant, times that are no
             numbers or lie outside the log; the message names the task. Nothing is imported then.
     """
+    import pandas as pd
+
     by_name = {x.name: x for x in logs}
     by_file = {log_csv_name(x)[:-4]: x for x in logs}
     rows = []

@@ -5,9 +5,12 @@ from __future__ import annotations
 import csv
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:  # pandas loads where a table is read: commands that read none start sooner
+    import pandas as pd
 
 from ..errors import IngestError
 from ..limits import MAX_CSV_LINE_BYTES
@@ -103,6 +106,8 @@ def _check_text(path: Path, *, block: int = 1 << 20) -> None:
 
 def _read_frame(path: Path, *, header: bool | None, names: tuple[str, ...] = ()) -> pd.DataFrame:
     """Read a CSV as strings, so that bad cells can be reported by row and column."""
+    import pandas as pd
+
     if path.stat().st_size == 0:
         raise IngestError(path, "empty file")
     _check_text(path)
@@ -148,6 +153,8 @@ def _not_number(text: str) -> bool:
 
 def _numeric(path: Path, frame: pd.DataFrame, columns: list[str], *, allow_gaps: bool) -> np.ndarray:
     """``(N, K)`` float64 of ``columns``; text is refused, empty/NaN/inf refused unless ``allow_gaps`` (then NaN)."""
+    import pandas as pd
+
     line0 = frame.attrs.get("first_data_line", 2)
     out = np.empty((len(frame), len(columns)), dtype=np.float64)
     for j, col in enumerate(columns):
@@ -334,6 +341,8 @@ def _guessed_time(path: Path, frame: pd.DataFrame, column: str, scale: float) ->
 
 
 def _coerced(column: pd.Series) -> np.ndarray:
+    import pandas as pd
+
     return pd.to_numeric(column.str.strip(), errors="coerce").to_numpy(dtype=np.float64)
 
 

@@ -124,8 +124,6 @@ def train(
     """
     from training import distributed
 
-    from .. import cycle
-
     check_device(device)
     if distributed.launched() and stage != "predictor":
         raise WorkbenchError(
@@ -147,6 +145,8 @@ def train(
             "under torchrun only the paper family's LSTM predictor trains (--model paper --stage predictor); the "
             "default family's stage 1 trains in seconds in one process: run `workbench train SESSION` without torchrun"
         )
+    from .. import cycle  # after the refusals: they come without loading the families (seconds)
+
     world = distributed.join(device)
     try:
         if not world.main:  # another torchrun process: it reads log files, never the session's database
