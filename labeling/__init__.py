@@ -3,7 +3,7 @@
 NumPy in, NumPy out: no torch, no UI, no session (``workbench`` wires it to the model and the store).
 """
 
-from .changepoints import Snap, block_summary, change_points, snap_range, spans, stretch_agreement
+from .changepoints import Snap, block_summary, change_points, coarser_points, snap_range, spans, stretch_agreement
 from .simulate import (
     CurvePoint,
     Labelled,
@@ -57,6 +57,7 @@ __all__ = [
     "candidates",
     "change_points",
     "class_weights",
+    "coarser_points",
     "coverage",
     "drift_track",
     "drifted_share",

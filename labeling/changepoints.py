@@ -116,7 +116,8 @@ def stretch_agreement(labels: np.ndarray, points: np.ndarray) -> float | None:
     Where each stretch between change points is one terrain, a classifier's accuracy on it is at most this, and
     equal to it when each stretch's most predicted terrain is the right one: an expected accuracy that needs no
     label (issue 54: within 10 points of what held-out BorealTC runs scored on 91 % of them with each run one
-    stretch, 72 % with each cut at its change points).
+    stretch, 72 % with each cut at its change points, 79 % with none of the stretches under 10 s:
+    :func:`coarser_points`).
     """
     labels = np.asarray(labels, np.int64)
     n = len(labels)
@@ -125,3 +126,16 @@ def stretch_agreement(labels: np.ndarray, points: np.ndarray) -> float | None:
     edges = [0, *sorted(int(p) for p in points if 0 < p < n), n]
     agree = sum(int(np.bincount(labels[a:b]).max()) for a, b in itertools.pairwise(edges) if b > a)
     return agree / n
+
+
+def coarser_points(points: np.ndarray, n: int, min_length: int) -> np.ndarray:
+    """The change points ``points`` of ``n`` steps with no stretch under ``min_length`` steps: from the start, a
+    point is kept where the stretch it closes and the steps after it both hold ``min_length`` or more, so a short
+    stretch joins the one before it (the first joins the next)."""
+    kept: list[int] = []
+    last = 0
+    for p in sorted(int(p) for p in points if 0 < p < n):
+        if p - last >= min_length and n - p >= min_length:
+            kept.append(p)
+            last = p
+    return np.asarray(kept, np.int64)

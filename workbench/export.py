@@ -38,7 +38,7 @@ from training import (
     run_predictor,
 )
 
-from .expectations import file_expectation
+from .expectations import file_expectation, stretch_share
 from .model_card import model_card
 
 ONNX_TOLERANCE = 1e-4
@@ -105,14 +105,15 @@ def export_all(
 
 def _agreement(session: Session, scored: Mapping[int, labeling.LogScores]) -> float | None:
     """The share of these logs' steps predicted as their stretch's most predicted terrain, the stretches cut at each
-    log's signal change points; ``None`` without predictions."""
+    log's signal change points (none shorter than ``SHORTEST_STRETCH_S``); ``None`` without predictions."""
     from .cycle import signal_change_points
 
     agree, steps = 0.0, 0
     for log_id, s in scored.items():
         if s.probs is None or not len(s.probs):
             continue
-        share = labeling.stretch_agreement(s.probs.argmax(1), signal_change_points(session, session.log(log_id)))
+        log = session.log(log_id)
+        share = stretch_share(s.probs.argmax(1), signal_change_points(session, log), rate_hz=log.rate_hz)
         agree += share * len(s.probs)  # type: ignore[operator]
         steps += len(s.probs)
     return agree / steps if steps else None
@@ -305,7 +306,9 @@ def classify_files(
         own_surprise = bundle.stage2_family().stage2_inputs not in ("frames", "windows")
         for name, a, s in zip(names, arrays, scored, strict=True):  # per file: its drift and what to expect on it
             points = log_change_points(a, s.surprise if own_surprise else None, rate_hz=bundle.rate_hz)
-            expect = file_expectation(name, s.drift, bundle.metrics, predicted=s.probs.argmax(1), change_points=points)
+            expect = file_expectation(
+                name, s.drift, bundle.metrics, predicted=s.probs.argmax(1), change_points=points, rate_hz=bundle.rate_hz
+            )
             if expect is not None:
                 lines += [expect.line(), *filter(None, [expect.warning()])]
         if smooth_s is not None:

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from labeling import block_summary, change_points, snap_range, spans, stretch_agreement
+from labeling import block_summary, change_points, coarser_points, snap_range, spans, stretch_agreement
 
 
 def steps(seed: int = 0) -> tuple[np.ndarray, list[int]]:
@@ -78,3 +78,11 @@ def test_stretch_agreement_counts_the_steps_of_each_stretchs_most_frequent_label
     assert stretch_agreement(labels, np.arange(1, 10)) == 1.0  # every step its own stretch
     assert stretch_agreement(labels, np.asarray([-3, 0, 10, 40])) == 4 / 10  # points outside the steps cut nothing
     assert stretch_agreement(np.asarray([], int), np.asarray([2])) is None
+
+
+def test_coarser_points_merge_each_short_stretch_into_the_one_before() -> None:
+    points = np.asarray([3, 20, 24, 50, 95])  # stretches of 3, 17, 4, 26, 45 and 5 steps over 100
+    assert coarser_points(points, 100, 10).tolist() == [20, 50]  # 3 joins the next; 4 and 45+5 join the one before
+    assert coarser_points(points, 100, 0).tolist() == points.tolist()
+    assert coarser_points(points, 100, 60).tolist() == []  # no cut leaves 60 steps on both sides: one stretch
+    assert coarser_points(np.asarray([-5, 0, 100, 120]), 100, 1).tolist() == []  # only points inside the steps cut

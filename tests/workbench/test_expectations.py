@@ -5,7 +5,9 @@ the file is drifted)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+import labeling
 from training import accuracy_by_drift
 from workbench.expectations import card_accuracy, file_expectation
 
@@ -45,17 +47,25 @@ def test_predictions_that_change_within_a_stretch_lower_the_expectation_and_warn
     m = metrics()
     points = np.asarray([50, 350])  # stretches [0, 50), [50, 350), [350, 400)
     steady = np.r_[np.zeros(50), np.ones(300), np.full(50, 2)].astype(int)  # one terrain per stretch
-    like = file_expectation("walk3.csv", np.full(400, 0.3), m, predicted=steady, change_points=points)
+    # at 1 Hz no stretch is under SHORTEST_STRETCH_S (10 steps): the three stand
+    like = file_expectation("walk3.csv", np.full(400, 0.3), m, predicted=steady, change_points=points, rate_hz=1.0)
     assert like.agreement == 1.0 and like.warning() is None
     assert like.line().endswith(
         f"expected accuracy {like.expected:.0%} at its drift, at most 100% by its stretches (the card: 82%)"
     )
     flipping = steady.copy()
     flipping[50:350:2] = 3  # half of the middle stretch flips to another terrain: 250 of 400 steps agree
-    odd = file_expectation("odd.csv", np.full(400, 0.3), m, predicted=flipping, change_points=points)
+    odd = file_expectation("odd.csv", np.full(400, 0.3), m, predicted=flipping, change_points=points, rate_hz=1.0)
     assert odd.agreement == 0.625 and odd.disagrees and not odd.below_card
     assert odd.warning().startswith("warning: odd.csv: its predictions agree with their stretch's terrain on 62% of it")
     assert "20 points below the card's 82%" in odd.warning()  # as the line prints them: 82 - 62
+    # a change point at every step makes each step agree with itself; stretches under 10 s are merged
+    fine = np.arange(1, 400)
+    assert labeling.stretch_agreement(flipping, fine) == 1.0
+    merged = file_expectation("odd.csv", np.full(400, 0.3), m, predicted=flipping, change_points=fine, rate_hz=1.0)
+    assert merged.agreement == pytest.approx(odd.agreement, abs=0.05) and merged.disagrees
+    no_rate = file_expectation("odd.csv", np.full(400, 0.3), m, predicted=flipping, change_points=fine)
+    assert no_rate.agreement is None  # without the rate no stretch length is known: no figure
 
 
 def test_without_a_relation_the_drifted_share_decides_and_without_drift_nothing_is_said() -> None:
@@ -87,7 +97,9 @@ def test_the_data_tab_shows_each_logs_expected_accuracy_in_red_when_far_under_th
     assert f"<b style=color:{MISSED}>{expected[b.id].expected:.0%}</b>" in html
     assert ">expect</th>" not in logs_table_html(s, {a.id: 0.0, b.id: 1.0})  # no relation: no column
     # with the worker's change points, a log whose predictions flip within a stretch is red too (the bound on hover)
-    flips = file_expectation(b.name, np.full(50, 0.3), m, predicted=np.arange(50) % 2, change_points=np.asarray([]))
+    flips = file_expectation(
+        b.name, np.full(50, 0.3), m, predicted=np.arange(50) % 2, change_points=np.asarray([]), rate_hz=b.rate_hz
+    )
     html = logs_table_html(s, {a.id: 0.0, b.id: 0.0}, {a.id: expected[a.id], b.id: flips})
     assert f"<b style=color:{MISSED}>{flips.expected:.0%}</b>" in html and "at most 50% by its stretches" in html
     s.close()

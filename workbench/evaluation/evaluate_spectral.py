@@ -15,6 +15,7 @@ from dataclasses import replace
 
 import numpy as np
 
+import labeling
 from training import (
     DRIFTED,
     Normalizer,
@@ -32,6 +33,7 @@ from training import (
     stacked_frames,
 )
 
+from ..expectations import SHORTEST_STRETCH_S
 from .evaluate_windows import FoldResult, Split, WindowProtocol, labelled_subset, outer_folds, partitions
 from .protocol_members import FoldData, Member, cut_windows
 
@@ -75,6 +77,8 @@ def run_expectations(
     y_true: np.ndarray,
     run: np.ndarray,
     stretch: np.ndarray | None = None,
+    *,
+    coarser: dict[float, np.ndarray] | None = None,
 ) -> list[dict]:
     """Per held-out run, what the fit expected it to score and what it scored: from its windows' drift ``(N,)``,
     probabilities ``(N, K)``, truth ``(N,)`` and run ``(N,)``. ``expected`` is what ``classify`` prints at its drift
@@ -82,7 +86,9 @@ def run_expectations(
     (what ``classify`` prints by a file's stretches, each run one terrain and one stretch); ``capped`` the drift's
     figure capped at the card's, ``confidence`` the mean top probability, ``card`` the fit's headline figure: the
     rules they were chosen against. With ``stretch`` ``(N,)`` (each window's stretch of its run, as ``classify``
-    cuts a file at its change points), ``stretches`` is the same share per stretch: what ``classify`` prints."""
+    cuts a file at its change points), ``stretches`` is the same share per stretch: what ``classify`` prints;
+    ``coarser`` maps a shortest stretch in seconds to such an array with shorter stretches merged (a screen), read
+    into ``stretches_at``."""
     card = (fit_metrics.get("estimate") or {}).get("accuracy")
     relation = fit_metrics.get("drift_accuracy")
     out = []
@@ -98,17 +104,20 @@ def run_expectations(
                 "capped": None if expected is None or card is None else min(expected, card),
                 "confidence": float(probs[mine].max(1).mean()),
                 "purity": float(np.bincount(probs[mine].argmax(1)).max() / mine.sum()),
-                "stretches": None
-                if stretch is None
-                else float(
-                    sum(np.bincount(probs[mine & (stretch == s)].argmax(1)).max() for s in np.unique(stretch[mine]))
-                    / mine.sum()
-                ),
+                "stretches": None if stretch is None else _agreement(probs, mine, stretch),
+                "stretches_at": {s: _agreement(probs, mine, cut) for s, cut in (coarser or {}).items()},
                 "median_drift": float(np.median(drift[mine])),
                 "card": card,
             }
         )
     return out
+
+
+def _agreement(probs: np.ndarray, mine: np.ndarray, stretch: np.ndarray) -> float:
+    """The share of the run's windows (``mine``) predicted as their stretch's most predicted terrain."""
+    return float(
+        sum(np.bincount(probs[mine & (stretch == s)].argmax(1)).max() for s in np.unique(stretch[mine])) / mine.sum()
+    )
 
 
 def _window_stretches(
@@ -121,9 +130,12 @@ def _window_stretches(
     stride: int,
     rate_hz: float,
     cache: dict[int, np.ndarray],
+    *,
+    min_length: int = 0,
 ) -> np.ndarray:
     """Each test window's stretch ``(N,)``: the index, within its run, of the stretch between the run's change
-    points (``log_change_points`` on the run's signals, as ``classify`` cuts a file) that holds its last sample."""
+    points (``log_change_points`` on the run's signals, as ``classify`` cuts a file) that holds its last sample;
+    with ``min_length`` (samples) no stretch is shorter (``labeling.coarser_points``), as ``classify`` merges them."""
     from ..cycle import log_change_points
 
     first = {int(r): int(np.argmax(run_of == r)) for r in np.unique(run_of[test_idx])}  # a run's first partition
@@ -137,7 +149,8 @@ def _window_stretches(
         j = seen.get(o, 0)
         seen[o] = j + 1
         end = (i - first[r]) * size + j * stride + win - 1  # the window's last sample in its run
-        out[n] = np.searchsorted(cache[r], end, side="right")  # run_expectations reads it within the run
+        points = cache[r] if min_length <= 0 else labeling.coarser_points(cache[r], len(runs[r]), min_length)
+        out[n] = np.searchsorted(points, end, side="right")  # run_expectations reads it within the run
     return out
 
 
@@ -159,6 +172,7 @@ def borealtc_window_protocol(
     log: Callable[[str], None] = print,
     train_filter: Callable[[int, np.ndarray, np.ndarray], np.ndarray] | None = None,
     member: Member | None = None,
+    screen_stretch_s: Sequence[float] = (),
 ) -> list[FoldResult]:
     """Run the protocol for the default family; one result per outer fold.
 
@@ -179,6 +193,8 @@ def borealtc_window_protocol(
         member: A second model fitted on the same fold (:class:`.protocol_members.FoldData`) that returns its
             probabilities of the same test windows: scored alone (``metrics["member"]``) and averaged with the
             default family's (``metrics["ensemble"]``).
+        screen_stretch_s: Shortest stretches (seconds) to screen the per-stretch figure at, each held-out run's
+            shorter stretches merged (``labeling.coarser_points``): ``stretches_at`` in ``metrics["runs"]``.
     """
     protocol = protocol or WindowProtocol()
     size, win, stride = (round(s * rate_hz) for s in (protocol.partition_s, protocol.window_s, protocol.stride_s))
@@ -213,8 +229,12 @@ def borealtc_window_protocol(
         m["pseudo_stretches"] = cfit.metrics["pseudo_stretches"]
         drift = drift_of_rows(cfit.drift, cfit.models, x)  # (N,)
         m.update(drift_figures(drift, probs.argmax(1) == y_true))
-        stretch = _window_stretches(runs, run_of, test_idx, owner, size, win, stride, rate_hz, change_points)
-        m["runs"] = run_expectations(cfit.metrics, drift, probs, y_true, run_of[test_idx][owner], stretch)
+        cut = (runs, run_of, test_idx, owner, size, win, stride, rate_hz, change_points)
+        coarser = {s: _window_stretches(*cut, min_length=round(s * rate_hz)) for s in screen_stretch_s}
+        stretch = _window_stretches(*cut, min_length=round(SHORTEST_STRETCH_S * rate_hz))  # as classify cuts
+        m["runs"] = run_expectations(
+            cfit.metrics, drift, probs, y_true, run_of[test_idx][owner], stretch, coarser=coarser
+        )
         if member is not None:
             test = [normalizer(parts[i]) for i in test_idx]
             raw, raw_owner = cut_windows(test, win, stride)

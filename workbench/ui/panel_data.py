@@ -135,7 +135,8 @@ class DataPanel:
         drifted = {i: labeling.drifted_share(s.drift) for i, s in scores.items()}
         classifier = session.active_model("classifier")
         metrics = classifier.metrics if classifier is not None else {}
-        names = {x.id: x.name for x in session.logs()}
+        logs = session.logs()
+        names, rates = {x.id: x.name for x in logs}, {x.id: x.rate_hz for x in logs}
         state = self.host.state
         expected = {
             i: file_expectation(
@@ -144,6 +145,7 @@ class DataPanel:
                 metrics,
                 predicted=None if s.probs is None else s.probs.argmax(1),
                 change_points=state.known_change_points(i),  # the worker's; none computed here, on the UI's thread
+                rate_hz=rates.get(i),
             )
             for i, s in scores.items()
         }

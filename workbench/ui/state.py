@@ -383,6 +383,7 @@ class SharedState:
                     self._queue_of = (self.scores, key)
                     rows = [(q.log.id, q.start, q.stop, q.reason, q.guess, q.score) for q in queue]
                     self._keep(store_queue, self.session, self.scores, rows, key=key)
+                self._find_change_points()
                 self.notify("suggestions")
             except USER_ERRORS as exc:
                 # a damaged model or session: one line in every page and in the server's output, no traceback
@@ -406,6 +407,16 @@ class SharedState:
             store(*args, **kwargs)
         except OSError as exc:
             self._on_error(f"could not keep the scores for the next start: {exc}")
+
+    def _find_change_points(self) -> None:
+        """Change points of every scored log, for the Data tab's figure by stretches: a queue kept from the last
+        start was ranked without them, and the page never computes them itself."""
+        for log in self.logs():
+            if self._stop.is_set() or self._dirty.is_set():
+                return  # newer work first; the next pass goes on
+            if log.id in self.scores.scores:
+                self.busy = "finding change points"
+                self.change_points(log.id)
 
     def _compute_queue(self) -> list[Queued]:
         scores = self.scores

@@ -101,3 +101,19 @@ def test_score_and_keep_leaves_a_whole_scoring_and_queue(trained: Session) -> No
     assert back is not None and back.complete
     key = queue_key(trained, "combined", trained.terrains())
     assert stored_queue(trained, back.scores, key=key)
+
+
+def test_a_restart_from_the_kept_queue_finds_the_change_points_the_data_tab_reads(trained: Session) -> None:  # noqa: F811
+    """A kept queue is drawn without ranking it again, so nothing else would find the change points: without them
+    the Data tab has no figure by stretches."""
+    assert score_and_keep(trained)
+    state = SharedState(trained)
+    try:
+        assert state.wait_idle(stop=lambda: False, deadline_s=120)
+        assert state.queue  # the kept one
+        for log in trained.logs():
+            points = state.known_change_points(log.id)
+            assert points is not None
+            np.testing.assert_array_equal(points, state.change_points(log.id))
+    finally:
+        state.stop()
