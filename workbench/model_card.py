@@ -14,6 +14,8 @@ from training import (
     parameter_count,
 )
 
+from .expectations import SHORTEST_STRETCH_S
+
 
 def _estimate_section(m: dict) -> list[str]:
     """Per terrain the figure that exists for the labels the session has, and which it is (``training.estimates``)."""
@@ -106,8 +108,9 @@ def _drift_section(
         if agreement is not None:
             lines += [
                 f"Their predictions agree with the most predicted terrain of their stretch on **{agreement:.0%}** of "
-                "their steps (stretches between change points): where each stretch is one terrain, they score at most "
-                "that, and that where each stretch's most predicted terrain is right (docs/model.md).",
+                f"their steps (stretches between change points, none under {SHORTEST_STRETCH_S:g} s): where each "
+                "stretch is one terrain, they score at most that, and that where each stretch's most predicted "
+                "terrain is right (docs/model.md).",
                 "",
             ]
     cal = bundle.metrics.get("calibration") or {}
