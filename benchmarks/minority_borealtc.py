@@ -3,7 +3,8 @@ default family as it is; each terrain in turn kept at a tenth of its training pa
 alike, drawn per fold), the test folds unchanged. Prints each terrain's recall there against its recall with all its
 time (the target: within 10 points).
 
-    python benchmarks/minority_borealtc.py [--seed S] [--balance B] [--inner F] [--minirocket] [TERRAIN ...]
+    python benchmarks/minority_borealtc.py [--seed S] [--balance B] [--inner F] [--minirocket] [--labelled L]
+        [TERRAIN ...]
 
 ``--balance`` picks :attr:`training.WindowFitConfig.balance`. ``--inner F`` screens on inner folds: the protocol runs
 on outer fold F's training runs only (5 inner folds by run over them; F's test runs are never read), as settings are
@@ -29,23 +30,26 @@ ROWS = {"default": lambda m: m, "MiniRocket": lambda m: m["member"], "mean of bo
 
 
 def recalls(
-    runs, labels, classes, *, minority: int | None, seed: int, fit, minirocket: bool
+    runs, labels, classes, *, minority: int | None, seed: int, fit, minirocket: bool, labelled: float, pieces: list
 ) -> dict[str, tuple[dict[str, float], float]]:
     """Per row (the default family; with ``minirocket`` also MiniRocket and the mean of both): each terrain's recall
-    over every test window of the 5 outer folds by run, and the accuracy."""
-    from workbench.evaluation import RocketMember, borealtc_window_protocol
+    over every test window of the 5 outer folds by run, and the accuracy. ``pieces`` gets, per fold, the minority's
+    labelled 5 s pieces (the protocol's own draw)."""
+    from workbench.evaluation import RocketMember, borealtc_window_protocol, labelled_subset
 
     def keep_a_tenth(fold: int, train_idx: np.ndarray, y: np.ndarray) -> np.ndarray:
         mine = train_idx[y[train_idx] == minority]
         keep = set(np.random.default_rng(fold).choice(mine, max(1, round(KEPT * len(mine))), replace=False))
-        return np.asarray([i for i in train_idx if y[i] != minority or i in keep])
+        kept = np.asarray([i for i in train_idx if y[i] != minority or i in keep])
+        pieces.append(int(np.sum(y[labelled_subset(kept, y, labelled, seed=seed + fold)] == minority)))
+        return kept
 
     results = borealtc_window_protocol(
         runs,
         labels,
         classes,
         rate_hz=RATE_HZ,
-        labelled=LABELLED,
+        labelled=labelled,
         split="runs",
         seed=seed,
         fit=fit,
@@ -66,13 +70,17 @@ def main() -> int:
     args = borealtc_arguments(__doc__)
     args.add_argument("terrains", nargs="*", help="terrains to keep at a tenth (default: each in turn)")
     args.add_argument("--minirocket", action="store_true", help="also MiniRocket + ridge, alone and averaged")
+    args.add_argument("--labelled", type=float, default=LABELLED, help="share of the training partitions labelled")
     opts = args.parse_args()
     if (data := borealtc_runs(opts)) is None:
         return 0
     runs, labels, classes, fit = data
     t0 = time.monotonic()
-    run = partial(recalls, runs, labels, classes, seed=opts.seed, fit=fit, minirocket=opts.minirocket)
-    full = run(minority=None)
+    run = partial(
+        recalls, runs, labels, classes, seed=opts.seed, fit=fit, minirocket=opts.minirocket, labelled=opts.labelled
+    )
+    full = run(minority=None, pieces=[])
+    print(f"{opts.labelled:.0%} of the training partitions labelled", flush=True)
     for row, (rec, acc) in full.items():
         balanced = float(np.mean(list(rec.values())))
         print(
@@ -82,12 +90,13 @@ def main() -> int:
         )
     for name in opts.terrains or classes:
         k = classes.index(name)
-        for row, (rec, acc) in run(minority=k).items():
+        pieces: list[int] = []
+        for row, (rec, acc) in run(minority=k, pieces=pieces).items():
             drop = 100 * (full[row][0][name] - rec[name])
             print(
                 f"{row}: {name} at a tenth of its time: its recall {rec[name]:.1%} against {full[row][0][name]:.1%} "
                 f"with all of it ({drop:.0f} points {'lower' if drop >= 0 else 'higher'}; target within 10), "
-                f"accuracy {acc:.1%}",
+                f"accuracy {acc:.1%}; its labelled 5 s pieces per fold: {pieces}",
                 flush=True,
             )
     print(f"{time.monotonic() - t0:.0f} s")
