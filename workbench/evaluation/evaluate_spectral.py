@@ -141,16 +141,18 @@ def _window_stretches(
     first = {int(r): int(np.argmax(run_of == r)) for r in np.unique(run_of[test_idx])}  # a run's first partition
     out = np.empty(len(owner), np.int64)
     seen: dict[int, int] = {}  # windows so far of each test partition
+    cuts: dict[int, np.ndarray] = {}  # per run, its points with no stretch under min_length
     for n, o in enumerate(owner):
         i = int(test_idx[o])
         r = int(run_of[i])
         if r not in cache:
             cache[r] = log_change_points(runs[r], None, rate_hz=rate_hz)
+        if r not in cuts:
+            cuts[r] = cache[r] if min_length <= 0 else labeling.coarser_points(cache[r], len(runs[r]), min_length)
         j = seen.get(o, 0)
         seen[o] = j + 1
         end = (i - first[r]) * size + j * stride + win - 1  # the window's last sample in its run
-        points = cache[r] if min_length <= 0 else labeling.coarser_points(cache[r], len(runs[r]), min_length)
-        out[n] = np.searchsorted(points, end, side="right")  # run_expectations reads it within the run
+        out[n] = np.searchsorted(cuts[r], end, side="right")  # run_expectations reads it within the run
     return out
 
 

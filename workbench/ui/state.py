@@ -414,7 +414,7 @@ class SharedState:
         for log in self.logs():
             if self._stop.is_set() or self._dirty.is_set():
                 return  # newer work first; the next pass goes on
-            if log.id in self.scores.scores:
+            if log.id in self.scores.scores and self.known_change_points(log.id) is None:
                 self.busy = "finding change points"
                 self.change_points(log.id)
 
