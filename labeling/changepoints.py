@@ -12,7 +12,6 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
-import ruptures as rpt
 
 
 @dataclass(frozen=True)
@@ -71,6 +70,8 @@ def change_points(signal: np.ndarray, *, block: int = 25, penalty: float = 3.0, 
         return np.zeros(0, np.int64)
     z = _robust_scale(z)
     pen = penalty * z.shape[1] * np.log(len(z))
+    import ruptures as rpt  # 1 s of scipy.stats: only where change points are found, not for every `import labeling`
+
     bkps = rpt.KernelCPD(kernel="linear", min_size=min_blocks).fit(z).predict(pen=pen)
     return np.asarray(bkps[:-1], np.int64) * block  # ruptures ends the list with len(z)
 

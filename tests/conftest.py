@@ -13,6 +13,7 @@ import pytest
 
 from sessions import Session
 from tests.promise_report import pytest_runtest_logreport, pytest_terminal_summary  # noqa: F401 (hooks)
+from tests.schedule import pytest_collection_modifyitems  # noqa: F401 (hook)
 
 # Under pytest-xdist each worker is one process of two on two cores: torch (libgomp) in each must use one thread
 # and sleep rather than spin between parallel regions, or the two slow each other many times over. Set before any

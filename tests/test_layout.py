@@ -305,3 +305,11 @@ def test_no_import_circle_between_modules() -> None:
         if v not in index:
             visit(v)
     assert not circles, circles
+
+
+def test_the_test_schedule_names_files_that_exist() -> None:
+    """`tests/schedule.py` hands these files out first; a renamed file would silently lose its place."""
+    from tests.schedule import LONGEST_FIRST
+
+    missing = [f for f in LONGEST_FIRST if not (REPO / f).is_file()]
+    assert not missing, f"tests/schedule.py names files that are gone: {missing}"

@@ -100,20 +100,26 @@ def option(client: ViserClient, seg: int) -> str:
     return found[0]
 
 
-@pytest.fixture
-def trained(tmp_path: Path) -> Path:
+def trained(folder: Path, *, people: int, ops: int) -> Path:
+    """A session at ``folder / "s"``: one walk long enough for every person's region, two labels, tiny models."""
     from tests.workbench.cycle.test_cycle import TINY
     from workbench import cycle
     from workbench.demo import generate_walk, write_walk
 
-    mcap = write_walk(generate_walk(6, 800.0), tmp_path / "walk.mcap", seed=6)
-    with new_session(tmp_path / "s") as s:
+    seconds = max(120.0, 20 + people * region_width(ops) + 20)  # generating and ingesting scale with it: 800 s is 5 s
+    mcap = write_walk(generate_walk(6, seconds), folder / "walk.mcap", seed=6)
+    with new_session(folder / "s") as s:
         (log,) = s.ingest([mcap])
         s.add_segment(log.id, 100, 300, "grass", author="seed")
         s.add_segment(log.id, 500, 700, "concrete", author="seed")
         cycle.train_predictor(s, config=TINY, hidden=8)
         cycle.train_classifier(s, config=TINY, hidden=8)
-    return tmp_path / "s"
+    return folder / "s"
+
+
+def region_width(ops: int) -> float:
+    """Seconds of the walk one person labels in: each action moves on by at most 1.5 s."""
+    return 1.5 * ops + 5
 
 
 def run_people(path: Path, people: int, ops: int) -> tuple[int, list[float], list[float]]:
@@ -143,7 +149,7 @@ def run_people(path: Path, people: int, ops: int) -> tuple[int, list[float], lis
         versions = len(session.model_versions("classifier"))
         app.job.start()
         acts = [Acts() for _ in range(people)]
-        width = 1.5 * ops + 5  # each person labels in a region of their own
+        width = region_width(ops)  # each person labels in a region of their own
         threads = [
             threading.Thread(target=lambda i=i: clients.append(person(app.url, 20 + width * i, ops, i, acts[i])))
             for i in range(people)
@@ -187,18 +193,18 @@ def _summary(client: ViserClient) -> str:
     return " ".join(str(p.get("content", "")) for p in client.props.values() if "segments labelled" in str(p))
 
 
-def test_two_people_briefly(trained: Path, promise) -> None:
-    promise(summary(2, 8, *run_people(trained, people=2, ops=8)))
+def test_two_people_briefly(tmp_path: Path, promise) -> None:
+    promise(summary(2, 8, *run_people(trained(tmp_path, people=2, ops=8), people=2, ops=8)))
 
 
 @pytest.mark.slow
-def test_four_people_label_edit_and_delete_during_a_retrain(trained: Path, promise) -> None:
-    promise(summary(4, 12, *run_people(trained, people=4, ops=12)))
+def test_four_people_label_edit_and_delete_during_a_retrain(tmp_path: Path, promise) -> None:
+    promise(summary(4, 12, *run_people(trained(tmp_path, people=4, ops=12), people=4, ops=12)))
 
 
 @pytest.mark.slow
-def test_eight_people_for_longer(trained: Path, promise) -> None:
-    promise(summary(8, 60, *run_people(trained, people=8, ops=60)))
+def test_eight_people_for_longer(tmp_path: Path, promise) -> None:
+    promise(summary(8, 60, *run_people(trained(tmp_path, people=8, ops=60), people=8, ops=60)))
 
 
 def summary(people: int, ops: int, n: int, save_ms: list[float], commit_ms: list[float]) -> str:

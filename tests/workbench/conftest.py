@@ -15,7 +15,7 @@ def fast_window_fits():
     a third of the passes, in a session's training and in ``evaluate session``'s folds. Modules ask for it with
     ``pytestmark = pytest.mark.usefixtures("fast_window_fits")``."""
     with pytest.MonkeyPatch.context() as mp:
-        fast = replace(RETRAIN, window=replace(RETRAIN.window, epochs=20, refit_epochs=10))
+        fast = replace(RETRAIN, window=replace(RETRAIN.window, epochs=8, refit_epochs=4))
         mp.setattr("workbench.cycle.train_stages.RETRAIN", fast)
         mp.setattr("workbench.evaluation.session_eval.RETRAIN", fast)
         yield

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from sessions import Session, WorkbenchError
-from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
+from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained, trained_once  # noqa: F401  (fixtures)
 from training import BundleError, TrainingError
 from workbench.cli import main
 from workbench.ui import SharedState

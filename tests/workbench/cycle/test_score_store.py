@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sessions import Session
-from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
+from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained, trained_once  # noqa: F401  (fixtures)
 from workbench import cycle
 from workbench.cycle import compute_scores, queue_key, store_queue, store_scores, stored_queue, stored_scores
 from workbench.demo import generate_demo_logs

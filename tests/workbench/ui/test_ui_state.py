@@ -10,7 +10,7 @@ import pytest
 
 from sessions import Session, WorkbenchError
 from tests.conftest import new_session
-from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained  # noqa: F401  (fixtures)
+from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained, trained_once  # noqa: F401  (fixtures)
 from workbench.cycle import SUGGESTION_S
 from workbench.demo import seed_labels
 from workbench.ui.jobs import JobStatus, TrainJob, needs_predictor
