@@ -1,6 +1,7 @@
 """Paper-scale runs on BorealTC: both model families on both protocols, and the label-efficiency simulation.
 
     python benchmarks/paper_borealtc.py [protocol|simulate|issue54|all]
+    python benchmarks/paper_borealtc.py issue54 PART...   # some of its parts: labels, card-runs, ...
 
 ``protocol``: the default family (about 2 minutes on 2 CPU cores) and the paper family (about an hour per split) on
 the authors' partition folds and on folds holding out whole runs, 10 % of the training partitions labelled.
@@ -54,7 +55,7 @@ ISSUE54 = (  # (name, arguments to python): each prints its own table
 )
 
 
-def main(which: str = "all") -> int:
+def main(which: str = "all", *, parts: list[str] | None = None) -> int:
     if not DATA.is_dir():
         print(f"skipped: {DATA} is absent (BorealTC is not shipped with the project)")
         return 0
@@ -88,12 +89,37 @@ def main(which: str = "all") -> int:
         (RESULTS / "borealtc-simulate.md").write_text(report + f"\n\n{time.monotonic() - t:.0f} s\n")
         print(report)
     if which in ("issue54", "all"):
-        for name, args in ISSUE54:
-            out = subprocess.run([sys.executable, *args], capture_output=True, text=True, cwd=ROOT)
-            (RESULTS / f"issue-54-{name}.txt").write_text(out.stdout + out.stderr)
-            print(f"## {name}\n\n{out.stdout}{out.stderr}", flush=True)
+        return run_issue54(parts or [name for name, _ in ISSUE54])
     return 0
 
 
+def run_issue54(parts: list[str]) -> int:
+    """Run the named parts of ``ISSUE54`` in its order; each output goes to ``issue-54-NAME.txt`` headed by the
+    commit it ran at and ending with its seconds, so parts run at different times say which code gave them."""
+    known = [name for name, _ in ISSUE54]
+    unknown = sorted(set(parts) - set(known))
+    if unknown:
+        print(f"paper_borealtc.py: no part named {', '.join(unknown)} (the parts: {', '.join(known)})", file=sys.stderr)
+        return 2
+    commit = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True, text=True, cwd=ROOT)
+    failed = []
+    for name, args in ISSUE54:
+        if name not in parts:
+            continue
+        print(f"## {name} (started {time.strftime('%H:%M:%S')})", flush=True)
+        t = time.monotonic()
+        out = subprocess.run([sys.executable, *args], capture_output=True, text=True, cwd=ROOT)
+        took = f"{time.monotonic() - t:.0f} s" + (f", exit {out.returncode}" if out.returncode else "")
+        command = " ".join(a.replace(f"{ROOT}/", "") for a in args)
+        text = f"commit {commit.stdout.strip() or 'unknown'}: python {command}\n\n{out.stdout}{out.stderr}\n{took}\n"
+        (RESULTS / f"issue-54-{name}.txt").write_text(text)
+        print(f"\n{text}", flush=True)
+        if out.returncode:
+            failed.append(name)
+    if failed:
+        print(f"paper_borealtc.py: {', '.join(failed)} failed; see benchmarks/results/issue-54-*.txt", file=sys.stderr)
+    return 1 if failed else 0
+
+
 if __name__ == "__main__":
-    raise SystemExit(main(*sys.argv[1:2]))
+    raise SystemExit(main(*sys.argv[1:2], parts=sys.argv[2:]))
