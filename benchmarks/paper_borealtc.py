@@ -56,6 +56,9 @@ ISSUE54 = (  # (name, arguments to python): each prints its own table
 
 
 def main(which: str = "all", *, parts: list[str] | None = None) -> int:
+    if parts and which != "issue54":
+        print(f"paper_borealtc.py: parts are for issue54 only, not {which}", file=sys.stderr)
+        return 2
     if not DATA.is_dir():
         print(f"skipped: {DATA} is absent (BorealTC is not shipped with the project)")
         return 0
