@@ -15,7 +15,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
+from walk_session import classified_walks
 
 import labeling
 from sessions import IngestOptions, Session
@@ -48,16 +48,9 @@ def main() -> int:
         new.ingest(files)
         code, _ = classify_files(root / "E" / "bundle", files, root / "p.csv", IngestOptions())
         assert code == 0
-        pred = pd.read_csv(root / "p.csv")
         print(f"model of 4 demo walks: card {card:.0%}; {opts.walks} new walks")
         truth_acc, figures = [], []
-        for log in new.logs():
-            rows = pred[pred["log"] == log.name]
-            classes = [c[2:] for c in pred.columns if c.startswith("p_")]
-            predicted = rows[[f"p_{c}" for c in classes]].to_numpy().argmax(1)  # (T,)
-            truth = np.full(log.n_samples, -1)
-            for a, b, t in new.reference(log.id):
-                truth[a:b] = classes.index(t) if t in classes else -2
+        for log, predicted, truth in classified_walks(new, root / "p.csv"):
             known = truth != -1
             truth_acc.append(float((predicted == truth)[known].mean()))
             points = cycle.log_change_points(np.asarray(new.array(log.id)), None, rate_hz=log.rate_hz)

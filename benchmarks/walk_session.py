@@ -82,3 +82,22 @@ def labelled_after_training(
     print(f"setup models {time.perf_counter() - t:.0f} s", flush=True)
     label_stretches(session, rng, NEW_LABELS)
     return setup
+
+
+def classified_walks(session: Session, predictions: Path) -> list[tuple[LogInfo, np.ndarray, np.ndarray]]:
+    """Per log of ``session``, the terrain ``workbench classify`` predicted at each step (its CSV ``predictions``,
+    column order) and the truth ``(T,)`` in the same indices: -1 where the reference says nothing, -2 for a terrain
+    the model does not know (never right)."""
+    import pandas as pd
+
+    pred = pd.read_csv(predictions)
+    classes = [c[2:] for c in pred.columns if c.startswith("p_")]
+    out = []
+    for log in session.logs():
+        rows = pred[pred["log"] == log.name]
+        predicted = rows[[f"p_{c}" for c in classes]].to_numpy().argmax(1)  # (T,)
+        truth = np.full(log.n_samples, -1)
+        for a, b, t in session.reference(log.id):
+            truth[a:b] = classes.index(t) if t in classes else -2
+        out.append((log, predicted, truth))
+    return out

@@ -56,9 +56,10 @@ class Family:
         describe: ``bundle`` -> the model card's sentences on what the bundle's models are.
         onnx_usage: ``bundle`` -> the model card's sentence on the exported step's inputs and outputs.
         fit: A ``"frames"`` or ``"windows"`` family's stage 2 from scratch: ``(features, segments, classes, *,
-            config, stretches, progress, cancel)`` -> ``ClassifierFit``, where ``features`` are ``SpectralSteps``
-            (``RawSteps``), ``config`` a ``WindowFitConfig`` and ``stretches`` unlabelled ``(log, start, stop)`` for
-            self-training. ``None`` for
+            config, stretches, units, progress, cancel)`` -> ``ClassifierFit``, where ``features`` are
+            ``SpectralSteps`` (``RawSteps``), ``config`` a ``WindowFitConfig``, ``stretches`` unlabelled ``(log,
+            start, stop)`` for self-training and ``units`` (passed only when
+            ``config.unit_agree`` is set) per stretch the span it is a piece of. ``None`` for
             the paper family, whose fit (``fit_classifier``: warm start, replayed labels, consistency pairs) the
             cycle calls itself.
         fine_tune: The quick Retrain: ``(features, segments, classes, models, *, folds, new, steps, lr_scale,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import threading
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -257,3 +258,30 @@ def test_calibration_error_is_zero_when_confidence_matches_accuracy() -> None:
     assert expected_calibration_error(probs, y) < 0.02
     sure = np.where(guess[:, None] == np.arange(2), 0.99, 0.01)  # the same guesses, claimed at 99 %
     assert abs(expected_calibration_error(sure, y) - 0.19) < 0.02
+
+
+def test_units_lend_a_span_s_terrain_to_its_pieces_that_alone_do_not_agree(logs) -> None:
+    arrays, terrains = logs
+    rng = np.random.default_rng(5)
+    # each log's last 400 samples another terrain with no change point marked: the piece across it is half and half
+    mixed = [np.concatenate([a[:2000], _walk(400, (k + 1) % 3, rng)]) for a, k in zip(arrays, terrains, strict=True)]
+    normalizer = Normalizer.fit(mixed)
+    config = SpectralConfig.for_log(mixed[0], RATE)
+    feats = _features(mixed, normalizer, config)
+    segments = [(i, 300, 900, k) for i, k in enumerate(terrains)]
+    stretches = [(i, a, a + 400) for i in range(len(mixed)) for a in (1000, 1400, 1800)]
+    units = [i for i in range(len(mixed)) for _ in range(3)]  # a log's three pieces are one span
+    settings = WindowFitConfig(k_folds=2, epochs=8, refit_epochs=4, held_out=False, calibrate=False)
+    taken = {}
+    for unit_agree in (0.0, 0.6):
+        fit = fit_window_classifier(
+            feats,
+            segments,
+            ("a", "b", "c"),
+            config=replace(settings, unit_agree=unit_agree),
+            stretches=stretches,
+            units=units,
+        )
+        taken[unit_agree] = fit.metrics["pseudo_stretches"]
+    # alone, the mixed piece (1800-2200) never agrees at 0.9; in its span (five sixths one terrain) it is taken
+    assert taken[0.0] <= 2 * len(mixed) < taken[0.6] == 3 * len(mixed), taken

@@ -184,21 +184,43 @@ def _predict_rows(model: WindowClassifier, x: np.ndarray) -> np.ndarray:
 
 
 def _pseudo_labels(
-    model: WindowClassifier, pool: np.ndarray, bounds: np.ndarray, stretches: Sequence[int], agree: float
+    model: WindowClassifier,
+    pool: np.ndarray,
+    bounds: np.ndarray,
+    stretches: Sequence[int],
+    agree: float,
+    *,
+    units: np.ndarray | None = None,
+    unit_agree: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """The pool rows of the ``stretches`` (indices into ``bounds``) whose rows agree on a class, that class per row,
-    and how many stretches were taken."""
-    index, ys, taken = [], [], 0
+    and how many stretches were taken. With ``units`` (one id per stretch in ``bounds``) and ``unit_agree``, the
+    stretches of a unit whose rows together agree (``unit_agree`` of them) all take the unit's class, whatever
+    each says alone; the others are judged alone."""
     k = model.config.n_classes
+    counts: dict[int, np.ndarray] = {}  # per stretch with rows, its rows' predicted classes counted
     for j in stretches:
         a, b = int(bounds[j]), int(bounds[j + 1])
-        if b == a:
+        if b > a:
+            counts[j] = np.bincount(_predict_rows(model, pool[a:b]), minlength=k)
+    by_unit: dict[int, np.ndarray] = {}  # the same, summed over each unit's stretches
+    if units is not None and unit_agree > 0:
+        for j, c in counts.items():
+            u = int(units[j])
+            by_unit[u] = by_unit[u] + c if u in by_unit else c
+    index, ys, taken = [], [], 0
+    for j, c in counts.items():
+        a, b = int(bounds[j]), int(bounds[j + 1])
+        joint = by_unit.get(int(units[j])) if units is not None and by_unit else None
+        if joint is not None and joint.max() >= unit_agree * joint.sum():
+            label = joint.argmax()
+        elif c.max() >= agree * (b - a):
+            label = c.argmax()
+        else:
             continue
-        counts = np.bincount(_predict_rows(model, pool[a:b]), minlength=k)
-        if counts.max() >= agree * (b - a):
-            index.append(np.arange(a, b))
-            ys.append(np.full(b - a, counts.argmax()))
-            taken += 1
+        index.append(np.arange(a, b))
+        ys.append(np.full(b - a, label))
+        taken += 1
     if not index:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), 0
     return np.concatenate(index), np.concatenate(ys), taken
@@ -211,6 +233,7 @@ def fit_window_classifier(
     *,
     config: WindowFitConfig | None = None,
     stretches: Sequence[Stretch] = (),
+    units: Sequence[int] | None = None,
     groups: Sequence[int] | None = None,
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
@@ -224,6 +247,8 @@ def fit_window_classifier(
         classes: The ``K`` class names.
         config: Fit settings.
         stretches: Unlabelled spans ``(log index, start, stop)`` for self-training (ignored when it is off).
+        units: Per stretch, the longer span it is a piece of (no change point or label between them):
+            ``config.unit_agree`` judges the pieces of a unit together. Default: each stretch its own.
         groups: The recording (run) each log belongs to, for the held-out figures and the calibration; default:
             every log is its own (a session's logs are runs; a protocol that cuts runs into pieces passes the runs).
         progress: Called after each fit, on the calling thread.
@@ -255,6 +280,7 @@ def fit_window_classifier(
     # consecutive frames' windows share all but one frame: every PSEUDO_STRIDE-th row of a stretch carries nearly
     # all it holds, and the refits (most of a fit's time) read a third of the rows
     pool, bounds = stretch_pool(features, stretches if use_stretches else [], PSEUDO_STRIDE)
+    unit_of = None if units is None else np.asarray(units, np.int64)
 
     def fit_on(
         train: Sequence[Segment], skip_logs: set[int], seed: int
@@ -277,7 +303,9 @@ def fit_window_classifier(
         model = train_rows(fresh(), x, y, config.epochs, config, seed, cancel, front=front)
         seen = {int(c) for c in np.unique(y)}
         kept = [j for j, s in enumerate(stretches) if s[0] not in skip_logs] if use_stretches else []
-        index, py, taken = _pseudo_labels(model, pool, bounds, kept, config.agree)
+        index, py, taken = _pseudo_labels(
+            model, pool, bounds, kept, config.agree, units=unit_of, unit_agree=config.unit_agree
+        )
         if taken:  # the pseudo-labelled rows are read in the pool, not copied beside the labelled ones
             y = np.concatenate([y, py])
             start = model if config.warm_refit else fresh()  # train_rows puts it back in training mode

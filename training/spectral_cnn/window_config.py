@@ -61,6 +61,11 @@ class WindowFitConfig:
             ``class_balance.py``).
         self_training: Refit each fold with pseudo-labelled stretches.
         agree: Share of a stretch's frames that must agree before it is pseudo-labelled.
+        unit_agree: Share of a unit's frames (its stretches together: ``units`` of the fit, the span between
+            change points a stretch is a piece of) that must agree before every stretch of it takes the unit's
+            terrain, whatever each says alone; 0 (the default) judges each alone. Off: at 0.6 it gained 1.9 points
+            on BorealTC's inner folds by run at 10 % of labels (one terrain per run) and lost 0.4 to 3.4 on demo
+            walks whose terrain changes every 5-36 s (``benchmarks/units_walks.py``).
         held_out: Also measure accuracy on held-out logs (folds over logs: as many fits again).
         calibrate: Divide the members' logits by a temperature fitted on held-out predictions.
         seed: Seed of the folds, initial weights and batches.
@@ -80,6 +85,7 @@ class WindowFitConfig:
     balance: Balance = "logits"
     self_training: bool = True
     agree: float = 0.9
+    unit_agree: float = 0.0
     held_out: bool = True
     calibrate: bool = True
     seed: int = 0

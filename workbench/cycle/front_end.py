@@ -151,3 +151,21 @@ def unlabelled_stretches(
         spans = free_stretches(log.n_samples, change_points(log), labelled, longest=longest, shortest=shortest)
         out += [(i, a, b) for a, b in spans]
     return out
+
+
+def stretch_units(stretches: Sequence[tuple[int, int, int]], change_points: Callable[[int], np.ndarray]) -> list[int]:
+    """Per stretch ``(log index, start, stop)``, in the order :func:`unlabelled_stretches` gives them, the span
+    between change points and labels it is a piece of (``change_points``: a log index's points). Self-training
+    judges a span's pieces together (``WindowFitConfig.unit_agree``), so a 40 s span the model mostly calls grass
+    lends grass to its 5 s pieces that alone were unsure."""
+    units: list[int] = []
+    unit, prev = -1, None
+    points: dict[int, np.ndarray] = {}
+    for i, a, b in stretches:
+        if i not in points:
+            points[i] = np.asarray(change_points(i))
+        joined = prev == (i, a) and not bool((points[i] == a).any())
+        unit += not joined
+        units.append(unit)
+        prev = (i, b)
+    return units

@@ -9,6 +9,7 @@ import shutil
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +41,14 @@ from training import (
 
 from ..retrain import RETRAIN
 from .fold_record import labels_record, new_labels, recorded_pieces
-from .front_end import choose_front_end, spectral_features, unlabelled_stretches, window_features, window_sizes
+from .front_end import (
+    choose_front_end,
+    spectral_features,
+    stretch_units,
+    unlabelled_stretches,
+    window_features,
+    window_sizes,
+)
 from .stage_inputs import consistency_pairs, signal_change_points, stage2_features
 
 MODEL_FAMILIES = family_names()  # `--model`: the registry's names (training.registry), the default first
@@ -344,13 +352,23 @@ def _train_window(
         features = window_features(session, bundle, logs, window_sizes(bundle, front))
     else:
         features = spectral_features(session, bundle, logs, front)
-    stretches = []
+    stretches, spans = [], {}
     if settings.self_training and fam.stage2_inputs == "frames":
-        stretches = unlabelled_stretches(logs, used, lambda x: signal_change_points(session, x), shortest=front.span)
+        points = partial(signal_change_points, session)
+        stretches = unlabelled_stretches(logs, used, points, shortest=front.span)
+        if settings.unit_agree:  # the pieces of a span judged together (off by default: WindowFitConfig)
+            spans = {"units": stretch_units(stretches, lambda i: points(logs[i]))}
     params = {"model": fam.name, "window": to_dict(settings), "segments": len(segments)}
     with recorded_run(session, "classifier", params) as result:
         fit = fam.fit(
-            features, segments, classes, config=settings, stretches=stretches, progress=progress, cancel=cancel
+            features,
+            segments,
+            classes,
+            config=settings,
+            stretches=stretches,
+            progress=progress,
+            cancel=cancel,
+            **spans,
         )
         version = _save_classifier(
             session,

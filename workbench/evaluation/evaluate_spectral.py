@@ -156,6 +156,37 @@ def _window_stretches(
     return out
 
 
+def _stretch_units(
+    runs: Sequence[np.ndarray],
+    run_of: np.ndarray,
+    unlabelled: Sequence[int],
+    size: int,
+    rate_hz: float,
+    cache: dict[int, np.ndarray],
+) -> list[int]:
+    """The unit of each unlabelled partition (indices in order): consecutive unlabelled partitions of one run with
+    no change point between them (``log_change_points`` on the run, as a session finds them) are one unit, as a
+    session's stretch between change points is cut into pieces of 5 s."""
+    from ..cycle import log_change_points
+
+    units, unit, prev = [], -1, None
+    for i in unlabelled:
+        r = int(run_of[i])
+        if r not in cache:
+            cache[r] = log_change_points(runs[r], None, rate_hz=rate_hz)
+        start = (i - int(np.argmax(run_of == r))) * size  # the partition's first sample in its run
+        cut = (
+            prev is None
+            or prev != i - 1
+            or run_of[prev] != r
+            or bool(((cache[r] > start - size) & (cache[r] <= start)).any())
+        )
+        unit += cut
+        units.append(unit)
+        prev = i
+    return units
+
+
 def _pct(x: float) -> str:
     return "–" if np.isnan(x) else f"{x:.0%}"
 
@@ -221,7 +252,14 @@ def borealtc_window_protocol(
         segments = [(j, first, size, int(y[i])) for j, i in enumerate(train_idx) if i in chosen]
         stretches = [(j, first, size) for j, i in enumerate(train_idx) if i not in chosen]
         groups = [int(run_of[i]) for i in train_idx]
-        cfit = fit_window_classifier(features, segments, classes, config=fit, stretches=stretches, groups=groups)
+        units = None
+        if fit.unit_agree > 0:
+            free = [int(i) for i in train_idx if i not in chosen]
+            units = _stretch_units(runs, run_of, free, size, rate_hz, change_points)
+            log(f"fold {fold}: {len(stretches)} unlabelled partitions in {len(set(units))} units")
+        cfit = fit_window_classifier(
+            features, segments, classes, config=fit, stretches=stretches, units=units, groups=groups
+        )
         x, owner = window_inputs([parts[i] for i in test_idx], win, stride, config, normalizer)
         probs = run_classifiers(cfit.models, [x])[0].mean(0)  # (N, K): the windows as steps, the model is per step
         y_true = y[test_idx][owner]

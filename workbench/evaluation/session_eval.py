@@ -32,6 +32,7 @@ from ..cycle import (
     spectral_features,
     stage1_outputs,
     stage2_features,
+    stretch_units,
     unlabelled_stretches,
     window_features,
     window_sizes,
@@ -88,6 +89,10 @@ def evaluate_session(
         features = stage2_features(session, p_version, bundle, logs, feature_mode)
     outs = stage1_outputs(session, p_version, bundle, logs)
     index = {x.id: i for i, x in enumerate(logs)}
+
+    def points_at(i: int) -> np.ndarray:
+        return signal_change_points(session, logs[i])
+
     labels = [s for s in session.segments() if s.log_id in index]
     # stage 2 learns the labelled terrains only, as `workbench train` does: an output for a terrain nobody labelled
     # could only be wrong, and a short fit did predict one (outside every row of the confusion table)
@@ -108,13 +113,10 @@ def evaluate_session(
         if front is not None:
             # self-training reads the training logs' unlabelled stretches only: a held-out log stays unseen
             kept = [x for i, x in enumerate(logs) if i not in held_logs]
-            stretches = [
-                (index[kept[j].id], a, b)
-                for j, a, b in unlabelled_stretches(
-                    kept, labels, lambda x: signal_change_points(session, x), shortest=front.span
-                )
-            ]
-            fit = fam.fit(features, train, learned, config=window, stretches=stretches)
+            pieces = unlabelled_stretches(kept, labels, lambda x: signal_change_points(session, x), shortest=front.span)
+            stretches = [(index[kept[j].id], a, b) for j, a, b in pieces]
+            spans = {"units": stretch_units(stretches, points_at)} if window.unit_agree else {}
+            fit = fam.fit(features, train, learned, config=window, stretches=stretches, **spans)
         else:
             fit = fit_classifier(features, train, learned, config=config, hidden=hidden)
         order = sorted(held_logs)

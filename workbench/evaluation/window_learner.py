@@ -11,7 +11,7 @@ import numpy as np
 import labeling
 from training import SpectralSteps, WindowFitConfig, classification_metrics, fit_window_classifier, terrain_recalls
 
-from ..cycle import free_stretches, score_logs
+from ..cycle import free_stretches, score_logs, stretch_units
 
 
 class WindowLearner:
@@ -42,13 +42,16 @@ class WindowLearner:
         self.pool, self.pool_error, self.classes, self.fit = pool, pool_error, classes, fit
         self.change_points, self.longest, self.test_predict = change_points, longest, test_predict
 
+    def _points(self, i: int) -> np.ndarray:
+        return np.zeros(0, np.int64) if self.change_points is None else self.change_points[i]
+
     def _stretches(self, labels: Sequence[labeling.Labelled]) -> list[tuple[int, int, int]]:
         shortest = self.pool[0].config.span
         out = []
         for i, f in enumerate(self.pool):
             taken = [(a, b) for log, a, b, _ in labels if log == i]
-            cps = np.zeros(0, np.int64) if self.change_points is None else self.change_points[i]
-            out += [(i, a, b) for a, b in free_stretches(len(f), cps, taken, longest=self.longest, shortest=shortest)]
+            spans = free_stretches(len(f), self._points(i), taken, longest=self.longest, shortest=shortest)
+            out += [(i, a, b) for a, b in spans]
         return out
 
     def __call__(self, labels: Sequence[labeling.Labelled]) -> labeling.Round:
@@ -57,7 +60,10 @@ class WindowLearner:
         segments = [(int(log), int(a), int(b), int(c)) for log, a, b, c in labels]
         stretches = self._stretches(labels) if self.fit.self_training else []
         settings = replace(self.fit, held_out=False)  # the simulation measures held-out logs itself
-        fit = fit_window_classifier(self.pool, segments, self.classes, config=settings, stretches=stretches)
+        units = stretch_units(stretches, self._points)
+        fit = fit_window_classifier(
+            self.pool, segments, self.classes, config=settings, stretches=stretches, units=units
+        )
         scores = score_logs(fit.models, self.pool, self.pool_error, drift=fit.drift, batch=256)  # as the UI scores
         y_true, y_pred = self.test_predict(fit.models)
         m = classification_metrics(y_true, y_pred, self.classes)

@@ -13,7 +13,7 @@ from sessions import Session
 from tests.conftest import new_session
 from training import StreamingClassifier, load_bundle
 from workbench import cycle
-from workbench.cycle import score_session, signal_change_points, unlabelled_stretches
+from workbench.cycle import score_session, signal_change_points, stretch_units, unlabelled_stretches
 from workbench.demo import seed_labels
 from workbench.export import classify_files, export_all
 
@@ -93,6 +93,19 @@ def test_self_training_stretches_hold_no_label_and_no_change_point(session: Sess
         assert 160 <= b - a <= 5 * log.rate_hz
         assert not any(s.log_id == log.id and s.start < b and a < s.stop for s in segments)
         assert not ((cps[log.id] > a) & (cps[log.id] < b)).any()
+    units = stretch_units(stretches, lambda i: cps[logs[i].id])
+    assert len(units) == len(stretches) and units[0] == 0 and np.all(np.diff(units) >= 0)
+    for (i, a, _), (j, _, b), u, v in zip(stretches[1:], stretches, units[1:], units, strict=False):
+        # a piece joins the one before it only where they touch in one log with no change point between them
+        joined = i == j and a == b and not (cps[logs[i].id] == a).any()
+        assert (u == v) == joined
+    assert len(set(units)) < len(units)  # some spans longer than 5 s were cut into pieces
+
+
+def test_stretch_units_cut_at_logs_gaps_and_change_points() -> None:
+    stretches = [(0, 0, 500), (0, 500, 1000), (0, 1000, 1400), (0, 1600, 2000), (1, 2000, 2500), (1, 2500, 2900)]
+    points = {0: np.asarray([1000]), 1: np.asarray([], np.int64)}
+    assert stretch_units(stretches, points.__getitem__) == [0, 0, 1, 2, 3, 3]
 
 
 def _free_second(session: Session, log) -> int:
