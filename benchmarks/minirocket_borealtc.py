@@ -33,6 +33,7 @@ def main() -> int:
     args.add_argument("--biases", default="all", choices=("all", "labelled"))
     args.add_argument("--stride", type=float, default=0.5, help="seconds between MiniRocket's training windows")
     args.add_argument("--span", type=float, default=1.7, help="seconds a test window (and a step's input) spans")
+    args.add_argument("--frame", type=float, default=0.4, help="seconds of the default family's short-time frames")
     args.add_argument("--hidden", type=int, default=None, help="the default family's width (WindowFitConfig.hidden)")
     args.add_argument("--unit-agree", type=float, default=None, help="WindowFitConfig.unit_agree (a screen)")
     args.add_argument("--agree", type=float, default=None, help="WindowFitConfig.agree (a screen)")
@@ -50,10 +51,13 @@ def main() -> int:
     if opts.unit_agree is not None:
         fit = replace(fit, unit_agree=opts.unit_agree)
     member = None if opts.no_member else RocketMember(stride=round(opts.stride * RATE_HZ), biases_from=opts.biases)
-    # the default family's frames: 0.4 s every 0.2 s, as many as the span holds (7 for 1.7 s, 16 for 3.4 s)
-    protocol = WindowProtocol(window_s=opts.span, frames=int((opts.span - 0.4) / 0.2 + 1e-9) + 1)
+    # the default family's frames: 0.4 s (--frame) every 0.2 s, as many as the span holds (7 for 1.7 s, 16 for 3.4 s)
+    protocol = WindowProtocol(
+        window_s=opts.span, frames=int((opts.span - opts.frame) / 0.2 + 1e-9) + 1, frame_s=opts.frame
+    )
     print(
-        f"span {opts.span} s ({protocol.frames} frames), width {fit.hidden}, MiniRocket biases from {opts.biases}"
+        f"span {opts.span} s ({protocol.frames} frames of {opts.frame} s), width {fit.hidden}, "
+        f"MiniRocket biases from {opts.biases}"
         + (f", stretches agreeing at {fit.agree}" if opts.agree is not None else "")
         + (f", units agreeing at {fit.unit_agree}" if fit.unit_agree else "")
     )

@@ -245,7 +245,11 @@ def borealtc_window_protocol(
             train_idx = np.asarray(train_filter(fold, train_idx, y))
         train = [parts[i] for i in train_idx]
         normalizer = Normalizer.fit(train)
-        config = replace(SpectralConfig.for_log(np.concatenate(train[:50]), rate_hz), window=protocol.frames)
+        config = replace(
+            SpectralConfig.for_log(np.concatenate(train[:50]), rate_hz),
+            frame=round(protocol.frame_s * rate_hz),
+            window=protocol.frames,
+        )
         features = [SpectralSteps(log_frames(p, config, transform=normalizer), len(p), config) for p in train]
         chosen = set(labelled_subset(train_idx, y, labelled, seed=seed + fold).tolist())
         first = config.span - 1  # the first step whose window holds full frames only

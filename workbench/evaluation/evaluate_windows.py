@@ -37,6 +37,7 @@ class WindowProtocol:
     folds: int = 5
     train_stride_s: float | None = None  # stage 2 trains on windows at this stride; None: on whole partitions
     frames: int = 7  # default family: frames a step reads (7 frames of 0.4 s every 0.2 s span 1.6 s, for 1.7 s)
+    frame_s: float = 0.4  # default family: seconds of one short-time frame (a screen of the front end)
 
 
 @dataclass
