@@ -58,10 +58,9 @@ class Family:
         fit: A ``"frames"`` or ``"windows"`` family's stage 2 from scratch: ``(features, segments, classes, *,
             config, stretches, units, progress, cancel)`` -> ``ClassifierFit``, where ``features`` are
             ``SpectralSteps`` (``RawSteps``), ``config`` a ``WindowFitConfig``, ``stretches`` unlabelled ``(log,
-            start, stop)`` for self-training and ``units`` (passed only when
-            ``config.unit_agree`` is set) per stretch the span it is a piece of. ``None`` for
-            the paper family, whose fit (``fit_classifier``: warm start, replayed labels, consistency pairs) the
-            cycle calls itself.
+            start, stop)`` for self-training and, only when ``config.unit_agree`` is set, ``units``: per stretch the
+            span it is a piece of. ``None`` for the paper family, whose fit (``fit_classifier``: warm start, replayed
+            labels, consistency pairs) the cycle calls itself.
         fine_tune: The quick Retrain: ``(features, segments, classes, models, *, folds, new, steps, lr_scale,
             config, progress, cancel)`` -> ``ClassifierFit`` of the fold models fine-tuned on new labels; ``None``
             where the family has none (the paper family warm-starts inside ``fit``).
