@@ -169,12 +169,13 @@ def _stretch_units(
     session's stretch between change points is cut into pieces of 5 s."""
     from ..cycle import log_change_points
 
+    first = {int(r): int(np.argmax(run_of == r)) for r in np.unique(run_of[list(unlabelled)])}  # a run's first part
     units, unit, prev = [], -1, None
     for i in unlabelled:
         r = int(run_of[i])
         if r not in cache:
             cache[r] = log_change_points(runs[r], None, rate_hz=rate_hz)
-        start = (i - int(np.argmax(run_of == r))) * size  # the partition's first sample in its run
+        start = (i - first[r]) * size  # the partition's first sample in its run
         cut = (
             prev is None
             or prev != i - 1

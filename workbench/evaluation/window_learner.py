@@ -60,7 +60,7 @@ class WindowLearner:
         segments = [(int(log), int(a), int(b), int(c)) for log, a, b, c in labels]
         stretches = self._stretches(labels) if self.fit.self_training else []
         settings = replace(self.fit, held_out=False)  # the simulation measures held-out logs itself
-        units = stretch_units(stretches, self._points)
+        units = stretch_units(stretches, self._points) if settings.unit_agree else None  # off by default
         fit = fit_window_classifier(
             self.pool, segments, self.classes, config=settings, stretches=stretches, units=units
         )
