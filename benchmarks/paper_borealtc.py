@@ -13,8 +13,8 @@ their mean (an ensemble member), the default family at a 3.4 s span (an ablation
 minority row (each terrain kept at a tenth of its time; again without the logit adjustment, its ablation), the
 expected accuracy per held-out run against what it scored (on BorealTC's runs and on demo walks whose terrain
 changes), the card against ``workbench evaluate session`` on BorealTC sessions, and the label efficiency on folds by
-run (``workbench evaluate borealtc --simulate --split runs``, 3 seeds); about 90 minutes in all on 2 cores, each output
-written to ``benchmarks/results/issue-54-*.txt``, which ends with its seconds (88 minutes summed over those files).
+run (``workbench evaluate borealtc --simulate --split runs``, 3 seeds); 82 minutes as one command on 2 cores (at
+76f3e90), each output written to ``benchmarks/results/issue-54-*.txt``, which ends with its seconds.
 
 Writes Markdown reports (and the simulation plot) to ``benchmarks/results/``. Skips with a reason when
 ``../shared/data/borealtc`` is absent (a user's clone).
