@@ -91,9 +91,19 @@ class WindowClassifier(nn.Module):
     def pooled(
         self, frames: torch.Tensor, *, keep: torch.Tensor | None = None, generator: torch.Generator | None = None
     ) -> torch.Tensor:
-        """Standardised ``frames (N, W, F)`` -> the pooled features ``(N, 2H)``; while training, dropout on the
-        frames: the values ``keep (N, W, F)`` holds ``True`` for kept, or a mask drawn from ``generator`` (default:
-        torch's global one).
+        """Standardised ``frames (N, W, F)`` -> the pooled features ``(N, 2H)``: the mean and spread over the window
+        of :meth:`convolved`'s outputs."""
+        x = self.convolved(frames, keep=keep, generator=generator)  # (N, W, H)
+        mean = x.mean(dim=1)  # (N, H)
+        std = ((x - mean[:, None]).pow(2).mean(dim=1) + SPREAD_EPS).sqrt()  # finite gradient at no spread
+        return torch.cat([mean, std], dim=1)  # (N, 2H)
+
+    def convolved(
+        self, frames: torch.Tensor, *, keep: torch.Tensor | None = None, generator: torch.Generator | None = None
+    ) -> torch.Tensor:
+        """Standardised ``frames (N, W, F)`` -> both convolutions' outputs ``(N, W, H)``; while training, dropout on
+        the frames: the values ``keep (N, W, F)`` holds ``True`` for kept, or a mask drawn from ``generator``
+        (default: torch's global one).
 
         Both convolutions run as matrix products over the window's frames (the 3-frame one on each frame and its
         two neighbours side by side, zero beyond the window's ends, as ``padding=1``): the same numbers as
@@ -111,10 +121,7 @@ class WindowClassifier(nn.Module):
         padded = F.pad(x, (0, 0, 1, 1))  # (N, W + 2, H)
         taps = torch.cat([padded[:, k : k + w] for k in range(3)], dim=2)  # (N, W, 3H): frames t-1, t, t+1
         conv = self.conv.weight.permute(0, 2, 1).reshape(h, 3 * h)  # (H, 3H) tap-major, as ``taps``
-        x = F.gelu(F.linear(taps, conv, self.conv.bias), approximate="tanh")  # (N, W, H)
-        mean = x.mean(dim=1)  # (N, H)
-        std = ((x - mean[:, None]).pow(2).mean(dim=1) + SPREAD_EPS).sqrt()  # finite gradient at no spread
-        return torch.cat([mean, std], dim=1)  # (N, 2H)
+        return F.gelu(F.linear(taps, conv, self.conv.bias), approximate="tanh")  # (N, W, H)
 
     def forward(self, features: torch.Tensor, state: None = None) -> tuple[torch.Tensor, None]:
         """``features (B, T, W·F)`` -> ``logits (B, T, K)``; no state is carried.
