@@ -3,16 +3,14 @@ PyTorch) beside the default family on BorealTC's folds by run, alone and average
 several shares of labelled partitions. Same folds, labels and 1.7 s test windows for all three rows.
 
     python benchmarks/minirocket_borealtc.py [--seed S] [--inner F] [--labelled 0.05 0.1 0.25 1] [--biases all]
-        [--span 1.7] [--hidden H] [--depth D] [--no-member] [--agree A] [--unit-agree U]
+        [--span 1.7] [--hidden H] [--no-member] [--agree A] [--unit-agree U]
 
 ``--inner F`` screens on inner folds (outer fold F's training runs only; its test runs are never read).
-``--depth D`` screens the network's depth: D convolutions, the shipped 1x1 and 3-frame ones and D - 2 residual
-3-frame ones (``benchmarks/deeper_window.py``). ``--agree`` and ``--unit-agree`` screen self-training's rule
-(``WindowFitConfig.agree`` and ``.unit_agree``: a training run's unlabelled partitions between change points
-judged together). ``--biases labelled`` draws the transform's biases from the labelled windows only, as aeon's
-pipeline does; the default draws them from every training partition, as the workbench's stage 1 reads every log.
-Prints, per share, each row's accuracy and balanced accuracy (mean of the 5 folds). Skips with a reason when
-``../shared/data/borealtc`` is absent.
+``--agree`` and ``--unit-agree`` screen self-training's rule (``WindowFitConfig.agree`` and ``.unit_agree``: a
+training run's unlabelled partitions between change points judged together). ``--biases labelled`` draws the
+transform's biases from the labelled windows only, as aeon's pipeline does; the default draws them from every
+training partition, as the workbench's stage 1 reads every log. Prints, per share, each row's accuracy and balanced
+accuracy (mean of the 5 folds). Skips with a reason when ``../shared/data/borealtc`` is absent.
 """
 
 from __future__ import annotations
@@ -37,7 +35,6 @@ def main() -> int:
     args.add_argument("--span", type=float, default=1.7, help="seconds a test window (and a step's input) spans")
     args.add_argument("--frame", type=float, default=0.4, help="seconds of the default family's short-time frames")
     args.add_argument("--hidden", type=int, default=None, help="the default family's width (WindowFitConfig.hidden)")
-    args.add_argument("--depth", type=int, default=2, help="the default family's convolutions (a screen; 2 shipped)")
     args.add_argument("--unit-agree", type=float, default=None, help="WindowFitConfig.unit_agree (a screen)")
     args.add_argument("--agree", type=float, default=None, help="WindowFitConfig.agree (a screen)")
     args.add_argument("--no-member", action="store_true", help="the default family alone (a screen of its settings)")
@@ -53,19 +50,13 @@ def main() -> int:
         fit = replace(fit, agree=opts.agree)
     if opts.unit_agree is not None:
         fit = replace(fit, unit_agree=opts.unit_agree)
-    if opts.depth != 2:  # the fit builds its networks from this name
-        from deeper_window import deeper
-
-        from training.spectral_cnn import fit_window
-
-        fit_window.WindowClassifier = deeper(opts.depth - 2)
     member = None if opts.no_member else RocketMember(stride=round(opts.stride * RATE_HZ), biases_from=opts.biases)
     # the default family's frames: 0.4 s (--frame) every 0.2 s, as many as the span holds (7 for 1.7 s, 16 for 3.4 s)
     protocol = WindowProtocol(
         window_s=opts.span, frames=int((opts.span - opts.frame) / 0.2 + 1e-9) + 1, frame_s=opts.frame
     )
     print(
-        f"span {opts.span} s ({protocol.frames} frames of {opts.frame} s), width {fit.hidden}, depth {opts.depth}, "
+        f"span {opts.span} s ({protocol.frames} frames of {opts.frame} s), width {fit.hidden}, "
         f"MiniRocket biases from {opts.biases}"
         + (f", stretches agreeing at {fit.agree}" if opts.agree is not None else "")
         + (f", units agreeing at {fit.unit_agree}" if fit.unit_agree else "")
