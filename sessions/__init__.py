@@ -20,7 +20,7 @@ from .ingest import (
     sniff_csv,
 )
 from .label_files import write_frame
-from .limits import MAX_RATE_HZ
+from .limits import MAX_NAME_CHARS, MAX_RATE_HZ, name_refusal
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import ModelVersion
 from .rowfiles import FileRows, NpyWriter
@@ -39,6 +39,7 @@ from .terrain_mcap import (
 __all__ = [
     "KNOWN_TERRAIN_COLORS",
     "LABEL_TOPIC",
+    "MAX_NAME_CHARS",
     "MAX_RATE_HZ",
     "PREDICTION_TOPIC",
     "SCHEMA_VERSION",
@@ -67,6 +68,7 @@ __all__ = [
     "WorkbenchError",
     "align",
     "load_mapping",
+    "name_refusal",
     "per_log_paths",
     "plan_sources",
     "read_mcap",

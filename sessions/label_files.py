@@ -17,7 +17,7 @@ if TYPE_CHECKING:  # pandas loads where a table is read: commands that read none
 from .errors import LabelError
 from .label_studio import is_label_studio, label_studio_frame
 from .labels import add_segment
-from .limits import MAX_LABEL_FILE_BYTES, MAX_LABEL_NESTING, MAX_LABEL_ROWS
+from .limits import MAX_LABEL_FILE_BYTES, MAX_LABEL_LINE_BYTES, MAX_LABEL_NESTING, MAX_LABEL_ROWS, MAX_NAME_CHARS
 from .logs import LogInfo, Segment
 
 COLUMNS = (
@@ -143,28 +143,77 @@ def read_frame(path: Path, *, max_rows: int = MAX_LABEL_ROWS, logs: list[LogInfo
                 frame = pd.read_csv(
                     path, dtype="string[pyarrow]", keep_default_na=False, na_values=[], engine="pyarrow"
                 )
-            return restore_formulas(frame)
-        if fmt == "parquet":
+            frame = restore_formulas(frame)
+        elif fmt == "parquet":
             _check_parquet(path, max_rows)
-            return pd.read_parquet(path)
-        text = path.read_text(encoding="utf-8")
-        data = _check_json(path, text, label_studio=logs is not None)
-        if logs is not None and is_label_studio(data):
-            return label_studio_frame(data, logs, path=path)
-        return pd.read_json(io.StringIO(text), orient="records")
+            frame = pd.read_parquet(path)
+        else:
+            text = path.read_text(encoding="utf-8")
+            data = _check_json(path, text, label_studio=logs is not None)
+            if logs is not None and is_label_studio(data):
+                frame = label_studio_frame(data, logs, path=path)
+            else:
+                frame = pd.read_json(io.StringIO(text), orient="records")
     except LabelError:
         raise
     except Exception as exc:
         raise LabelError(f"{path}: cannot read label file ({type(exc).__name__}: {exc})") from None
+    _check_names(frame, path)
+    return frame
+
+
+NAMED_COLUMNS = ("log", "terrain", "author")
+
+
+def _check_names(frame: pd.DataFrame, path: Path) -> None:
+    """Refuse a file naming a log, terrain or author longer than ``MAX_NAME_CHARS``, naming its first such row."""
+    for column in NAMED_COLUMNS:
+        if column not in frame.columns or frame[column].dtype.kind in "biuf":
+            continue
+        text = frame[column].astype("string")
+        lengths = text.str.len().fillna(0).to_numpy()  # (rows,)
+        over = (lengths > MAX_NAME_CHARS).nonzero()[0]
+        if len(over):
+            raise LabelError(
+                f"{path}: {_where(frame, int(over[0]))}: {column} is {int(lengths[over[0]]):,} characters long; a "
+                f"name is at most {MAX_NAME_CHARS}; nothing was imported"
+            )
+        if column == "terrain":  # a log's name is its file's, whatever it holds; a terrain's is one line of text
+            control = text.str.contains(CONTROL, regex=True).fillna(False).to_numpy().nonzero()[0]
+            if len(control):
+                raise LabelError(
+                    f"{path}: {_where(frame, int(control[0]))}: the terrain name holds a control character (a "
+                    "newline, an escape); a name is one line of text; nothing was imported"
+                )
+
+
+CONTROL = r"[\x00-\x1f\x7f-\x9f]"  # what a terminal acts on: C0, DEL and C1
+
+
+def _where(frame: pd.DataFrame, i: int) -> str:
+    """How messages name the ``i``-th row of a label file: its line, or a Label Studio task's region."""
+    return str(frame["at"].iloc[i]) if "at" in frame.columns else f"row {i + 2}"
 
 
 def _check_csv_rows(path: Path, max_rows: int) -> None:
     """Refuse a CSV with more rows than a label file may hold, counting lines before any is decoded (pandas took
     3.8 GB and minutes on 10 million rows)."""
-    lines = 0
+    import numpy as np
+
+    lines, open_line = 0, 0  # newlines so far; bytes since the last one
     with open(path, "rb") as f:
         while block := f.read(1 << 22):
-            lines += block.count(b"\n")
+            ends = np.flatnonzero(np.frombuffer(block, np.uint8) == 10)  # (n,) where each line of the block ends
+            # (n + 1,) the bytes of each line the block holds a part of: the open one first, the unfinished one last
+            gaps = np.diff(np.concatenate([[-1 - open_line], ends, [len(block)]])) - 1
+            if gaps.max() > MAX_LABEL_LINE_BYTES:
+                row = lines + 1 + int(np.flatnonzero(gaps > MAX_LABEL_LINE_BYTES)[0])  # line 1 is the header
+                raise LabelError(
+                    f"{path}: row {row} is longer than {MAX_LABEL_LINE_BYTES:,} bytes; a row of a label file holds "
+                    f"names of at most {MAX_NAME_CHARS} characters and a few numbers; nothing was imported"
+                )
+            lines += len(ends)
+            open_line = int(gaps[-1])
             if lines > max_rows + 1:
                 raise LabelError(f"{path}: more than {max_rows:,} rows, the limit for a label file; split it")
 

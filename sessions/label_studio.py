@@ -233,8 +233,8 @@ def _span(value: object, log: LogInfo, *, where: str) -> tuple[float, float, str
         )
     if value.get("instant"):
         raise LabelError(
-            f"{where}: an instant at {value.get('start')!r} labelled {names[0]!r}: a terrain needs a span; nothing "
-            "was imported"
+            f"{where}: an instant at {value.get('start')!r} labelled {names[0][:80]!r}: a terrain needs a span; "
+            "nothing was imported"
         )
     try:
         a, b = float(value["start"]), float(value["end"])

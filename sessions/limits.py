@@ -65,3 +65,25 @@ MAX_MAPPING_CHANNELS = 10_000
 
 MAX_MAPPING_BYTES = 16 * MiB
 """A mapping file on disk: channels are a few lines each."""
+
+MAX_NAME_CHARS = 300
+"""A terrain's, a log's or an author's name, wherever it comes from (a label file of any format, Label Studio, the
+command line, the page's terrain field). A file name is at most 255 bytes on the usual file systems and a log is
+named by its file's stem (``_trialN`` added for a trial of a multi-trial CSV); a terrain is a word or two. A label
+file with a 50 MB terrain name imported with exit 0 and put that name in every table and page."""
+
+MAX_LABEL_LINE_BYTES = 64 * 1024
+"""One row of a label CSV: its names are at most ``MAX_NAME_CHARS`` each, its numbers a few dozen bytes; a longer
+row is refused, naming it, before pandas reads the file (which gave "straddling object straddles two block
+boundaries" for one of 50 MB)."""
+
+
+def name_refusal(name: str, what: str, *, one_line: bool = True) -> str | None:
+    """Why ``name`` may not be a ``what``'s name (``"terrain"``, ``"log"``...), or ``None`` when it may. With
+    ``one_line``, a control character (a newline, an escape) is refused too: a terrain name is shown on one line of a
+    terminal, a table and a page, and one holding a newline printed a fake line of output."""
+    if len(name) > MAX_NAME_CHARS:
+        return f"a {what} name of {len(name):,} characters; a name is at most {MAX_NAME_CHARS}"
+    if one_line and (bad := next((ch for ch in name if ord(ch) < 0x20 or 0x7F <= ord(ch) < 0xA0), None)):
+        return f"a {what} name holding the control character {bad!r}; a name is one line of text"
+    return None

@@ -19,6 +19,7 @@ from . import labels as _labels
 from .cameras import CameraStore
 from .errors import LabelError, SessionError
 from .ingest_lock import sweeping
+from .limits import name_refusal
 from .log_files import checked_log_file
 from .log_ingest import LOGS_DIR, LogIngest
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
@@ -263,6 +264,8 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         """Rename a terrain class; its segments follow."""
         new = new.strip()
         with self._write() as conn:
+            if (why := name_refusal(new, "terrain")) is not None:
+                raise LabelError(why)
             if not new or conn.execute("SELECT 1 FROM terrains WHERE name = ?", (new,)).fetchone():
                 raise LabelError(f"cannot rename {old!r} to {new!r}: empty or taken")
             if conn.execute("UPDATE terrains SET name = ? WHERE name = ?", (new, old)).rowcount == 0:
@@ -476,6 +479,8 @@ def _insert_terrain(conn, name: str, color: str | None) -> None:
     """Add a terrain at the end of the list inside the caller's transaction (colour: the palette's next)."""
     if not name:
         raise LabelError("a terrain needs a name")
+    if (why := name_refusal(name, "terrain")) is not None:
+        raise LabelError(why)
     if conn.execute("SELECT 1 FROM terrains WHERE name = ?", (name,)).fetchone():
         raise LabelError(f"terrain {name!r} exists already")
     pos = conn.execute("SELECT COALESCE(MAX(position) + 1, 0) FROM terrains").fetchone()[0]

@@ -134,7 +134,7 @@ def refuse_existing(paths: Sequence[Path]) -> None:
         WorkbenchError: Naming the first path that exists.
     """
     for path in paths:
-        if path.exists():
+        if os.path.lexists(path):  # a dangling symbolic link too: it names a file of someone's
             raise WorkbenchError(f"{path}: exists already; choose another name (an MCAP output never replaces a file)")
 
 

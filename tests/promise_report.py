@@ -27,7 +27,7 @@ COUNTED = {  # module -> the promise its tests check
 }
 DETAILS: dict[str, list[str]] = {}  # module -> figures its tests measured, appended to its line
 COUNTS: dict[str, list[int]] = {}  # module -> [tests, failures]
-HOSTILE: list[tuple[str, float, float]] = []  # (case, seconds, peak MB) of test_hostile_cli's cases
+HOSTILE: list[tuple[str, float, float, int]] = []  # (case, seconds, peak MB, exit code) of test_hostile_cli's cases
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
@@ -58,7 +58,10 @@ def _hostile_lines() -> list[str]:
         "limits 20 s and 1024 MB"
     ]
     if os.environ.get("WORKBENCH_HOSTILE_TABLE"):  # the table of issue 52's closing note
-        lines += [f"hostile case | {name} | {seconds:.1f} s | {peak:.0f} MB" for name, seconds, peak in HOSTILE]
+        lines += [
+            f"hostile case | {name} | exit {code} | {seconds:.1f} s | {peak:.0f} MB"
+            for name, seconds, peak, code in HOSTILE
+        ]
     return lines
 
 

@@ -28,6 +28,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
         # the shared machinery
         "registry": ("DEFAULT_FAMILY", "FAMILY_ROOMS", "Family", "family", "family_names"),
         "runtime": (
+            "MAX_DWELL_S",
             "ModelBundle",
             "StreamingClassifier",
             "TerrainFilter",

@@ -31,7 +31,7 @@ def promise(request):
 
 @pytest.fixture
 def hostile_case(request):
-    """Call with a hostile case's name, seconds and peak MB: the summary line counts them."""
+    """Call with a hostile case's name, seconds, peak MB and exit code: the summary line counts them."""
     return lambda *case: request.node.user_properties.append(("workbench-hostile", case))
 
 

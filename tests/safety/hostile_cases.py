@@ -320,6 +320,148 @@ def skipped_camera_frame(tmp: Path) -> list[Case]:
     return [Case("a skipped camera frame", ["ingest", "{session}", str(path)], check=check, code=0)]
 
 
+def _tiny_bundle(folder: Path) -> Path:
+    """An untrained bundle of the paper family that reads ``_csv``'s channels ``a, b``: enough for ``classify``."""
+    import torch
+
+    from training import Classifier, ClassifierConfig, ModelBundle, Normalizer, Predictor, PredictorConfig
+    from training.runtime.bundle import save_bundle
+
+    torch.manual_seed(0)
+    logs = [np.random.default_rng(0).normal(size=(500, 2)).astype(np.float32)]
+    clfs = [Classifier(ClassifierConfig(4, 2, 4, 0.2)).eval() for _ in range(2)]
+    bundle = ModelBundle(
+        Predictor(PredictorConfig(2, 4)).eval(), Normalizer.fit(logs), ("a", "b"), 100.0, clfs, ("grass", "sand")
+    )
+    return save_bundle(bundle, folder)
+
+
+def bundles(tmp: Path) -> list[Case]:
+    """Issue 64, items 2 and 4: a bundle's files are plain, bounded and finite, and --smooth is a finite time."""
+    import os
+
+    from safetensors.torch import load_file, save_file
+
+    log = _csv(tmp / "run.csv", 10.0)
+    out = str(tmp / "out.csv")
+    good = _tiny_bundle(tmp / "good")
+    nan = _tiny_bundle(tmp / "nan")
+    weights = load_file(nan / "classifier.safetensors")
+    save_file({k: v.fill_(float("nan")) for k, v in weights.items()}, nan / "classifier.safetensors")
+    fifo = _tiny_bundle(tmp / "fifo")
+    (fifo / "predictor.safetensors").unlink()
+    os.mkfifo(fifo / "predictor.safetensors")
+    deep = _tiny_bundle(tmp / "deep")
+    (deep / "model.json").write_text("[" * 100_000 + "]" * 100_000)
+    huge = _tiny_bundle(tmp / "huge")
+    with open(huge / "model.json", "r+b") as f:
+        f.truncate(300 << 20)  # sparse: 300 MB to a reader, nothing on the disk
+    dangling = tmp / "dangling"
+    dangling.symlink_to(tmp / "nowhere" / "export")
+
+    return [
+        Case(
+            "classify --smooth inf",
+            ["classify", str(good), str(log), "--out", out, "--smooth", "inf"],
+            "--smooth",
+            "at most 86400",
+        ),
+        Case(
+            "a bundle of NaN weights",
+            ["classify", str(nan), str(log), "--out", out],
+            str(nan),
+            "NaN or infinite value(s); the bundle is damaged",
+        ),
+        Case(
+            "a bundle's predictor.safetensors a FIFO",
+            ["classify", str(fifo), str(log), "--out", out],
+            "predictor.safetensors",
+            "not a regular file",
+        ),
+        Case(
+            "a bundle's model.json nested 100,000 deep",
+            ["classify", str(deep), str(log), "--out", out],
+            "model.json",
+            "nested deeper",
+        ),
+        Case(
+            "a bundle's model.json of 300 MB",
+            ["classify", str(huge), str(log), "--out", out],
+            "model.json",
+            "314,572,800 bytes",
+        ),
+        Case(
+            "export --out a dangling symbolic link",
+            ["export", "{session}", "--out", str(dangling)],
+            str(dangling),
+            "a symbolic link",
+        ),
+    ]
+
+
+def long_names(tmp: Path) -> list[Case]:
+    """Issue 64, item 4: one limit on names in every label reader; a terrain name is one line of text."""
+    import json
+
+    import pandas as pd
+
+    name = "g" * (50 << 20)
+    rows = [{"log": "walk", "start_s": 0.0, "end_s": 1.0, "terrain": name}]
+    js, pq, csv = tmp / "long.json", tmp / "long.parquet", tmp / "long.csv"
+    js.write_text(json.dumps(rows))
+    pd.DataFrame(rows).to_parquet(pq)
+    csv.write_text(f"log,start_s,end_s,terrain\nwalk,0,1,grass\nwalk,1,2,{name}\n")
+    studio = tmp / "studio.json"
+    task = {
+        "data": {"log": "walk"},
+        "annotations": [
+            {"result": [{"type": "timeserieslabels", "value": {"start": 0.0, "end": 1.0, "timeserieslabels": [name]}}]}
+        ],
+    }
+    studio.write_text(json.dumps([task]))
+    newline = tmp / "newline.csv"
+    newline.write_text('log,start_s,end_s,terrain\nwalk,0,1,"dirt\ningested 9 log(s)"\n')
+    create = ["--create-terrains"]
+    return [
+        Case(
+            "a JSON label file with a 50 MB terrain name",
+            ["labels", "import", "{session}", str(js), *create],
+            str(js),
+            "characters long; a name is at most 300",
+        ),
+        Case(
+            "a Parquet label file with a 50 MB terrain name",
+            ["labels", "import", "{session}", str(pq), *create],
+            str(pq),
+            "a name is at most 300",
+        ),
+        Case(
+            "a Label Studio export with a 50 MB terrain name",
+            ["labels", "import", "{session}", str(studio), *create],
+            str(studio),
+            "a name is at most 300",
+        ),
+        Case(
+            "a CSV label file with a 50 MB terrain name",
+            ["labels", "import", "{session}", str(csv), *create],
+            str(csv),
+            "row 3 is longer than 65,536 bytes",
+        ),
+        Case(
+            "a label file's terrain holding a newline",
+            ["labels", "import", "{session}", str(newline), *create],
+            str(newline),
+            "row 2: the terrain name holds a control character",
+        ),
+        Case(
+            "terrains add a 400-character name",
+            ["terrains", "{session}", "add", "t" * 400],
+            "",
+            "a terrain name of 400 characters",
+        ),
+    ]
+
+
 BUILDERS = (
     time_jump,
     rates,
@@ -333,4 +475,6 @@ BUILDERS = (
     compressed_ros2,
     recursive_view,
     skipped_camera_frame,
+    bundles,
+    long_names,
 )

@@ -79,7 +79,7 @@ def test_a_hostile_input_ends_in_one_line(build, template: Path, tmp_path: Path,
         before = snapshot(session)
         args = [a.replace("{session}", str(session)) for a in case.args]
         code, out, err, seconds, peak = run_cli(args)
-        hostile_case(case.name, seconds, peak)
+        hostile_case(case.name, seconds, peak, code)
         where = f"{case.name}: rc {code}, stderr {err[-600:]!r}"
         assert "internal error" not in err and "Traceback" not in err, where
         assert code == case.code, where
@@ -115,4 +115,4 @@ def test_a_killed_ingests_staged_file_is_swept_at_once_unless_an_ingest_is_live(
     code, _, err, seconds, peak = run_cli(["info", str(session)])
     assert code == 0, err
     assert not dead.exists(), "no ingest is live, yet the staged file stayed"
-    hostile_case("a killed ingest's fresh staged file", seconds, peak)
+    hostile_case("a killed ingest's fresh staged file", seconds, peak, code)

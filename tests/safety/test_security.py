@@ -75,13 +75,13 @@ def test_only_this_servers_page_may_use_it(app: WorkbenchApp) -> None:
 
 
 def test_a_token_guards_the_server_and_moves_into_a_cookie(session: Session) -> None:
-    app = WorkbenchApp(session, port=0, hidden=8, token="s3cret-token")
+    app = WorkbenchApp(session, port=0, hidden=8, token="s3cret-token-of-the-test")
     try:
         port = app.gate.port
-        assert app.url.endswith("/?token=s3cret-token")
+        assert app.url.endswith("/?token=s3cret-token-of-the-test")
         assert _status(port)[0] == 403
         assert _status(port, "/?token=wrong")[0] == 403
-        status, headers = _status(port, "/?token=s3cret-token")
+        status, headers = _status(port, "/?token=s3cret-token-of-the-test")
         assert status == 303 and headers["Location"] == "/"
         cookie = headers["Set-Cookie"].split(";")[0]
         assert "HttpOnly" in headers["Set-Cookie"] and "SameSite=Strict" in headers["Set-Cookie"]
@@ -92,6 +92,87 @@ def test_a_token_guards_the_server_and_moves_into_a_cookie(session: Session) -> 
             assert ws.recv(timeout=20)
     finally:
         app.stop()
+
+
+@pytest.mark.parametrize("host", ["0.0.0.0", "127.0.0.1"])
+@pytest.mark.parametrize("token", ["", "short", " " * 20, "sixteen-chars-ok\n"])
+def test_an_empty_or_short_token_never_starts_a_server(
+    session: Session, host: str, token: str, capsys: pytest.CaptureFixture
+) -> None:
+    """Before: ``--token ""`` beyond loopback started, and an empty cookie then got the page and the websocket."""
+    session.close()
+    code = main(["serve", str(session.path), "--host", host, "--token", token, "--port", "0"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert "at least 16" in err[0] and "secrets.token_urlsafe" in err[0], err
+
+
+def test_an_empty_presented_token_is_refused_even_against_an_empty_secret(session: Session) -> None:
+    """Before: an empty cookie or ``?token=`` matched an empty secret (``compare_digest(b"", b"")``): 200 and 101."""
+    app = WorkbenchApp(session, port=0, hidden=8, token="a-token-of-twenty-four-c")
+    try:
+        port = app.gate.port
+        cookie = f"{app.gate.cookie}="
+        for token in ("a-token-of-twenty-four-c", ""):  # the real one, then a secret gone empty however it happened
+            app.gate.token = token
+            assert _status(port, Cookie=cookie)[0] == 403
+            assert _status(port, "/?token=")[0] == 403
+            assert _status(port, "/?token=", Cookie=cookie)[0] == 403
+            for headers in ({"Cookie": cookie}, {}):
+                with pytest.raises(InvalidStatus, match="403"):
+                    connect(
+                        f"ws://127.0.0.1:{port}/?token=",
+                        subprotocols=[VISER],
+                        additional_headers=headers,
+                        open_timeout=20,
+                    )
+    finally:
+        app.stop()
+
+
+def test_the_token_redirect_goes_to_this_servers_root_only(session: Session) -> None:
+    """Before: ``GET /\\evil.example/?token=T`` answered ``Location: /\\evil.example/``, which browsers read as
+    ``//evil.example``: an open redirect once a token leaks."""
+    token = "a-token-of-twenty-four-c"
+    app = WorkbenchApp(session, port=0, hidden=8, token=token)
+    try:
+        for path in ("/\\evil.example/", "//evil.example/", "/a/b", "/"):
+            status, headers = _status(app.gate.port, f"{path}?token={token}")
+            assert status == 303 and headers["Location"] == "/", (path, headers)
+    finally:
+        app.stop()
+
+
+def test_garbage_websocket_messages_are_dropped_in_one_line(
+    app: WorkbenchApp, capfd: pytest.CaptureFixture, caplog: pytest.LogCaptureFixture, detail
+) -> None:
+    """Before: each garbage binary message printed viser's ``msgspec.DecodeError`` traceback on the serve terminal
+    and ended viser's reading of that page. Now the gate drops it: one line, at most one per 10 s."""
+    client = ViserClient(app.url)
+    try:
+        client.wait_widget(f"Upload MCAP / CSV (≤ {MAX_UPLOAD_MB} MB)")
+        garbage = [os.urandom(64), b"\xc1" * 10, msgspec.msgpack.encode({"type": "NoSuchMessage"}), "text, not bytes"]
+        for message in garbage * 25:
+            client.ws.send(message)
+        deadline = time.monotonic() + 20
+        while app.gate.dropped.refused < 100 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert app.gate.dropped.refused == 100
+        # the page still works: a real message still reaches viser, which answers it
+        from viser import _messages
+
+        transfer = uuid.uuid4().hex
+        button = client.wait_widget(f"Upload MCAP / CSV (≤ {MAX_UPLOAD_MB} MB)")
+        start = _messages.FileTransferStartUpload(button, transfer, "huge.mcap", "", 1200, 10**12)
+        client.ws.send(msgspec.msgpack.encode(start.as_serializable_dict()))
+        note = client.wait_for(lambda m: m["type"] == "NotificationShowMessage")["props"]
+        assert "huge.mcap" in note["body"] and "upload limit" in note["body"], note
+    finally:
+        client.close()
+    assert "Traceback" not in capfd.readouterr().err
+    lines = [r.getMessage() for r in caplog.records if "dropped a websocket message" in r.getMessage()]
+    assert len(lines) == 1 and "DecodeError" in lines[0], lines
+    detail("100 garbage websocket messages: dropped by the gate, 1 line on the terminal, the page kept working")
 
 
 def test_no_token_only_on_loopback(session: Session, capsys: pytest.CaptureFixture) -> None:

@@ -77,3 +77,38 @@ def test_the_dry_runs_mapping_ingests_as_is_whatever_the_topics_are_named(tmp_pa
         (ingested,) = s.logs()
         assert ingested.rate_hz == 100.0 and ingested.n_channels == len(parsed["channels"])
         assert {c.source.rsplit(":", 1)[0] for c in ingested.channels} == set(HOSTILE_TOPICS)
+
+
+def test_a_terrain_name_is_one_line_of_text_and_an_old_one_prints_escaped(tmp_path: Path, capsys) -> None:
+    """Issue 64, item 4: ``labels import --create-terrains`` printed a terrain holding a newline raw (``added
+    terrain(s): dirt`` and then a fake ``ingested 9 log(s)``). Such a name is refused where a name enters; one that a
+    session of an older workbench holds prints escaped in every command that lists terrains."""
+    import sqlite3
+
+    from sessions import Session
+    from workbench.cli import main
+
+    fake = "dirt\ningested 9 log(s)"
+    assert main(["new", str(tmp_path / "s"), "--terrains", fake]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "control character '\\n'" in err[0], err
+    assert main(["new", str(tmp_path / "s"), "--terrains", "grass"]) == 0
+    with Session.open(tmp_path / "s") as s:
+        s.ingest([_json_mcap(tmp_path / "walk.mcap", ("/imu",))])
+    conn = sqlite3.connect(tmp_path / "s" / "session.sqlite")  # as an older workbench could have stored it
+    with conn:
+        conn.execute("UPDATE terrains SET name = ? WHERE name = 'grass'", (fake,))
+    conn.close()
+    labels = tmp_path / "l.csv"
+    labels.write_text("log,start_s,end_s,terrain\nwalk,0,1,sand\n")
+    capsys.readouterr()
+    for args in (
+        ["terrains", "{s}", "list"],
+        ["info", "{s}"],
+        ["labels", "import", "{s}", str(labels), "--create-terrains"],
+    ):
+        assert main([a.replace("{s}", str(tmp_path / "s")) for a in args]) == 0
+    out = capsys.readouterr().out
+    assert "ingested 9 log(s)" not in out.splitlines() and out.count(shown(fake)) == 2, out
+    assert "added terrain(s): sand" in out
+    assert main(["terrains", str(tmp_path / "s"), "rename", fake, "dirt\x1b[2J"]) == 2

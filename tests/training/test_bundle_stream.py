@@ -153,3 +153,23 @@ def test_onnx_matches_pytorch(tmp_path: Path) -> None:
     path = export_onnx(bundle, tmp_path / "classifier.onnx")
     assert check_onnx(path, bundle, logs[0]) < 1e-4
     np.testing.assert_allclose(run_onnx(path, bundle, logs[1]), offline(bundle, [logs[1]])[0], atol=1e-4)
+
+
+@pytest.mark.parametrize("where", ["classifier.safetensors", "predictor.safetensors"])
+def test_a_bundle_holding_nan_weights_is_refused_at_load(tmp_path: Path, where: str) -> None:
+    """Issue 64, item 2: NaN weights gave NaN probabilities, read as the first terrain, with exit 0. The streaming
+    runtime takes a loaded bundle, so it refuses the same; and its filter refuses a time on a terrain past a day."""
+    from safetensors.torch import load_file, save_file
+
+    bundle, _ = tiny_bundle()
+    path = save_bundle(bundle, tmp_path / "b")
+    weights = load_file(path / where)
+    key = sorted(weights)[-1]
+    weights[key] = weights[key].clone().fill_(float("nan"))
+    save_file(weights, path / where)
+    with pytest.raises(BundleError, match=f"{where}: .*holds \\d+ NaN or infinite value"):
+        load_bundle(path)
+    for bad in (float("inf"), 1e308, float("nan"), 0.0):
+        with pytest.raises(ValueError, match="at most 86400"):
+            StreamingClassifier(bundle, smooth_s=bad)
+    assert StreamingClassifier(bundle, smooth_s=86_400.0).filter is not None

@@ -46,8 +46,11 @@ def test_the_delay_grows_with_the_time_on_a_terrain_and_falls_with_confidence() 
     probs[:300, 0] = probs[300:, 3] = 0.8
     flip = int(np.argmax(long.forward(probs)[300:].argmax(1) == 3))
     assert flip == long.delay_steps(0.8)
-    with pytest.raises(ValueError, match="positive"):
-        TerrainFilter.for_dwell(0.0, 50.0, 4)
+    for bad in (0.0, -1.0, float("nan"), float("inf"), 86_401.0):  # inf: forward-backward gave NaN (issue 64)
+        with pytest.raises(ValueError, match="above 0 and at most 86400"):
+            TerrainFilter.for_dwell(bad, 50.0, 4)
+    day = TerrainFilter.for_dwell(86_400.0, 100.0, 4)  # the longest: every belief stays finite
+    assert np.isfinite(day.smooth(np.random.default_rng(0).dirichlet(np.ones(4), 5000))).all()
 
 
 @pytest.mark.parametrize("name", ["paper", "default"])

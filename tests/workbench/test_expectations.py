@@ -110,7 +110,7 @@ def test_the_card_says_what_the_logs_with_no_label_are_expected_to_score() -> No
     from pathlib import Path
 
     from training import DriftReference, load_bundle
-    from workbench.model_card import model_card
+    from workbench.export import model_card
 
     golden = load_bundle(Path(__file__).parents[1] / "training" / "golden" / "default")  # saved before drift existed
     bundle = replace(golden, drift=DriftReference((np.zeros((2, 4)),), (np.zeros((2, 3)),), np.ones((1, 2))))

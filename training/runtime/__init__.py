@@ -9,9 +9,10 @@ Used through ``training`` (``from training import StreamingClassifier, load_bund
 from .bundle import ModelBundle, load_bundle, parameter_count, save_bundle
 from .onnx_export import check_onnx, export_onnx, run_onnx
 from .stream import StreamingClassifier
-from .terrain_filter import TerrainFilter
+from .terrain_filter import MAX_DWELL_S, TerrainFilter
 
 __all__ = [
+    "MAX_DWELL_S",
     "ModelBundle",
     "StreamingClassifier",
     "TerrainFilter",

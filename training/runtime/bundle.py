@@ -5,10 +5,12 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import stat
 import uuid
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import numpy as np
 import torch
 from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
@@ -25,6 +27,9 @@ CONFIG_FILE = "model.json"
 PREDICTOR_FILE = "predictor.safetensors"
 CLASSIFIER_FILE = "classifier.safetensors"
 DRIFT_FILE = "drift.safetensors"
+MAX_CONFIG_BYTES = 32 << 20
+"""``model.json`` on disk: sizes, class names and the model card's metrics are kilobytes (a bundle trained on 72 runs:
+about 100 KB); a larger one is damage or tampering, refused before it is read (a 300 MB one took 1 GB to parse)."""
 
 
 @dataclass
@@ -162,10 +167,9 @@ def load_bundle(directory: str | Path) -> ModelBundle:
         BundleError: Missing or damaged files, or a newer schema.
     """
     directory = Path(directory)
-    try:
-        cfg = json.loads((directory / CONFIG_FILE).read_text())
-    except (OSError, ValueError) as exc:
-        raise BundleError(f"{directory}: not a model bundle ({exc})") from None
+    cfg = _read_config(directory)
+    for name in (PREDICTOR_FILE, CLASSIFIER_FILE, DRIFT_FILE):
+        _regular_file(directory / name, missing_ok=True)  # a FIFO would block its reader for ever
     if int(cfg.get("schema", 0)) > BUNDLE_SCHEMA:
         raise BundleError(f"{directory}: bundle schema {cfg['schema']} is newer than this workbench ({BUNDLE_SCHEMA})")
     if cfg.get("classifier"):
@@ -188,11 +192,13 @@ def load_bundle(directory: str | Path) -> ModelBundle:
                 model.load_state_dict(state)
                 classifiers.append(model.eval())
         drift = _drift(directory, cfg)
+        normalizer = Normalizer.from_dict(cfg["normalizer"])
     except (OSError, KeyError, TypeError, RuntimeError, ValueError, SafetensorError) as exc:
         raise BundleError(f"{directory}: damaged model bundle ({type(exc).__name__}: {exc})") from None
+    _check_finite(directory, predictor, classifiers, drift, normalizer)
     return ModelBundle(
         predictor=predictor.eval(),
-        normalizer=Normalizer.from_dict(cfg["normalizer"]),
+        normalizer=normalizer,
         channels=tuple(cfg["channels"]),
         rate_hz=float(cfg["rate_hz"]),
         classifiers=classifiers,
@@ -203,6 +209,60 @@ def load_bundle(directory: str | Path) -> ModelBundle:
         spectral=spectral,
         drift=drift,
     )
+
+
+def _regular_file(path: Path, *, missing_ok: bool = False) -> int:
+    """The size of ``path``, refused unless it is a regular file (a FIFO, a device or a folder named as a weights
+    file is damage or tampering: opening a FIFO waits for a writer for ever). Returns -1 for a missing file when
+    ``missing_ok``."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        if missing_ok:
+            return -1
+        raise BundleError(f"{path.parent}: not a model bundle ({path.name} is missing)") from None
+    except OSError as exc:
+        raise BundleError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise BundleError(f"{path}: not a regular file; a model bundle holds plain files only")
+    return st.st_size
+
+
+def _read_config(directory: Path) -> dict:
+    """``model.json``, refused in one line when it is not a plain file, too large, nested too deep or not JSON."""
+    path = directory / CONFIG_FILE
+    if (size := _regular_file(path)) > MAX_CONFIG_BYTES:
+        raise BundleError(f"{path}: {size:,} bytes; a model.json is at most {MAX_CONFIG_BYTES:,} (damaged or changed)")
+    try:
+        cfg = json.loads(path.read_text(encoding="utf-8"))
+    except RecursionError:
+        raise BundleError(f"{path}: JSON nested deeper than the parser allows; not a model bundle") from None
+    except (OSError, ValueError) as exc:
+        raise BundleError(f"{directory}: not a model bundle ({type(exc).__name__}: {exc})") from None
+    if not isinstance(cfg, dict):
+        raise BundleError(f"{path}: not a model bundle (its top level is no JSON object)")
+    return cfg
+
+
+def _check_finite(
+    directory: Path, predictor: nn.Module, classifiers: list[nn.Module], drift: DriftReference | None, norm: Normalizer
+) -> None:
+    """Refuse weights holding NaN or inf: every probability would be NaN, and NaN's argmax reads as the first
+    terrain (measured: a bundle of NaN weights classified every row as the first class, exit 0)."""
+    tensors = [(f"{PREDICTOR_FILE}: {k}", v) for k, v in predictor.state_dict().items()]
+    for i, model in enumerate(classifiers):
+        tensors += [(f"{CLASSIFIER_FILE}: fold{i}.{k}", v) for k, v in model.state_dict().items()]
+    arrays = {f"{DRIFT_FILE}: {k}": v for k, v in (drift.arrays() if drift is not None else {}).items()}
+    arrays |= {"model.json: the normalizer's mean": norm.mean, "model.json: the normalizer's std": norm.std}
+    tensors += [(k, torch.from_numpy(np.asarray(v))) for k, v in arrays.items()]
+    for name, value in tensors:
+        if value.is_floating_point() and not bool(torch.isfinite(value).all()):
+            bad = int((~torch.isfinite(value)).sum())
+            raise BundleError(
+                f"{directory}: {name} holds {bad:,} NaN or infinite value(s); the bundle is damaged (export it again)"
+            )
+    if not bool((norm.std > 0).all()):
+        raise BundleError(f"{directory}: model.json's normalizer has a scale not above 0; the bundle is damaged")
 
 
 def _drift(directory: Path, cfg: dict) -> DriftReference | None:

@@ -20,6 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 FLOOR = 1e-6  # a step's probability is never read as exactly zero: one confident error must not end a state
+MAX_DWELL_S = 86_400.0
+"""The longest ``--smooth``: a day on one terrain. Past it the switch probability rounds towards zero, a terrain the
+belief has left can never come back, and forward–backward divided zero by zero (``--smooth inf`` gave NaN rows)."""
 
 
 @dataclass(frozen=True)
@@ -45,10 +48,15 @@ class TerrainFilter:
         """The filter of a robot that stays ``seconds`` on a terrain on average, stepped at ``rate_hz``.
 
         Raises:
-            ValueError: ``seconds`` or ``rate_hz`` is not positive.
+            ValueError: ``seconds`` is not in (0, ``MAX_DWELL_S``] or ``rate_hz`` is not a positive number.
         """
-        if not seconds > 0 or not rate_hz > 0:
-            raise ValueError(f"--smooth needs a positive time on a terrain in seconds, not {seconds}")
+        if not 0 < seconds <= MAX_DWELL_S:
+            raise ValueError(
+                f"--smooth {seconds:g}: the time on a terrain is a number of seconds above 0 and at most "
+                f"{MAX_DWELL_S:g} (a day)"
+            )
+        if not 0 < rate_hz < float("inf"):
+            raise ValueError(f"the filter needs a positive, finite rate, not {rate_hz:g} Hz")
         return cls(n_classes, min(1.0 / (seconds * rate_hz), 0.5))
 
     def transition(self, belief: np.ndarray) -> np.ndarray:

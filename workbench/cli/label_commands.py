@@ -10,6 +10,8 @@ import tyro
 
 from sessions import LABEL_TOPIC, LogClock, Session, WorkbenchError
 
+from .terminal import shown
+
 Pos = tyro.conf.Positional
 
 
@@ -36,8 +38,8 @@ def labels_export(
             raise WorkbenchError(f"{out}: Label Studio's import is JSON: name the tasks file *.json")
         with Session.open(session) as s:
             written = s.export_label_studio(out, url_prefix=url_prefix)
-            print(f"wrote {out}: {len(s.logs())} task(s), one per log, {len(s.segments())} labelled region(s)")
-            print(f"wrote {written[1]} and {len(written) - 2} CSV file(s) of the logs' signals beside it")
+            print(f"wrote {shown(out)}: {len(s.logs())} task(s), one per log, {len(s.segments())} labelled region(s)")
+            print(f"wrote {shown(written[1])} and {len(written) - 2} CSV file(s) of the logs' signals beside it")
         return
     if url_prefix is not None:
         raise WorkbenchError("--url-prefix is for --format label-studio")
@@ -45,12 +47,12 @@ def labels_export(
         if out.suffix.lower() == ".mcap":
             for path, log in s.export_labels_mcap(out):
                 n, span = len(s.segments(log.id)), LogClock.of(log).span()
-                print(f"wrote {path}: {log.name}, topic {LABEL_TOPIC}, {n} segment(s), {span}")
+                print(f"wrote {shown(path)}: {shown(log.name)}, topic {LABEL_TOPIC}, {n} segment(s), {span}")
             if not s.segments():
                 print("no label segments yet: nothing written")
             return
         s.export_labels(out)
-        print(f"wrote {len(s.segments())} segment(s) to {out}")
+        print(f"wrote {len(s.segments())} segment(s) to {shown(out)}")
 
 
 def labels_import(
@@ -72,10 +74,10 @@ def labels_import(
         before = {t.name for t in s.terrains()}
         if reference:
             n = s.import_reference(file, create_terrains=create_terrains)
-            print(f"imported {n} reference row(s) from {file} (evaluation only, never labels)")
+            print(f"imported {n} reference row(s) from {shown(file)} (evaluation only, never labels)")
         else:
             added = s.import_labels(file, author=author or getpass.getuser(), create_terrains=create_terrains)
-            print(f"imported {len(added)} segment(s) from {file}")
+            print(f"imported {len(added)} segment(s) from {shown(file)}")
         new = [t.name for t in s.terrains() if t.name not in before]
         if new:
-            print(f"added terrain(s): {', '.join(new)}")
+            print(f"added terrain(s): {', '.join(shown(t) for t in new)}")

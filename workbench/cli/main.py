@@ -13,7 +13,7 @@ from typing import Annotated, Literal
 
 import tyro
 
-from sessions import MAX_RATE_HZ, IngestError, IngestOptions, Session, WorkbenchError, load_mapping
+from sessions import MAX_RATE_HZ, IngestError, IngestOptions, Session, WorkbenchError, load_mapping, name_refusal
 
 from ..retrain import RETRAIN
 from ..user_errors import USER_ERRORS, one_line
@@ -36,11 +36,14 @@ def new(session: Pos[Path], terrains: tuple[str, ...] = ()) -> None:
         session: Folder to create (may exist if empty).
         terrains: Terrain classes to start with, e.g. --terrains grass gravel ice.
     """
+    for name in terrains:  # before the folder is made: a refused name leaves no half-made session
+        if (why := name_refusal(name.strip(), "terrain")) is not None:
+            raise WorkbenchError(why)
     with Session.create(session) as s:
         for name in terrains:
             s.add_terrain(name)
-        named = f"; terrains: {', '.join(t.name for t in s.terrains())}" if terrains else "; no terrains yet"
-        print(f"created session {s.path} (schema {s.schema_version}){named}")
+        named = f"; terrains: {', '.join(shown(t.name) for t in s.terrains())}" if terrains else "; no terrains yet"
+        print(f"created session {shown(s.path)} (schema {s.schema_version}){named}")
 
 
 def ingest(
@@ -129,7 +132,7 @@ def info(session: Pos[Path]) -> None:
     with Session.open(session) as s:
         logs = s.logs()
         segments = s.segments()
-        print(f"session {s.path} (schema {s.schema_version})")
+        print(f"session {shown(s.path)} (schema {s.schema_version})")
         print(f"{len(logs)} log(s), {sum(log.duration_s for log in logs) / 60:.1f} min in all")
         width = max((len(shown(log.name)) for log in logs), default=4)
         for log in logs:
@@ -213,14 +216,15 @@ def serve(
         session: The session folder.
         host: Address to bind. The default serves this machine only.
         port: Port to listen on; a taken port is an error. 0 picks any free one.
-        token: The token requests must carry (default: none on loopback, a new random one beyond it).
+        token: The token requests must carry, at least 16 characters (default: none on loopback, a new random one
+            beyond it).
         no_token: Serve without a token; allowed on loopback only.
         hidden: LSTM width of a predictor trained from the UI (a classifier takes its predictor's width).
         stage1_epochs: Most epochs of a predictor retrain from the UI (early stopping may end it sooner).
         stage2_epochs: Most epochs of a classifier retrain from the UI.
     """
     from ..ui.app import WorkbenchApp
-    from ..ui.gate import is_loopback, new_token
+    from ..ui.gate import check_token, is_loopback, new_token
 
     if no_token and token is not None:
         raise WorkbenchError("--token and --no-token contradict each other: choose one")
@@ -228,6 +232,7 @@ def serve(
         raise WorkbenchError(f"--no-token serves {host} to anyone who reaches the port: allowed on loopback only")
     if token is None and not no_token and not is_loopback(host):
         token = new_token()
+    check_token(token, host=host)  # before the session opens: an empty --token is refused, never served
     s = Session.open(session)
     if not is_loopback(host):
         print(
@@ -245,7 +250,7 @@ def serve(
     except BaseException:
         LANE.expect_no_more()
         raise
-    print(f"workbench serving {s.path} at {app.url}", flush=True)
+    print(f"workbench serving {shown(s.path)} at {app.url}", flush=True)
     app.serve_forever()
 
 
@@ -285,11 +290,11 @@ def demo(
 
     if (session / "session.sqlite").exists():
         with Session.open(session) as s:
-            print(f"using existing demo session {s.path} ({len(s.logs())} logs)")
+            print(f"using existing demo session {shown(s.path)} ({len(s.logs())} logs)")
     else:
         log_dir = session.with_name(session.name + "-logs")
         paths = generate_demo_logs(log_dir, n_logs=logs, minutes=minutes, seed=seed, progress=True)
-        print(f"wrote {len(paths)} demo logs to {log_dir}/ (ground truth beside each in .truth.json)")
+        print(f"wrote {len(paths)} demo logs to {shown(log_dir)}/ (ground truth beside each in .truth.json)")
         Session.create(session).close()
         if ingest(session, [log_dir]):
             raise WorkbenchError("demo logs failed to ingest")

@@ -13,6 +13,8 @@ import tyro
 from sessions import IngestOptions, Session, WorkbenchError
 from training import FeatureMode, TrainConfig, family_names
 
+from .terminal import shown
+
 Pos = tyro.conf.Positional
 
 
@@ -272,11 +274,11 @@ def _print_estimate(version: int, model: str, m: dict, estimate: dict) -> None:
     if estimate["note"]:
         print(f"  {estimate['note']}")
     per = estimate["per_terrain"]
-    width = max(len("terrain"), *(len(n) for n in per))
+    width = max(len("terrain"), *(len(shown(n)) for n in per))
     print(f"  {'terrain':<{width}}  recall   measured by     logs")
     for name, e in per.items():
         recall = "   –  " if e["recall"] is None else f"{100 * e['recall']:5.1f} %"
-        print(f"  {name:<{width}}  {recall}  {e['by']:<14}  {e['logs']}")
+        print(f"  {shown(name):<{width}}  {recall}  {e['by']:<14}  {e['logs']}")
     cal = m.get("calibration") or {}
     if cal.get("on"):
         print(f"  probabilities calibrated on {cal['on']}: logits divided by {cal['temperature']:.2f}")
@@ -299,7 +301,7 @@ def export(session: Pos[Path], out: Path, predictions: bool = False, mcap: bool 
     with Session.open(session) as s:
         written = export_all(s, out, predictions=predictions, mcap=mcap, frames=frames)
     for path, what in written:
-        print(f"{path}  {what}")
+        print(f"{shown(path)}  {what}")
 
 
 def classify(
@@ -341,5 +343,5 @@ def classify(
     )
     code, lines = classify_files(bundle, files, out, options, smooth_s=smooth)
     for line in lines:
-        print(line, file=sys.stderr if line.startswith(("error:", "warning:")) else sys.stdout)
+        print(shown(line), file=sys.stderr if line.startswith(("error:", "warning:")) else sys.stdout)
     return code

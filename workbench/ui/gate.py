@@ -26,6 +26,7 @@ import logging
 import secrets
 import socket
 import threading
+import time
 from http.cookies import SimpleCookie
 from urllib.parse import parse_qs, urlsplit
 
@@ -40,6 +41,8 @@ from sessions import WorkbenchError
 from .private_viser import SECRET_HEADER, InnerAddress
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
+MIN_TOKEN_CHARS = 16  # a token anyone could guess or type by mistake is no token: an empty one opened the server
+MAKE_TOKEN = 'python -c "import secrets; print(secrets.token_urlsafe(24))"'
 MAX_MESSAGE = 50 << 20  # viser's own limit for one websocket message
 # what a browser must not do with the page: frame it into another site, or guess types
 _PAGE_HEADERS = {"Content-Security-Policy": "frame-ancestors 'none'", "X-Content-Type-Options": "nosniff"}
@@ -54,6 +57,42 @@ class _NoHandshakeNoise(logging.Filter):
 
 _LOG = logging.getLogger("workbench.gate")
 _LOG.addFilter(_NoHandshakeNoise())
+REFUSAL_LINE_EVERY_S = 10.0  # one line on the serve terminal per this many seconds of refused messages, at most
+
+
+def viser_message_error(message: str | bytes) -> str | None:
+    """Why a message from a browser is not one viser can read (``None``: it is), decoded as viser decodes it.
+
+    viser printed a ``msgspec.DecodeError`` traceback on the serve terminal for every garbage message, and stopped
+    reading that page's messages: the gate drops such a message instead, before viser sees it.
+    """
+    from viser import _messages
+
+    if not isinstance(message, bytes):
+        return "a text message (viser reads binary ones)"
+    try:
+        _messages.Message.deserialize(message)
+    except Exception as exc:  # whatever viser's decoding raises on it: msgspec's, KeyError, TypeError, ...
+        return f"{type(exc).__name__}: {str(exc)[:120].encode('unicode_escape').decode()}"  # no control character
+    return None
+
+
+class RefusalLog:
+    """One line per refused message on the serve terminal, at most one per ``every_s`` seconds, with a count of those
+    not printed: a page sending garbage in a loop cannot flood the terminal."""
+
+    def __init__(self, every_s: float = REFUSAL_LINE_EVERY_S) -> None:
+        self.every_s, self.refused, self._quiet, self._last = every_s, 0, 0, float("-inf")
+
+    def refuse(self, why: str) -> None:
+        self.refused += 1
+        now = time.monotonic()
+        if now - self._last < self.every_s:
+            self._quiet += 1
+            return
+        more = f" ({self._quiet} more since the last line)" if self._quiet else ""
+        _LOG.warning("gate: dropped a websocket message viser cannot read: %s%s", why, more)
+        self._last, self._quiet = now, 0
 
 
 def is_loopback(host: str) -> bool:
@@ -64,6 +103,26 @@ def is_loopback(host: str) -> bool:
 def new_token() -> str:
     """A token for the URL: 32 random bytes, URL-safe (as Jupyter's)."""
     return secrets.token_urlsafe(32)
+
+
+def check_token(token: str | None, *, host: str) -> None:
+    """Refuse a token too short to guard anything, and no token beyond loopback.
+
+    ``--token "$(cat ~/.workbench-token)"`` with the file missing passes an empty string: served, it let any request
+    with an empty cookie in, from any host.
+
+    Raises:
+        WorkbenchError: One line: what to pass and how to make a token.
+    """
+    if token is None:
+        if not is_loopback(host):
+            raise WorkbenchError(f"serving on {host} needs a token: anyone who can reach the port could use it")
+        return
+    if len(token) < MIN_TOKEN_CHARS or not token.isprintable() or token != token.strip():
+        raise WorkbenchError(
+            f"--token of {len(token)} character(s): a token is at least {MIN_TOKEN_CHARS} printable characters "
+            f"without spaces at its ends (leave --token out for a new random one, or make one with {MAKE_TOKEN})"
+        )
 
 
 class _UnixHTTPConnection(http.client.HTTPConnection):
@@ -100,12 +159,12 @@ class Gate:
     """
 
     def __init__(self, *, host: str, port: int, token: str | None, inner: InnerAddress | None = None) -> None:
-        if token is None and not is_loopback(host):
-            raise WorkbenchError(f"serving on {host} needs a token: anyone who can reach the port could use it")
+        check_token(token, host=host)
         self.host, self.inner, self.token = host, inner, token
         self.port = port
         self.cookie = f"workbench-token-{port}"
         self.refused = 0  # requests answered 403, for the tests and the log
+        self.dropped = RefusalLog()  # websocket messages viser could not read
         self._stop: asyncio.Event | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._ready = threading.Event()
@@ -143,14 +202,18 @@ class Gate:
         return values[0] if values else None
 
     def _has_token(self, request: Request) -> bool:
-        assert self.token is not None
+        """Whether the request presents the token: an empty or missing one never does, whatever the secret."""
+        if not self.token:  # never compared against an empty secret (check_token refuses one at start)
+            return False
         given = self._query_token(request)
         if given is None:
             cookie = SimpleCookie()
             with contextlib.suppress(Exception):
                 cookie.load(request.headers.get("Cookie", ""))
             given = cookie[self.cookie].value if self.cookie in cookie else None
-        return given is not None and secrets.compare_digest(given.encode(), self.token.encode())
+        if not given:
+            return False
+        return secrets.compare_digest(given.encode(), self.token.encode())
 
     # ------------------------------------------------------------------------------------------ serving
     async def _process_request(self, connection: ServerConnection, request: Request) -> Response | None:
@@ -161,8 +224,9 @@ class Gate:
         if request.headers.get("Upgrade", "").lower() == "websocket":
             return None  # the handshake goes on; _relay takes the connection
         if self.token is not None and self._query_token(request) is not None:
-            # the token moves from the URL into a cookie, and the address bar loses it
-            headers = Headers(Location=urlsplit(request.path).path or "/")
+            # the token moves from the URL into a cookie, and the address bar loses it; always to this server's root:
+            # the path as sent (``/\evil.example/``) is read by browsers as another site (an open redirect)
+            headers = Headers(Location="/")
             headers["Set-Cookie"] = f"{self.cookie}={self.token}; Path=/; HttpOnly; SameSite=Strict"
             return Response(http.HTTPStatus.SEE_OTHER, "See Other", headers, b"")
         return await asyncio.to_thread(self._fetch, request)
@@ -207,11 +271,17 @@ class Gate:
                 open_timeout=30,
             ) as inner:
 
-                async def pump(source, sink) -> None:
+                async def pump(source, sink, *, check: bool) -> None:
                     async for message in source:
+                        if check and (why := viser_message_error(message)) is not None:
+                            self.dropped.refuse(why)
+                            continue
                         await sink.send(message)
 
-                tasks = [asyncio.create_task(pump(outer, inner)), asyncio.create_task(pump(inner, outer))]
+                tasks = [
+                    asyncio.create_task(pump(outer, inner, check=True)),
+                    asyncio.create_task(pump(inner, outer, check=False)),
+                ]
                 done, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
                 for task in pending:
                     task.cancel()

@@ -16,7 +16,11 @@ from dataclasses import dataclass, field
 MAX_UPLOAD_MB = 512  # one file
 MAX_IN_FLIGHT_MB = 512  # every upload the server is receiving at once, all clients together
 MAX_UPLOADS_PER_CLIENT = 2  # at once, from one page
-STALLED_S = 60.0  # an upload that sent nothing for this long gives its room to others
+# An upload must keep a minimum rate, or it gives its room to others when they need it: one that sent 1 MB and then
+# 1 KB every 30 s held 510 MB of the server's room for ever, since a trickle reset a "nothing for 60 s" rule. 1 MB per
+# 30 s is 270 kbit/s, slower than any link a person uploads a log over.
+MIN_RATE_BYTES = 1 << 20  # at least this much (or the rest of the file) ...
+RATE_WINDOW_S = 30.0  # ... in every window this long
 UPLOAD_SUFFIXES = (".mcap", ".csv")
 
 
@@ -42,7 +46,15 @@ class _Transfer:
     client_id: int
     name: str
     declared: int
-    last_part: float
+    mark_time: float  # when it last met the rate: it has until mark_time + window to send the next MIN_RATE_BYTES
+    mark_bytes: int  # what it had received then
+    received: int = 0
+
+    def slow(self, now: float, window_s: float, min_bytes: int) -> bool:
+        """Whether it has fallen under the minimum rate: less than ``min_bytes`` (or what was left of its file)
+        since its last mark, which is more than ``window_s`` ago."""
+        due = min(min_bytes, self.declared - self.mark_bytes)
+        return now - self.mark_time > window_s and self.received - self.mark_bytes < due
 
 
 @dataclass
@@ -54,16 +66,21 @@ class UploadBudget:
         max_bytes: One upload's limit.
         max_in_flight: The declared bytes of every upload in flight together.
         per_client: Uploads in flight from one client.
-        stalled_s: An upload that sent no part for this long is dropped when another needs its room.
+        window_s: An upload that sent less than ``min_bytes`` (or the rest of its file) in this long is slow, and is
+            dropped when another needs its room.
+        min_bytes: See ``window_s``.
     """
 
     max_bytes: int = MAX_UPLOAD_MB << 20
     max_in_flight: int = MAX_IN_FLIGHT_MB << 20
     per_client: int = MAX_UPLOADS_PER_CLIENT
-    stalled_s: float = STALLED_S
+    window_s: float = RATE_WINDOW_S
+    min_bytes: int = MIN_RATE_BYTES
     _transfers: dict[str, _Transfer] = field(default_factory=dict)
     _buffers: dict[int, dict] = field(default_factory=dict)  # client -> viser's buffers of its uploads
     _lock: threading.Lock = field(default_factory=threading.Lock)
+    dropped_slow: int = 0  # uploads dropped under the minimum rate, for the tests and the log
+    clock: Callable[[], float] = time.monotonic  # seconds; the tests' own clock
 
     def attach(self, client_id: int, buffers: dict) -> None:
         """Where viser buffers a client's uploads: a stalled one is dropped from there when its room is given."""
@@ -76,8 +93,8 @@ class UploadBudget:
             return self._used()
 
     def reserve(self, transfer: str, client_id: int, name: str, declared: int) -> str | None:
-        """Take room for an upload that starts; uploads stalled for ``stalled_s`` are dropped first if it needs
-        their room.
+        """Take room for an upload that starts; uploads under the minimum rate are dropped first if it needs their
+        room.
 
         Returns:
             Why it is refused, or ``None``: it may go on.
@@ -86,10 +103,11 @@ class UploadBudget:
         if declared > self.max_bytes:
             return f"{shown}: {declared / 2**20:.1f} MB is over the {self.max_bytes >> 20} MB upload limit"
         with self._lock:
-            now = time.monotonic()
+            now = self.clock()
             if self._count(client_id) >= self.per_client or self._used() + declared > self.max_in_flight:
-                for k in [k for k, t in self._transfers.items() if now - t.last_part > self.stalled_s]:
+                for k in [k for k, t in self._transfers.items() if t.slow(now, self.window_s, self.min_bytes)]:
                     self._buffers.get(self._transfers.pop(k).client_id, {}).pop(k, None)
+                    self.dropped_slow += 1
             if (count := self._count(client_id)) >= self.per_client:
                 return f"{shown}: this page is already sending {count} uploads; wait for one to finish"
             used = self._used()
@@ -98,7 +116,7 @@ class UploadBudget:
                     f"{shown}: the server is receiving {used / 2**20:.0f} MB of uploads already (at most "
                     f"{self.max_in_flight >> 20} MB at once); try again when they have finished"
                 )
-            self._transfers[transfer] = _Transfer(client_id, name, declared, now)
+            self._transfers[transfer] = _Transfer(client_id, name, declared, now, 0)
             return None
 
     def _count(self, client_id: int) -> int:
@@ -107,12 +125,15 @@ class UploadBudget:
     def _used(self) -> int:
         return sum(t.declared for t in self._transfers.values())
 
-    def touch(self, transfer: str) -> bool:
-        """A part arrived; False when the transfer holds no room (refused, finished or dropped as stalled)."""
+    def touch(self, transfer: str, size: int) -> bool:
+        """A part of ``size`` bytes arrived; False when the transfer holds no room (refused, finished or dropped as
+        too slow)."""
         with self._lock:
             held = self._transfers.get(transfer)
             if held is not None:
-                held.last_part = time.monotonic()
+                held.received += size
+                if held.received - held.mark_bytes >= min(self.min_bytes, held.declared - held.mark_bytes):
+                    held.mark_time, held.mark_bytes = self.clock(), held.received  # it met the rate: a new window
             return held is not None
 
     def release(self, transfer: str) -> None:
@@ -189,7 +210,7 @@ def limit_uploads(owner, budget: UploadBudget, refused: Callable[[int, str], Non
         state = uploads.get(transfer)
         if state is None or state.get("client_id") != client_id:
             return  # unknown, refused, or another client's transfer: viser would drop it too
-        if not budget.touch(transfer):  # its room was given to others after it stalled
+        if not budget.touch(transfer, len(message.content)):  # its room was given to others: it was too slow
             uploads.pop(transfer, None)
             return
         with state["lock"]:

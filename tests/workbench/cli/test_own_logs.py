@@ -274,5 +274,8 @@ def test_classify_reads_files_as_ingest_does(tmp_path: Path, capsys, monkeypatch
     smooth = pd.read_csv(tmp_path / "smooth.csv")
     assert len(smooth) == len(pred) and not np.allclose(smooth["p_hard"], pred["p_hard"])
     assert (smooth["terrain"].iloc[200:] == "hard").mean() >= (pred["terrain"].iloc[200:] == "hard").mean()
-    assert run(*args, "--allow-gaps", "--smooth", "0") == 2
-    assert "--smooth 0: the time on a terrain must be a positive number" in capsys.readouterr().err
+    for bad in ("0", "-1", "nan", "inf", "1e308"):  # before: inf and 1e308 wrote NaN rows read as the first terrain
+        assert run(*args, "--allow-gaps", "--smooth", bad, "--out", tmp_path / f"bad{bad}.csv") == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "above 0 and at most 86400 (a day)" in err[0], err
+        assert not (tmp_path / f"bad{bad}.csv").exists()

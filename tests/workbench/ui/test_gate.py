@@ -5,13 +5,18 @@ from __future__ import annotations
 
 import threading
 
+import msgspec
 import pytest
+from viser import _messages
 from websockets.sync.client import connect
 from websockets.sync.server import unix_serve
 
 from sessions import WorkbenchError
 from workbench.ui.gate import Gate
 from workbench.ui.private_viser import SECRET_HEADER, InnerAddress
+
+# a message viser reads (an upload's part): the gate passes only those
+LABEL = msgspec.msgpack.encode(_messages.FileTransferPart("button", "transfer", 0, b"label").as_serializable_dict())
 
 
 @pytest.fixture
@@ -41,9 +46,11 @@ def test_messages_past_the_browser_limit_reach_the_browser(viser_stand_in) -> No
     try:
         with connect(f"ws://127.0.0.1:{gate.port}", max_size=None, open_timeout=20) as ws:
             assert len(ws.recv(timeout=60)) == 60 << 20
-            ws.send(b"label")
-            assert ws.recv(timeout=20) == b"label"
+            ws.send(b"garbage")  # not a message viser can read: dropped by the gate, never echoed
+            ws.send(LABEL)
+            assert ws.recv(timeout=20) == LABEL
         assert shown == ["the-secret"]  # the gate shows viser its secret
+        assert gate.dropped.refused == 1
     finally:
         gate.stop()
 

@@ -14,7 +14,7 @@ from training import (
     parameter_count,
 )
 
-from .expectations import SHORTEST_STRETCH_S
+from ..expectations import SHORTEST_STRETCH_S
 
 
 def _estimate_section(m: dict) -> list[str]:

@@ -31,6 +31,7 @@ from sessions import (
     write_terrain_mcap,
 )
 from training import (
+    MAX_DWELL_S,
     BundleError,
     ModelBundle,
     TerrainFilter,
@@ -38,7 +39,8 @@ from training import (
     run_predictor,
 )
 
-from .expectations import file_expectation, stretch_share
+from ..expectations import file_expectation, stretch_share
+from .export_staging import check_target, staged
 from .model_card import model_card
 
 ONNX_TOLERANCE = 1e-4
@@ -83,30 +85,21 @@ def export_all(
     Returns:
         What was written, one (path, description) per item.
     """
-    from .cycle import active_bundle
+    from ..cycle import active_bundle
 
     out = Path(out)
-    if out.exists():
-        raise WorkbenchError(f"{out}: exists already; choose a new folder")
+    check_target(out)  # before any work: a dangling link failed only at the rename, after the whole export
     version, bundle = active_bundle(session)
     # written under a temporary name and renamed when whole: a refused export leaves no half-written folder
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.partial")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir()
-    try:
+    with staged(out) as tmp:
         written = _write_export(session, tmp, version, bundle, predictions=predictions, mcap=mcap, frames=frames)
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return [(out / path.relative_to(tmp), what) for path, what in written]
 
 
 def _agreement(session: Session, scored: Mapping[int, labeling.LogScores]) -> float | None:
     """The share of these logs' steps predicted as their stretch's most predicted terrain, the stretches cut at each
     log's signal change points (none shorter than ``SHORTEST_STRETCH_S``); ``None`` without predictions."""
-    from .cycle import signal_change_points
+    from ..cycle import signal_change_points
 
     agree, steps = 0.0, 0
     for log_id, s in scored.items():
@@ -131,7 +124,7 @@ def _write_export(
 ) -> list[tuple[Path, str]]:
     from training import check_onnx, export_onnx
 
-    from .cycle import model_logs, score_session
+    from ..cycle import model_logs, score_session
 
     written: list[tuple[Path, str]] = []
     shutil.copytree(session.path / version.path, out / "bundle")
@@ -252,6 +245,19 @@ def _arrays_for(bundle: ModelBundle, files: Sequence[Path], options: IngestOptio
         yield None, err
 
 
+def _finite_only(names: list[str], scored: list, lines: list[str]) -> list[int]:
+    """The files whose every probability is finite; an error line for each other one. A NaN is no terrain (its
+    argmax reads as the first class), so such a file gets no output at all."""
+    kept = []
+    for i, (name, s) in enumerate(zip(names, scored, strict=True)):
+        bad = int((~np.isfinite(s.probs).all(axis=1)).sum())
+        if bad:
+            lines.append(f"error: {name}: the model gave {bad:,} step(s) no finite probability; nothing written for it")
+        else:
+            kept.append(i)
+    return kept
+
+
 def classify_files(
     bundle_dir: Path, files: Sequence[Path], out: Path, options: IngestOptions, *, smooth_s: float | None = None
 ):
@@ -262,6 +268,11 @@ def classify_files(
     probabilities written are forward–backward over an HMM whose terrain lasts that many seconds on average
     (:class:`training.TerrainFilter`); each file's line says the delay the causal filter costs on a robot.
     """
+    if smooth_s is not None and not 0 < smooth_s <= MAX_DWELL_S:
+        return 2, [
+            f"error: --smooth {smooth_s:g}: the time on a terrain is a number of seconds above 0 and at most "
+            f"{MAX_DWELL_S:g} (a day)"
+        ]
     try:
         bundle = load_bundle(bundle_dir)
     except BundleError as exc:
@@ -273,8 +284,6 @@ def classify_files(
             f"error: {bundle_dir}: the model runs at {bundle.rate_hz:g} Hz, so logs are aligned at that rate; "
             f"--rate {options.target_rate:g} would feed it another (leave --rate out)"
         ]
-    if smooth_s is not None and not smooth_s > 0:
-        return 2, [f"error: --smooth {smooth_s:g}: the time on a terrain must be a positive number of seconds"]
     as_mcap = Path(out).suffix.lower() == ".mcap"
     if Path(out).suffix.lower() not in OUTPUT_TYPES:
         return 2, [f"error: {out}: unknown output type {Path(out).suffix!r}; use {', '.join(OUTPUT_TYPES)}"]
@@ -292,7 +301,7 @@ def classify_files(
     except WorkbenchError as exc:
         return 2, [*lines, f"error: {exc}"]
     if arrays:
-        from .cycle import in_memory_features, log_change_points, score_logs
+        from ..cycle import in_memory_features, log_change_points, score_logs
 
         if bundle.stage2_family().stage2_inputs in ("frames", "windows"):
             # the predictions file holds no surprise: these families' stage 2 never reads stage 1, so it is skipped
@@ -303,6 +312,9 @@ def classify_files(
             features = [o.lazy(bundle.feature_mode) for o in outs]
             surprise = [o.surprise() for o in outs]
         scored = score_logs(bundle.classifiers, features, surprise, drift=bundle.drift)
+        kept = _finite_only(names, scored, lines)
+        names, arrays, scored = [names[i] for i in kept], [arrays[i] for i in kept], [scored[i] for i in kept]
+        starts, paths = [starts[i] for i in kept], [paths[i] for i in kept] if as_mcap else paths
         own_surprise = bundle.stage2_family().stage2_inputs not in ("frames", "windows")
         for name, a, s in zip(names, arrays, scored, strict=True):  # per file: its drift and what to expect on it
             points = log_change_points(a, s.surprise if own_surprise else None, rate_hz=bundle.rate_hz)
@@ -320,6 +332,9 @@ def classify_files(
                     f"filter would follow a terrain change {delay:.2f} s late at this file's median confidence"
                 )
             scored = [replace(s, probs=hmm.smooth(s.probs).astype(np.float32)) for s in scored]
+        kept = _finite_only(names, scored, lines)
+        names, scored, starts = [names[i] for i in kept], [scored[i] for i in kept], [starts[i] for i in kept]
+        paths = [paths[i] for i in kept] if as_mcap else paths
         if as_mcap:
             for name, s, t0, path in zip(names, scored, starts, paths, strict=True):
                 clock = LogClock(name, t0, bundle.rate_hz, len(s.probs))
@@ -333,6 +348,7 @@ def classify_files(
                 prediction_frame(name, s.probs, bundle.classes, bundle.rate_hz, s.drift)
                 for name, s in zip(names, scored, strict=True)
             ]
-            write_frame(pd.concat(frames), out)
-            lines.append(f"wrote predictions for {len(arrays)} log(s) to {out}")
+            if frames:
+                write_frame(pd.concat(frames), out)
+                lines.append(f"wrote predictions for {len(frames)} log(s) to {out}")
     return (2 if any(x.startswith("error:") for x in lines) else 0), lines
