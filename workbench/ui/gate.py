@@ -73,7 +73,8 @@ def viser_message_error(message: str | bytes) -> str | None:
     try:
         _messages.Message.deserialize(message)
     except Exception as exc:  # whatever viser's decoding raises on it: msgspec's, KeyError, TypeError, ...
-        return f"{type(exc).__name__}: {str(exc)[:120].encode('unicode_escape').decode()}"  # no control character
+        text = "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in str(exc)[:120])  # no control character
+        return f"{type(exc).__name__}: {text}"
     return None
 
 
