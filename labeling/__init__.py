@@ -4,6 +4,8 @@ NumPy in, NumPy out: no torch, no UI, no session (``workbench`` wires it to the 
 """
 
 from .changepoints import Snap, block_summary, change_points, coarser_points, snap_range, spans, stretch_agreement
+from .check_estimates import CheckEstimate, check_estimate, wilson
+from .propagate import RunVotes, blend_votes, run_trust, run_votes
 from .simulate import (
     CurvePoint,
     Labelled,
@@ -14,6 +16,7 @@ from .simulate import (
     oracle,
     savings,
     simulate,
+    stretch_oracle,
     table,
     time_to_reach,
 )
@@ -41,6 +44,7 @@ __all__ = [
     "DRIFT_TRACK_AT_1",
     "KINDS",
     "STRATEGIES",
+    "CheckEstimate",
     "CurvePoint",
     "Interval",
     "Kind",
@@ -49,13 +53,16 @@ __all__ = [
     "LogScores",
     "PredictedStretch",
     "Round",
+    "RunVotes",
     "Snap",
     "Strategy",
     "Suggestion",
+    "blend_votes",
     "block_summary",
     "bootstrap_final_ratio",
     "candidates",
     "change_points",
+    "check_estimate",
     "class_weights",
     "coarser_points",
     "coverage",
@@ -70,6 +77,8 @@ __all__ = [
     "normalised_tracks",
     "oracle",
     "predicted_stretches",
+    "run_trust",
+    "run_votes",
     "savings",
     "session_normaliser",
     "simulate",
@@ -77,8 +86,10 @@ __all__ = [
     "snap_range",
     "spans",
     "stretch_agreement",
+    "stretch_oracle",
     "suggest",
     "table",
     "time_to_reach",
     "uncovered",
+    "wilson",
 ]

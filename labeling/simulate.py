@@ -51,6 +51,27 @@ def oracle(span: tuple[int, int, int], truth: Sequence[np.ndarray]) -> list[Labe
     return [(log, a + s, a + e, int(y[s])) for s, e in itertools.pairwise(bounds) if y[s] >= 0]
 
 
+def stretch_oracle(span: tuple[int, int, int], truth: Sequence[np.ndarray], stretch: tuple[int, int]) -> list[Labelled]:
+    """Label as a person who checks the model's stretch around a suggestion does (a range, or ``Y``): the suggested
+    piece as :func:`oracle` labels it, then on from its edges across the stretch ``[start, stop)`` for as long as the
+    truth stays the terrain at that edge. Time the stretch holds of another terrain stays unlabelled.
+    """
+    log, a, b = span
+    y = truth[log]
+    lo, hi = min(stretch[0], a), max(stretch[1], b)
+    out = oracle(span, truth)
+    if not out:
+        return out
+    first, last = out[0], out[-1]
+    other = np.flatnonzero(y[lo : first[1]] != first[3])  # where the truth before the piece is another terrain
+    left = lo + int(other[-1]) + 1 if len(other) else lo
+    other = np.flatnonzero(y[last[2] : hi] != last[3])
+    right = last[2] + int(other[0]) if len(other) else hi
+    if len(out) == 1:
+        return [(log, left, right, first[3])]
+    return [(log, left, first[2], first[3]), *out[1:-1], (log, last[1], right, last[3])]
+
+
 def simulate(
     learner: Learner,
     truth: Sequence[np.ndarray],

@@ -4,6 +4,7 @@ Knows nothing of training, labelling strategies or the UI; ``workbench`` compose
 """
 
 from .cameras import CameraFrame, CameraInfo
+from .checks import CHECK_KINDS, COUNTED_KINDS, Check
 from .errors import IngestError, LabelError, SessionError, WorkbenchError
 from .file_names import safe_file_name
 from .ingest import (
@@ -37,6 +38,8 @@ from .terrain_mcap import (
 )
 
 __all__ = [
+    "CHECK_KINDS",
+    "COUNTED_KINDS",
     "KNOWN_TERRAIN_COLORS",
     "LABEL_TOPIC",
     "MAX_NAME_CHARS",
@@ -47,6 +50,7 @@ __all__ = [
     "CameraFrame",
     "CameraInfo",
     "Channel",
+    "Check",
     "DiscardRows",
     "FileRows",
     "Gap",

@@ -142,7 +142,31 @@ def _v1(conn: sqlite3.Connection) -> None:
     )
 
 
-MIGRATIONS: tuple[Migration, ...] = (_v1,)
+def _v2(conn: sqlite3.Connection) -> None:
+    """The person's checks (``checks.py``): what the model said where a label was made, before it trained on it."""
+    _run_script(
+        conn,
+        """
+        CREATE TABLE checks (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            log_id INTEGER NOT NULL REFERENCES logs (id) ON DELETE CASCADE,
+            start INTEGER NOT NULL,
+            stop INTEGER NOT NULL,
+            terrain TEXT NOT NULL,
+            predicted TEXT NOT NULL,
+            agreement REAL NOT NULL,
+            classifier INTEGER NOT NULL,
+            kind TEXT NOT NULL,
+            author TEXT NOT NULL,
+            at TEXT NOT NULL,
+            CHECK (stop > start AND start >= 0 AND agreement >= 0 AND agreement <= 1)
+        );
+        CREATE INDEX checks_log ON checks (log_id, start)
+        """,
+    )
+
+
+MIGRATIONS: tuple[Migration, ...] = (_v1, _v2)
 SCHEMA_VERSION = len(MIGRATIONS)
 
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from . import labels as _labels
 from .cameras import CameraStore
+from .checks import CheckStore
 from .errors import LabelError, SessionError
 from .ingest_lock import sweeping
 from .limits import name_refusal
@@ -25,7 +26,9 @@ from .log_ingest import LOGS_DIR, LogIngest
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import CACHE_DIR, ModelRegistry
 from .rowfiles import FileRows
-from .schema import KNOWN_TERRAIN_COLORS, SCHEMA_VERSION, check_objects, migrate
+from .schema import SCHEMA_VERSION, check_objects, migrate
+from .session_copy import copy_session
+from .terrain_rows import delete_terrain, insert_terrain
 
 DB_NAME = "session.sqlite"
 _STALE_TMP_S = 600.0  # leftovers older than this are from a crashed ingest, not one in progress
@@ -34,7 +37,7 @@ _STALE_TMP_S = 600.0  # leftovers older than this are from a crashed ingest, not
 TERRAIN_COLOR = re.compile(r"#[0-9a-fA-F]{6}")
 
 
-class Session(LogIngest, CameraStore, ModelRegistry):
+class Session(LogIngest, CameraStore, ModelRegistry, CheckStore):
     """A session folder. Thread-safe: one SQLite connection guarded by a lock; every write is one transaction.
 
     Use :meth:`create` or :meth:`open`, not the constructor.
@@ -111,6 +114,16 @@ class Session(LogIngest, CameraStore, ModelRegistry):
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+    def copy_to(self, dest: str | Path) -> Path:
+        """A copy of the whole session in the new folder ``dest`` (``session_copy.copy_session``), for work that must
+        leave this one as it is (an evaluation that labels and trains).
+
+        Raises:
+            SessionError: ``dest`` exists, or the copy failed (nothing is left at ``dest``).
+        """
+        with self._lock:
+            return copy_session(self.path, self._conn, Path(dest))
 
     @property
     def schema_version(self) -> int:
@@ -257,7 +270,7 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         if color is not None and not TERRAIN_COLOR.fullmatch(color):
             raise LabelError(f"terrain colour {color!r} is not #rrggbb (six hex digits), e.g. #607d8b")
         with self._write() as conn:
-            _insert_terrain(conn, name, color)
+            insert_terrain(conn, name, color)
         return next(t for t in self.terrains() if t.name == name)
 
     def rename_terrain(self, old: str, new: str) -> None:
@@ -280,7 +293,7 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         """
         with self._write() as conn:
             for name in names:
-                _delete_terrain(conn, name)
+                delete_terrain(conn, name)
 
     def remove_terrain(self, name: str) -> None:
         """Remove a terrain class no segment uses.
@@ -289,7 +302,7 @@ class Session(LogIngest, CameraStore, ModelRegistry):
             LabelError: Unknown, or still used by segments.
         """
         with self._write() as conn:
-            _delete_terrain(conn, name)
+            delete_terrain(conn, name)
 
     # -------------------------------------------------------------------------------------------------- labels
     def add_segment(
@@ -435,7 +448,7 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         if create and "terrain" in frame.columns:
             for name in dict.fromkeys(str(t).strip() for t in frame["terrain"].dropna()):
                 if name and name not in names:
-                    _insert_terrain(conn, name, None)
+                    insert_terrain(conn, name, None)
                     names.append(name)
         return names
 
@@ -459,42 +472,6 @@ class Session(LogIngest, CameraStore, ModelRegistry):
         """Label actions, newest first."""
         with self._lock:
             return _labels.history(self._conn, limit=limit)
-
-
-NEW_TERRAIN_COLORS = ("#1e88e5", "#e53935", "#8e24aa", "#00897b", "#3949ab", "#d81b60", "#00acc1", "#7cb342")
-
-
-def _delete_terrain(conn, name: str) -> None:
-    """Remove a terrain no segment uses, inside the caller's transaction."""
-    row = conn.execute("SELECT id FROM terrains WHERE name = ?", (name,)).fetchone()
-    if row is None:
-        raise LabelError(f"unknown terrain {name!r}")
-    used = conn.execute("SELECT COUNT(*) FROM segments WHERE terrain_id = ?", (row[0],)).fetchone()[0]
-    if used:
-        raise LabelError(f"terrain {name!r} labels {used} segment(s); relabel or delete them first")
-    conn.execute("DELETE FROM terrains WHERE id = ?", (row[0],))
-
-
-def _insert_terrain(conn, name: str, color: str | None) -> None:
-    """Add a terrain at the end of the list inside the caller's transaction (colour: the palette's next)."""
-    if not name:
-        raise LabelError("a terrain needs a name")
-    if (why := name_refusal(name, "terrain")) is not None:
-        raise LabelError(why)
-    if conn.execute("SELECT 1 FROM terrains WHERE name = ?", (name,)).fetchone():
-        raise LabelError(f"terrain {name!r} exists already")
-    pos = conn.execute("SELECT COALESCE(MAX(position) + 1, 0) FROM terrains").fetchone()[0]
-    if color is None:
-        taken = {r[0] for r in conn.execute("SELECT color FROM terrains")}
-        known = KNOWN_TERRAIN_COLORS.get(name.lower())
-        color = (
-            known
-            if known is not None and known not in taken
-            else next(
-                (c for c in NEW_TERRAIN_COLORS if c not in taken), NEW_TERRAIN_COLORS[pos % len(NEW_TERRAIN_COLORS)]
-            )
-        )
-    conn.execute("INSERT INTO terrains (name, color, position) VALUES (?, ?, ?)", (name, color, pos))
 
 
 _LOG_COLS = "id, name, source_path, format, file, n_samples, rate_hz, t0, reference_terrain, ingested_at, info"

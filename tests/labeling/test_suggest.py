@@ -184,3 +184,32 @@ def test_combined_asks_for_a_terrain_the_model_misses_and_names_it() -> None:
         assert not any("misses" in s.reason for s in suggest(scores, recall=recall, **kw))
     entropy = suggest(scores, recall=np.array([0.9, 0.8, 0.2]), **{**kw, "strategy": "entropy"})
     assert not any("misses" in s.reason for s in entropy)
+
+
+def test_logs_nobody_labelled_are_suggested_first_spread_over_them() -> None:
+    """Issue 65, item 2: the new runs before more time of runs already checked, each of them before a second pick
+    in any; without the rule the queue goes where the scores are highest."""
+    scores = make_scores([3000, 3000, 3000, 3000], 3, 4)
+    scores[0] = LogScores(scores[0].surprise * 3, scores[0].probs, scores[0].disagreement + 0.5)  # the busiest log
+    labelled = [(0, 100, 200), (1, 100, 200)]  # logs 0 and 1 are checked; 2 and 3 are new
+    kwargs = dict(labelled=labelled, classes=["a", "b", "c"], n=6, max_len=200, min_len=50)
+    picks = suggest(scores, **kwargs)
+    assert [p.log for p in picks[:4]].count(2) == 2 and [p.log for p in picks[:4]].count(3) == 2
+    assert {p.log for p in picks[:2]} == {2, 3}  # one in each new log before a second in either
+    flat = suggest(scores, unchecked_first=False, **kwargs)
+    assert [p.log for p in flat].count(0) > [p.log for p in picks].count(0)
+
+
+def test_spot_checks_are_drawn_uniformly_from_unlabelled_time_and_placed_last() -> None:
+    scores = make_scores([2000, 6000], 3, 5)
+    labelled = [(0, 0, 1900)]
+    kwargs = dict(labelled=labelled, classes=["a", "b", "c"], max_len=100, min_len=50)
+    picks = suggest(scores, n=6, spot_checks=2, **kwargs)
+    assert [p.kind for p in picks] == ["suggestion"] * 4 + ["spot check"] * 2
+    assert all(p.guess is not None and p.reason.startswith("spot check") for p in picks[4:])
+    spans = sorted((p.log, p.start, p.stop) for p in picks)
+    assert all(a[0] != b[0] or a[2] <= b[1] for a, b in zip(spans, spans[1:], strict=False))  # no overlap
+    assert all(not (p.log == 0 and p.start < 1900) for p in picks)  # never on labels
+    # uniform over the unlabelled time: log 1 holds 6000 of its 6100 steps, so nearly every draw lands there
+    logs = [p.log for seed in range(40) for p in suggest(scores, n=1, spot_checks=1, seed=seed, **kwargs)]
+    assert logs.count(1) >= 36

@@ -64,6 +64,10 @@ class FrameOutputs:
         """``(T,)`` float32 per sample step: the surprise of the last frame complete at or before it."""
         return StepRows(np.asarray(self.frame_surprise, np.float32)[:, None], self.n_samples, self.config)[:][:, 0]
 
+    def step_frames(self) -> np.ndarray:
+        """``(T,)`` the frame each sample step reads: the last complete at or before it (the first frame before it)."""
+        return np.clip(last_frame(np.arange(self.n_samples), self.config), 0, max(len(self.frame_hidden) - 1, 0))
+
     def embedding(self) -> StepRows:
         """``(T, H)`` per sample step, computed for the rows sliced: the hidden features of the last frame."""
         return StepRows(self.frame_hidden, self.n_samples, self.config)

@@ -19,7 +19,7 @@ Pos = tyro.conf.Positional
 
 
 def evaluate(
-    dataset: Pos[Literal["borealtc", "qcat", "demo", "session"]],
+    dataset: Pos[Literal["borealtc", "qcat", "demo", "session", "loop"]],
     folder: Pos[Path],
     labelled: float = 0.1,
     model: Literal["default", "paper", "both"] = "default",
@@ -34,8 +34,10 @@ def evaluate(
     simulate: bool = False,
     strategies: tuple[str, ...] = ("random", "combined"),
     seeds: int = 3,
-    rounds: int = 8,
+    rounds: int | None = None,
     batch: int = 4,
+    per_round: int = 12,
+    person: Literal["piece", "stretch"] = "piece",
     feature_mode: FeatureMode = "hidden+surprise",
     warm_start: bool = False,
     segment_s: float | None = None,
@@ -55,6 +57,9 @@ def evaluate(
             demo: leave-logs-out on demo logs against their truth, for each stage-1 feature mode.
             session: your own session, leave-logs-out: stage 2 retrained per fold on the other logs' labels and
             scored against reference labels (--reference FILE, kept apart from the labels).
+            loop: your own session as a person works it, on a copy: each round labels the suggestions from the
+            reference and fits as the Retrain ends; accuracy on the logs that had no label at the start, per
+            strategy (--strategies, default combined and random), --rounds (4) of --per-round (12).
         folder: The dataset folder (e.g. ../shared/data/borealtc, a QCAT folder, demo logs), or the session.
         labelled: Fraction labelled: of the training partitions (borealtc), of the training logs' time (demo).
         model: The model family ("default": spectral window classifier with self-training; "paper": the paper's
@@ -71,9 +76,13 @@ def evaluate(
         folds: Outer folds of the qcat and demo protocols (borealtc keeps the authors' 5).
         out: Also write per-fold details as JSON here (with --simulate: the folder for the plot).
         simulate: Run the label-efficiency simulation (borealtc and demo).
-        strategies: Strategies to compare: random, entropy, margin, disagreement, surprise, combined.
+        strategies: Strategies to compare: random, entropy, margin, disagreement, surprise, combined (loop: in this
+            order; default combined then random).
         seeds: Seeds per strategy (BorealTC: seed s uses outer fold s + 1).
-        rounds: Rounds of labelling, each followed by a retrain.
+        rounds: Rounds of labelling, each followed by a retrain (default: 8 with --simulate, 4 for loop).
+        per_round: loop: suggestions labelled per round.
+        person: loop: how the simulated person labels a suggestion: the suggested piece, or also the model's stretch
+            around it where the reference agrees (as a range or Y does).
         batch: Suggestions labelled per round.
         feature_mode: With --simulate, paper family: what stage 1 hands stage 2.
         warm_start: With --simulate, paper family: each round fine-tunes the previous round's models instead of
@@ -84,12 +93,23 @@ def evaluate(
         stage1: With --simulate, default family: the stage 1 drawing the surprise and the suggestions' embeddings,
             its own next-frame predictor or the paper's LSTM (as sessions trained before it), to compare the two.
         device: Where both stages train and run.
-        reference: With session: a label file (the columns of `workbench labels export`) stored as the reference
-            labels of the logs it names before scoring.
+        reference: With session or loop: a label file (the columns of `workbench labels export`) stored as the
+            reference labels of the logs it names before scoring (loop: in its copy of the session only).
     """
     from ..evaluation import protocols as ev
 
     check_device(device)
+    if dataset == "loop":
+        from sessions import Session
+
+        from ..evaluation import LoopSettings, evaluate_loop
+
+        order = strategies if strategies != ("random", "combined") else ("combined", "random")
+        settings = LoopSettings(rounds=rounds or 4, per_round=per_round, person=person, strategies=order, seed=seed)
+        with Session.open(folder) as s:
+            print(evaluate_loop(s, reference=reference, settings=settings, out=out))
+        return
+    rounds = rounds or 8
     if dataset == "session":
         from sessions import Session
 

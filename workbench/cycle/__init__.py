@@ -7,9 +7,11 @@ Modules: ``train_stages`` (stage 1 and stage 2 of any family, versions, the acti
 default family's stage 1, and which stage 1 a family trains), ``stage_inputs`` (stage
 1's cache per predictor version, the paper family's stage-2 features, change points), ``front_end`` (the spectral
 frames per log, the unlabelled stretches self-training reads), ``scores`` (the one scoring path), ``score_store``
-(the last scoring kept in the session), ``suggestions`` (the queue).
+(the last scoring kept in the session), ``suggestions`` (the queue), ``checks_record`` (each label first a check of
+the model: test then train).
 """
 
+from .checks_record import ChecksSummary, checks_summary, record_check
 from .frame_stage1 import train_frame_predictor, train_stage1
 from .front_end import (
     STRETCH_S,
@@ -55,10 +57,12 @@ __all__ = [
     "PAPER_FEATURES",
     "STRETCH_S",
     "SUGGESTION_S",
+    "ChecksSummary",
     "SessionScores",
     "StoredScores",
     "active_bundle",
     "active_predictor",
+    "checks_summary",
     "choose_front_end",
     "classifier_family",
     "compute_scores",
@@ -71,6 +75,7 @@ __all__ = [
     "log_frame_files",
     "model_logs",
     "queue_key",
+    "record_check",
     "require_lstm",
     "score_logs",
     "score_session",

@@ -166,7 +166,7 @@ def queue_key(session: Session, strategy: str, terrains: Sequence[Terrain]) -> s
 
 
 def store_queue(session: Session, scores: SessionScores, rows: Sequence[tuple], *, key: str) -> None:
-    """Keep the queue computed from ``scores``: rows of ``(log id, start, stop, reason, guess, score)``."""
+    """Keep the queue computed from ``scores``: rows of ``(log id, start, stop, reason, guess, score, kind)``."""
     if scores.predictor is None:
         return
     folder = session.cache_dir(_folder_name(scores.predictor, scores.classifier))
@@ -187,6 +187,6 @@ def stored_queue(session: Session, scores: SessionScores, *, key: str) -> list[t
     if data.get("key") != key:
         return None
     rows = [tuple(r) for r in data.get("rows", [])]
-    if any(len(r) != 6 or r[0] not in scores.scores for r in rows):
+    if any(len(r) not in (6, 7) or r[0] not in scores.scores for r in rows):  # 6: kept before spot checks
         return None
     return rows

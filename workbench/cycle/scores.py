@@ -30,6 +30,7 @@ from training import (
 )
 
 from .front_end import spectral_features, window_features, window_sizes
+from .run_votes import with_run_votes
 from .stage_inputs import stage1_outputs
 from .train_stages import active_bundle, model_logs
 
@@ -118,6 +119,8 @@ def _score_session_logs(
     bundle: ModelBundle,
     classifier: ModelBundle | None,
     log_ids: Collection[int] | None,
+    *,
+    votes: bool = True,
 ) -> tuple[list[LogInfo], dict, list[labeling.LogScores]]:
     logs = model_logs(session, bundle.channels)
     if log_ids is not None:
@@ -133,10 +136,16 @@ def _score_session_logs(
     else:  # the paper family's classifier: its predictor is an LSTM (train_classifier saw to it)
         features = [outs[x.id].lazy(classifier.feature_mode) for x in logs]
     surprise = [outs[x.id].surprise() for x in logs]
-    return logs, outs, score_logs(classifier.classifiers, features, surprise, drift=classifier.drift)
+    scored = score_logs(classifier.classifiers, features, surprise, drift=classifier.drift)
+    if votes:  # a run's labels carried over its own frames (run_votes.py)
+        estimate = (classifier.metrics.get("estimate") or {}).get("accuracy")
+        scored = with_run_votes(session, logs, outs, scored, classifier.classes, estimate=estimate)
+    return logs, outs, scored
 
 
-def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[int] | None = None) -> SessionScores:
+def compute_scores(
+    session: Session, *, window: int = 25, log_ids: Collection[int] | None = None, votes: bool = True
+) -> SessionScores:
     """What the UI shows: every log scored with the active predictor (and the active classifier when it was trained
     on it), with highlight tracks and suggestion embeddings.
 
@@ -145,6 +154,8 @@ def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[in
         window: Smoothing of the tracks, in samples.
         log_ids: Only these logs (the ones on screen, refreshed first after a retrain); their tracks are then ranked
             among themselves until the whole session is scored.
+        votes: A labelled run's probabilities blended with its labels' vote (``run_votes``); off only to measure
+            what that is worth.
     """
     p_version = session.active_model("predictor")
     if p_version is None:
@@ -154,7 +165,7 @@ def compute_scores(session: Session, *, window: int = 25, log_ids: Collection[in
     if c_version is not None and c_version.config.get("predictor") != p_version.id:
         c_version = None  # trained on another predictor's features: its probabilities would mean nothing
     c_bundle = None if c_version is None else load_bundle(session.path / c_version.path)
-    logs, outs, scored = _score_session_logs(session, p_version, bundle, c_bundle, log_ids)
+    logs, outs, scored = _score_session_logs(session, p_version, bundle, c_bundle, log_ids, votes=votes)
     ids = [x.id for x in logs]
     tracks = labeling.normalised_tracks(scored, window=window)
     return SessionScores(

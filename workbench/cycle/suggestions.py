@@ -14,6 +14,9 @@ from .scores import SessionScores
 # longer stretches. On the demo logs, 140 s labelled at random reached 80-81 % held-out accuracy as 1 s pieces and
 # 56-71 % as 3 s pieces (docs/design-notes.md, "Suggestion length").
 SUGGESTION_S = 1.0
+# Of a queue of 4 or more, this many are spot checks, drawn uniformly from the unlabelled time: what the person's
+# checks of them say of the model is a fair sample (issue 65), which the ranked suggestions' is not
+SPOT_CHECKS = 1
 
 
 def suggestion_lengths(rate_hz: float, *, seconds: float = SUGGESTION_S) -> tuple[int, int]:
@@ -30,9 +33,15 @@ def suggest_for_session(
     logs: list[LogInfo],
     n: int = 12,
     strategy: labeling.Strategy = "combined",
+    seed: int = 0,
+    unchecked_first: bool = True,
+    spot_checks: int | None = None,
 ) -> list[tuple[LogInfo, labeling.Suggestion]]:
     """The session's suggestion queue: ``n`` segments of ``SUGGESTION_S / 2`` to ``SUGGESTION_S`` to label next,
-    with the log each lies in."""
+    with the log each lies in. ``seed``: of the ``random`` strategy and the clustering; ``unchecked_first``: see
+    ``labeling.suggest`` (off only to measure what it is worth); ``spot_checks``: how many of the ``n`` are spot
+    checks (default ``SPOT_CHECKS`` in a ranked queue of 4 or more once a classifier has scored the logs, else
+    none)."""
     logs = [x for x in logs if x.id in scores.scores]
     if not logs:
         return []
@@ -46,6 +55,9 @@ def suggest_for_session(
             counts[classes.index(s.terrain)] += s.length
     max_len, min_len = suggestion_lengths(logs[0].rate_hz)
     classifier = session.active_model("classifier")
+    if spot_checks is None:
+        ranked = strategy != "random"  # a random queue is a sample already
+        spot_checks = SPOT_CHECKS if ranked and scores.classifier is not None and n >= 4 else 0
     recall = terrain_recalls(classifier.metrics.get("estimate") if classifier is not None else None, classes)
     out = labeling.suggest(
         [scores.scores[x.id] for x in logs],
@@ -59,5 +71,8 @@ def suggest_for_session(
         min_len=min_len,
         embeddings=[scores.embeddings[x.id] for x in logs],
         recall=recall,
+        seed=seed,
+        unchecked_first=unchecked_first,
+        spot_checks=spot_checks,
     )
     return [(logs[s.log], s) for s in out]

@@ -28,11 +28,14 @@ from .protocols import (
     truth_arrays,
 )
 from .session_eval import evaluate_session
+from .session_loop import LoopRound, LoopSettings, evaluate_loop
 
 __all__ = [
     "BOREALTC_PUBLISHED",
     "FoldData",
     "FoldResult",
+    "LoopRound",
+    "LoopSettings",
     "Member",
     "RocketMember",
     "SimSettings",
@@ -43,6 +46,7 @@ __all__ = [
     "cut_windows",
     "evaluate_borealtc",
     "evaluate_demo",
+    "evaluate_loop",
     "evaluate_qcat",
     "evaluate_session",
     "held_out_logs_protocol",

@@ -20,6 +20,7 @@ from ..cycle import (
     compute_scores,
     log_change_points,
     queue_key,
+    record_check,
     store_queue,
     store_scores,
     stored_queue,
@@ -44,6 +45,7 @@ class Queued:
     reason: str
     guess: str | None
     score: float
+    kind: str = "suggestion"  # or "spot check" (labeling.Suggestion.kind)
 
     @property
     def seconds(self) -> tuple[float, float]:
@@ -192,16 +194,44 @@ class SharedState:
 
     # --------------------------------------------------------------------------------------------- labels
     def add_label(self, log_id: int, start: int, stop: int, terrain: str, *, author: str, source: str) -> Segment:
-        """Commit a label (it is saved when this returns); every view hears of it."""
+        """Commit a label (it is saved when this returns); every view hears of it. The part of it that was
+        unlabelled is first a check of the model on screen (test then train: ``cycle.record_check``): a suggestion's
+        or spot check's when the range is one of the queue's, a manual one otherwise."""
+        scores = self.scores
+        fresh = labeling.uncovered(start, stop, [(g.start, g.stop) for g in self.session.segments(log_id)])
         seg = self.session.add_segment(log_id, start, stop, terrain, author=author, source=source)
+        self._check(scores, log_id, fresh, terrain, kind=self._queued_kind(log_id, start, stop), author=author)
         self._labels_changed()
         return seg
+
+    def _queued_kind(self, log_id: int, start: int, stop: int) -> str:
+        """``"suggestion"`` or ``"spot check"`` when ``[start, stop)`` overlaps one of the queue's; else manual."""
+        with self._lock:
+            queue = list(self.queue)
+        hit = next((q for q in queue if q.log.id == log_id and q.start < stop and start < q.stop), None)
+        return "manual" if hit is None else hit.kind
+
+    def _check(
+        self, scores: SessionScores, log_id: int, pieces: list[tuple[int, int]], terrain: str, *, kind: str, author: str
+    ) -> None:
+        """Keep the checks of a label just saved; one that cannot be kept (a full disk) costs the estimate a check,
+        never the label."""
+        for a, b in pieces:
+            try:
+                record_check(self.session, scores, log_id, a, b, terrain, kind=kind, author=author)
+            except USER_ERRORS as exc:
+                self._on_error(f"a check of the model was not kept: {one_line(exc)}")
 
     def add_labels(
         self, log_id: int, ranges: list[tuple[int, int]], terrain: str, *, author: str, source: str
     ) -> list[Segment]:
         """Commit several ranges of one terrain as one action (one undo reverts them); every view hears of it."""
+        scores = self.scores
+        taken = [(g.start, g.stop) for g in self.session.segments(log_id)]
+        fresh = [p for a, b in ranges for p in labeling.uncovered(a, b, taken)]
         segs = self.session.add_segments(log_id, ranges, terrain, author=author, source=source)
+        # the model's own stretch accepted: kept as a "stretch" check, which no estimate counts
+        self._check(scores, log_id, fresh, terrain, kind="stretch" if source == "accepted" else "manual", author=author)
         self._labels_changed()
         return segs
 
@@ -346,7 +376,7 @@ class SharedState:
         rows = stored_queue(self.session, stored.scores, key=key)
         if rows is not None:
             logs = {x.id: x for x in self.logs()}
-            queue = [Queued((r[0], r[1], r[2]), logs[r[0]], r[1], r[2], r[3], r[4], r[5]) for r in rows if r[0] in logs]
+            queue = [Queued((r[0], r[1], r[2]), logs[r[0]], *r[1:7]) for r in rows if r[0] in logs]
             with self._lock:
                 self.queue = queue
             self._queue_of = (stored.scores, key)
@@ -381,7 +411,7 @@ class SharedState:
                     with self._lock:
                         self.queue = queue
                     self._queue_of = (self.scores, key)
-                    rows = [(q.log.id, q.start, q.stop, q.reason, q.guess, q.score) for q in queue]
+                    rows = [(q.log.id, q.start, q.stop, q.reason, q.guess, q.score, q.kind) for q in queue]
                     self._keep(store_queue, self.session, self.scores, rows, key=key)
                 self._find_change_points()
                 self.notify("suggestions")
@@ -427,7 +457,7 @@ class SharedState:
         out = []
         for log, s in suggest_for_session(self.session, scores, cps, logs=logs, strategy=self.strategy):
             guess = None if s.guess is None or s.guess >= len(scores.classes) else scores.classes[s.guess]
-            out.append(Queued((log.id, s.start, s.stop), log, s.start, s.stop, s.reason, guess, s.score))
+            out.append(Queued((log.id, s.start, s.stop), log, s.start, s.stop, s.reason, guess, s.score, s.kind))
         return out
 
 

@@ -237,3 +237,27 @@ def test_retrain_needs_two_terrains_and_stage1_follows_new_logs(tmp_path: Path, 
             seed_labels(s, 0.2, seed=0)
         finally:
             st.stop()
+
+
+def test_each_label_is_first_a_check_of_the_model_on_screen_and_the_check_survives_a_restart(
+    state: SharedState,
+) -> None:
+    """Issue 65, item 4 (test then train): a label saved in the page keeps what the scored classifier said on the
+    unlabelled part of it, with the queue's kind; undoing the label keeps the check (the test happened)."""
+    q = next(x for x in state.queue if x.kind == "suggestion")
+    spot = [x for x in state.queue if x.kind == "spot check"]
+    assert len(spot) == 1 and spot[0].reason.startswith("spot check")  # one fair pick in every ranked queue
+    said = state.scores.scores[q.log.id].probs[q.start : q.stop].argmax(axis=1)
+    majority = state.scores.classes[int(__import__("numpy").bincount(said).argmax())]
+    state.add_label(q.log.id, q.start, q.stop, "grass", author="browser-1", source="manual")
+    state.add_label(spot[0].log.id, spot[0].start, spot[0].stop, "sand", author="browser-1", source="manual")
+    (first, second) = state.session.checks()
+    assert (first.log_id, first.start, first.stop, first.kind) == (q.log.id, q.start, q.stop, "suggestion")
+    assert first.predicted == majority and first.classifier == state.scores.classifier and first.terrain == "grass"
+    assert second.kind == "spot check" and second.terrain == "sand"
+    state.undo(author="browser-1")
+    path = state.session.path
+    state.stop()
+    state.session.close()
+    with Session.open(path) as again:
+        assert [(c.id, c.kind) for c in again.checks()] == [(first.id, "suggestion"), (second.id, "spot check")]

@@ -1,0 +1,142 @@
+"""Issue 65's loop on BorealTC's runs: `workbench evaluate loop` on a session where some runs were labelled (10 % of
+their time, in 5 s pieces) and others have no label at all, as a person's new runs do.
+
+    python benchmarks/loop_borealtc.py new-runs [--per-terrain 1] [--seed S] [--rounds 4] [--person piece]
+    python benchmarks/loop_borealtc.py spliced [--changes 26] ...
+
+``new-runs``: ``--per-terrain`` runs of each terrain (drawn with ``--seed``) get no label; every other run is
+labelled at 10 %. ``spliced``: one run of each terrain is cut into ``--changes`` + 1 pieces, shuffled into one new
+run with that many terrain changes (the IMU and the motor channels cut at the same times, on one clock), which
+replaces them; every other run is labelled at 10 %. The reference of the new runs is their folder name (spliced: the
+pieces' own terrains). Skips with a reason when ``../shared/data/borealtc`` is absent.
+"""
+
+from __future__ import annotations
+
+import itertools
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from loop_common import label_runs, loop_arguments, loop_settings
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data" / "borealtc"
+
+
+def _splice(runs: list[tuple[Path, Path]], terrains: list[str], out: Path, *, changes: int, seed: int) -> list:
+    """One BorealTC-shaped run (``out/MIXED/imu_90.csv``, ``pro_90.csv``) from pieces of ``runs``, shuffled so that
+    neighbours differ: ``changes`` terrain changes. Returns its reference rows ``(start_s, end_s, terrain)``."""
+    rng = np.random.default_rng(seed)
+    per_run = (changes + 1) // len(runs) + 1
+    pieces = []
+    for (imu, pro), terrain in zip(runs, terrains, strict=True):
+        a, b = pd.read_csv(imu), pd.read_csv(pro)
+        end = min(a["time"].iloc[-1], b["time"].iloc[-1])
+        cuts = np.linspace(0.0, end, per_run + 1)
+        pieces += [(terrain, a, b, lo, hi) for lo, hi in itertools.pairwise(cuts)]
+    order: list[int] = []
+    left = list(rng.permutation(len(pieces)))
+    while left and len(order) < changes + 1:  # neighbours of different terrains: every joint is a change
+        pick = next((i for i in left if not order or pieces[i][0] != pieces[order[-1]][0]), None)
+        if pick is None:
+            break
+        order.append(pick)
+        left.remove(pick)
+    imus, pros, rows, t = [], [], [], 0.0
+    for i in order:
+        terrain, a, b, lo, hi = pieces[i]
+        for frame, into in ((a, imus), (b, pros)):
+            part = frame[(frame["time"] >= lo) & (frame["time"] < hi)].copy()
+            part["time"] = part["time"] - lo + t
+            into.append(part)
+        rows.append((t, t + hi - lo, terrain))
+        t += hi - lo
+    folder = out / "MIXED"
+    folder.mkdir(parents=True)
+    pd.concat(imus).to_csv(folder / "imu_90.csv", index=False)
+    pd.concat(pros).to_csv(folder / "pro_90.csv", index=False)
+    return rows
+
+
+def _runs() -> dict[str, dict[str, list[Path]]]:
+    """BorealTC's runs: terrain folder -> run number -> its files."""
+    out: dict[str, dict[str, list[Path]]] = {}
+    for f in sorted(DATA.glob("*/*_*.csv")):
+        out.setdefault(f.parent.name, {}).setdefault(f.stem.split("_")[1], []).append(f)
+    return out
+
+
+def build(folder: Path, layout: str, *, per_terrain: int, changes: int, seed: int) -> tuple[Path, Path | None]:
+    """The session and, for ``spliced``, the reference file of the spliced run."""
+    from sessions import Session
+
+    rng = np.random.default_rng(seed)
+    runs = _runs()
+    chosen = {  # per terrain, the runs that will not be labelled (spliced: cut into the new run instead)
+        t: [r for r in rng.permutation(sorted(by_run)) if len(by_run[r]) == 2][
+            : 1 if layout == "spliced" else per_terrain
+        ]
+        for t, by_run in runs.items()
+    }
+    files = [f for t, by_run in runs.items() for r, fs in by_run.items() for f in fs]
+    reference = None
+    if layout == "spliced":
+        pairs = [tuple(sorted(runs[t][r])) for t in sorted(chosen) for r in chosen[t]]  # (imu, pro)
+        terrains = [t.lower() for t in sorted(chosen) for _ in chosen[t]]
+        rows = _splice(pairs, terrains, folder.parent / "spliced", changes=changes, seed=seed)
+        skip = {f for pair in pairs for f in pair}
+        files = [f for f in files if f not in skip] + sorted((folder.parent / "spliced" / "MIXED").iterdir())
+    with Session.create(folder) as s:
+        logs = s.ingest(files)
+        for name in sorted({t for x in logs for _, _, t in s.reference(x.id)} - {"mixed"}):
+            s.add_terrain(name)
+        if layout == "spliced":
+            (spliced,) = [x for x in logs if x.name.startswith("MIXED")]
+            reference = folder.parent / "spliced-reference.csv"
+            end = spliced.n_samples / spliced.rate_hz  # the aligned run ends at its last sample
+            kept = [(spliced.name, a, min(b, end), t) for a, b, t in rows if a < end]
+            pd.DataFrame(kept, columns=["log", "start_s", "end_s", "terrain"]).to_csv(reference, index=False)
+            new = [spliced]
+        else:
+            names = {f"{t}_{r}" for t in chosen for r in chosen[t]}
+            new = [x for x in logs if x.name in names]
+        labelled = [x for x in logs if x.id not in {n.id for n in new}]
+        label_runs(s, labelled, seed=seed)
+        print(
+            f"{len(logs)} runs; {len(labelled)} labelled at 10 % in 5 s pieces ({len(s.segments())} segments); "
+            f"new: {', '.join(x.name for x in new)}",
+            flush=True,
+        )
+    return folder, reference
+
+
+def main() -> int:
+    args = loop_arguments(__doc__)
+    args.add_argument("layout", nargs="?", default="new-runs", choices=["new-runs", "spliced"])
+    args.add_argument("--per-terrain", type=int, default=1)
+    args.add_argument("--changes", type=int, default=26)
+    opts = args.parse_args()
+    if not DATA.is_dir():
+        print(f"skipped: {DATA} is absent (BorealTC is not shipped with the project)")
+        return 0
+    sys.path.insert(0, str(ROOT))
+    from sessions import Session
+    from workbench.evaluation import evaluate_loop
+
+    t0 = time.monotonic()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder, reference = build(
+            Path(tmp) / "s", opts.layout, per_terrain=opts.per_terrain, changes=opts.changes, seed=opts.seed
+        )
+        with Session.open(folder) as s:
+            print(evaluate_loop(s, reference=reference, settings=loop_settings(opts), workdir=Path(tmp)))
+    print(f"{time.monotonic() - t0:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

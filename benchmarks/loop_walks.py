@@ -1,0 +1,48 @@
+"""Issue 65's loop on demo walks whose terrain changes every 5-36 s: `workbench evaluate loop` on a session where
+half the walks were labelled (10 % of their time, in 5 s pieces) and the other half have no label.
+
+    python benchmarks/loop_walks.py [--walks 8] [--minutes 4] [--seed S] [--rounds 4] [--per-round 12]
+        [--person piece] [--strategies combined random ...]
+
+The walks are the demo's (`workbench.demo`), each a run of its own (speed, gait, sensor gains, IMU mounting), their
+reference from the generator's truth.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from loop_common import label_runs, loop_arguments, loop_settings
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main() -> int:
+    args = loop_arguments(__doc__)
+    args.add_argument("--walks", type=int, default=8)
+    args.add_argument("--minutes", type=float, default=4.0)
+    opts = args.parse_args()
+    sys.path.insert(0, str(ROOT))
+    from sessions import Session
+    from workbench.demo import generate_demo_logs
+    from workbench.evaluation import evaluate_loop
+
+    t0 = time.monotonic()
+    with tempfile.TemporaryDirectory() as tmp:
+        files = generate_demo_logs(Path(tmp) / "logs", n_logs=opts.walks, minutes=opts.minutes, seed=100 + opts.seed)
+        with Session.create(Path(tmp) / "s") as s:
+            logs = s.ingest(files)
+            for name in sorted({t for x in logs for _, _, t in s.reference(x.id)}):
+                s.add_terrain(name)
+            label_runs(s, logs[: opts.walks // 2], seed=opts.seed)
+            print(f"{len(logs)} walks, {opts.walks // 2} labelled at 10 % in 5 s pieces", flush=True)
+            print(evaluate_loop(s, settings=loop_settings(opts), workdir=Path(tmp)))
+    print(f"{time.monotonic() - t0:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

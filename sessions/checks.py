@@ -1,0 +1,112 @@
+"""The person's checks: what the active model said where a label was made, before it trained on it (test then
+train).
+
+A label placed where the model already had an opinion is a test of that model on time it never trained on: the
+person's own held-out evidence, and the only one that covers the runs nobody labelled before. Each row keeps the
+piece labelled, the person's terrain, what the model said there (its terrain over most of the piece, and the share
+of the piece it predicted as the person's), which classifier version said it, and how the piece was chosen: a
+``suggestion`` (ranked where the model is unsure: a biased sample), a ``spot check`` (drawn uniformly over the
+unlabelled time: a fair one), or ``manual``. Checks are kept when labels are undone or changed: the test happened.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import LabelError
+from .labels import now
+
+CHECK_KINDS = ("suggestion", "spot check", "manual", "stretch")
+# the kinds an estimate counts: a "stretch" check (the model's own stretch accepted) agrees with it by construction
+COUNTED_KINDS = ("suggestion", "spot check", "manual")
+
+
+@dataclass(frozen=True)
+class Check:
+    """One check: the model's answer on a piece before the person's label there trained it.
+
+    Attributes:
+        id: Row id.
+        log_id: The log.
+        start: First sample of the piece.
+        stop: One past its last sample.
+        terrain: The person's terrain.
+        predicted: The model's terrain over most of the piece.
+        agreement: The share of the piece's steps the model predicted as the person's terrain.
+        classifier: The classifier version that answered.
+        kind: How the piece was chosen (``CHECK_KINDS``).
+        author: Who labelled it.
+        at: When (UTC, ISO 8601).
+    """
+
+    id: int
+    log_id: int
+    start: int
+    stop: int
+    terrain: str
+    predicted: str
+    agreement: float
+    classifier: int
+    kind: str
+    author: str
+    at: str
+
+    @property
+    def right(self) -> bool:
+        """Whether the model named the person's terrain over most of the piece."""
+        return self.predicted == self.terrain
+
+
+_COLS = "id, log_id, start, stop, terrain, predicted, agreement, classifier, kind, author, at"
+
+
+class CheckStore:
+    """The checks part of :class:`sessions.Session` (a mixin over its connection, lock and path)."""
+
+    path: Path
+    _conn: sqlite3.Connection
+    _lock: threading.RLock
+    _write: object  # Session's write-transaction context manager
+
+    def add_check(
+        self,
+        log_id: int,
+        start: int,
+        stop: int,
+        terrain: str,
+        *,
+        predicted: str,
+        agreement: float,
+        classifier: int,
+        kind: str,
+        author: str,
+    ) -> Check:
+        """Record what classifier ``classifier`` said on ``[start, stop)`` of a log the person labelled ``terrain``.
+
+        Raises:
+            LabelError: An unknown log or kind, or a bad range or agreement.
+        """
+        if kind not in CHECK_KINDS:
+            raise LabelError(f"unknown check kind {kind!r}; one of {', '.join(CHECK_KINDS)}")
+        if not (0 <= start < stop) or not 0.0 <= agreement <= 1.0:
+            raise LabelError(f"a check of [{start}, {stop}) agreeing {agreement}: not a piece of a log")
+        with self._write() as conn:  # type: ignore[attr-defined]
+            try:
+                cur = conn.execute(
+                    f"INSERT INTO checks ({_COLS.split(', ', 1)[1]}) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    (log_id, start, stop, terrain, predicted, agreement, classifier, kind, author, now()),
+                )
+            except sqlite3.IntegrityError:
+                raise LabelError(f"a check of unknown log {log_id}") from None
+            row = conn.execute(f"SELECT {_COLS} FROM checks WHERE id = ?", (cur.lastrowid,)).fetchone()
+        return Check(*row)
+
+    def checks(self, log_id: int | None = None) -> list[Check]:
+        """The checks, of one log or all, oldest first."""
+        where, args = ("WHERE log_id = ?", (log_id,)) if log_id is not None else ("", ())
+        with self._lock:
+            rows = self._conn.execute(f"SELECT {_COLS} FROM checks {where} ORDER BY id", args).fetchall()
+        return [Check(*r) for r in rows]

@@ -1,0 +1,42 @@
+"""The terrains table's rows, added and removed inside a caller's transaction (the store's and the label import's)."""
+
+from __future__ import annotations
+
+from .errors import LabelError
+from .limits import name_refusal
+from .schema import KNOWN_TERRAIN_COLORS
+
+NEW_TERRAIN_COLORS = ("#1e88e5", "#e53935", "#8e24aa", "#00897b", "#3949ab", "#d81b60", "#00acc1", "#7cb342")
+
+
+def delete_terrain(conn, name: str) -> None:
+    """Remove a terrain no segment uses, inside the caller's transaction."""
+    row = conn.execute("SELECT id FROM terrains WHERE name = ?", (name,)).fetchone()
+    if row is None:
+        raise LabelError(f"unknown terrain {name!r}")
+    used = conn.execute("SELECT COUNT(*) FROM segments WHERE terrain_id = ?", (row[0],)).fetchone()[0]
+    if used:
+        raise LabelError(f"terrain {name!r} labels {used} segment(s); relabel or delete them first")
+    conn.execute("DELETE FROM terrains WHERE id = ?", (row[0],))
+
+
+def insert_terrain(conn, name: str, color: str | None) -> None:
+    """Add a terrain at the end of the list inside the caller's transaction (colour: the palette's next)."""
+    if not name:
+        raise LabelError("a terrain needs a name")
+    if (why := name_refusal(name, "terrain")) is not None:
+        raise LabelError(why)
+    if conn.execute("SELECT 1 FROM terrains WHERE name = ?", (name,)).fetchone():
+        raise LabelError(f"terrain {name!r} exists already")
+    pos = conn.execute("SELECT COALESCE(MAX(position) + 1, 0) FROM terrains").fetchone()[0]
+    if color is None:
+        taken = {r[0] for r in conn.execute("SELECT color FROM terrains")}
+        known = KNOWN_TERRAIN_COLORS.get(name.lower())
+        color = (
+            known
+            if known is not None and known not in taken
+            else next(
+                (c for c in NEW_TERRAIN_COLORS if c not in taken), NEW_TERRAIN_COLORS[pos % len(NEW_TERRAIN_COLORS)]
+            )
+        )
+    conn.execute("INSERT INTO terrains (name, color, position) VALUES (?, ?, ?)", (name, color, pos))

@@ -1,0 +1,124 @@
+"""``workbench evaluate loop``: the cycle on a copy of a session, judged on the logs nobody had labelled (issue 65)."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import labeling
+from sessions import Session
+from tests.conftest import new_session
+from workbench.cli import main
+from workbench.evaluation import LoopSettings
+from workbench.evaluation.session_loop import person_labels
+
+pytestmark = pytest.mark.usefixtures("fast_window_fits", "quick_stage1")
+
+RATE = 50.0
+TERRAINS = ("hard", "soft")
+
+
+def _walk(path: Path, seed: int, *, gain: float = 1.0, seconds: float = 80.0) -> tuple[Path, list[tuple]]:
+    """A 3-channel CSV whose terrain changes every 10 s: ``soft`` rings at 4 Hz, ``hard`` at 17 Hz. ``gain`` scales
+    and shifts every channel: a log unlike the others, terrains as they are."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * RATE)) / RATE
+    patch = (t // 10).astype(int)
+    terrain = np.array([TERRAINS[(p + seed) % 2] for p in patch])
+    freq = np.where(terrain == "soft", 4.0, 17.0)
+    x = np.column_stack(
+        [np.sin(2 * np.pi * freq * t + k) + 0.4 * rng.normal(size=len(t)) for k in range(3)]
+    ) * gain + 3.0 * (gain - 1.0)
+    pd.DataFrame({"time": t, "a": x[:, 0], "b": x[:, 1], "c": x[:, 2]}).to_csv(path, index=False)
+    edges = np.flatnonzero(np.diff(patch)) + 1
+    bounds = [0, *edges.tolist(), len(t)]
+    return path, [(path.stem, a / RATE, b / RATE, terrain[a]) for a, b in itertools.pairwise(bounds)]
+
+
+@pytest.fixture(scope="module")
+def loop_session(tmp_path_factory) -> tuple[Path, Path]:
+    """Two labelled logs (10 % in 5 s pieces), a new log like them and a new log unlike them (gain 4); the truth of
+    every log in a reference file."""
+    folder = tmp_path_factory.mktemp("loop")
+    made = [_walk(folder / f"w{i}.csv", i) for i in range(3)] + [_walk(folder / "odd.csv", 3, gain=4.0)]
+    s = new_session(folder / "s", terrains=TERRAINS)
+    logs = {x.name: x for x in s.ingest([p for p, _ in made])}
+    rows = [row for _, truth in made for row in truth]
+    for name in ("w0", "w1"):
+        for _, a, _, terrain in (r for r in rows if r[0] == name):
+            s.add_segment(logs[name].id, round((a + 2) * RATE), round((a + 7) * RATE), terrain, author="seed")
+    s.close()
+    reference = folder / "truth.csv"
+    pd.DataFrame(rows, columns=["log", "start_s", "end_s", "terrain"]).to_csv(reference, index=False)
+    return folder / "s", reference
+
+
+def test_the_loop_checks_the_unlike_log_first_and_leaves_the_session_as_it_was(
+    loop_session: tuple[Path, Path], tmp_path: Path, capsys
+) -> None:
+    session, reference = loop_session
+    with Session.open(session) as s:
+        before = [(g.log_id, g.start, g.stop, g.terrain) for g in s.segments()]
+        versions = len(s.model_versions("classifier"))
+    out = tmp_path / "loop.json"
+    code = main(
+        [
+            *("evaluate", "loop", str(session), "--reference", str(reference)),
+            *("--rounds", "1", "--per-round", "6", "--strategies", "combined", "random", "--out", str(out)),
+        ]
+    )
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert "the loop on 2 log(s) nobody had labelled" in text
+    data = json.loads(out.read_text())
+    combined, random = data["arms"]["combined"], data["arms"]["random"]
+    assert [r["round"] for r in combined] == [0, 1] and combined[0]["accuracy"] == random[0]["accuracy"]
+    first = combined[1]
+    assert first["picks"] == 6 and first["picks_new"] >= 5  # the new logs first (one spot check may fall anywhere)
+    assert re.search(r"\| combined \| 1 \| \d+ \(\d+\) \| [56] of 6 \|", text), text
+    assert combined[-1]["per_log"]["odd"] > 0.5, combined[-1]  # above chance after the loop's labels
+    assert combined[-1]["labelled_s"] > 0 and combined[-1]["new_s"] > 0
+    with Session.open(session) as s:  # the loop worked on copies
+        assert [(g.log_id, g.start, g.stop, g.terrain) for g in s.segments()] == before
+        assert len(s.model_versions("classifier")) == versions and not any(s.reference(x.id) for x in s.logs())
+
+
+def test_an_unknown_strategy_or_no_new_log_is_one_line(loop_session: tuple[Path, Path], capsys) -> None:
+    session, _ = loop_session
+    assert main(["evaluate", "loop", str(session), "--strategies", "clever"]) == 2
+    assert "unknown strategy 'clever'" in capsys.readouterr().err
+    assert main(["evaluate", "loop", str(session)]) == 2  # no reference in the session itself
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no log without labels has reference labels" in err[0], err
+
+
+def test_the_stretch_person_labels_the_models_stretch_where_the_truth_agrees() -> None:
+    truth = [np.array([0] * 10 + [1] * 30 + [0] * 10)]
+    # the suggestion sits in the 1s; the model's stretch runs from 5 to 45: the person labels the 1s within it
+    assert labeling.stretch_oracle((0, 20, 25), truth, (5, 45)) == [(0, 10, 40, 1)]
+    assert labeling.stretch_oracle((0, 20, 25), truth, (15, 30)) == [(0, 15, 30, 1)]
+    # a piece across a change: each edge grows over its own terrain, the middle as it is
+    assert labeling.stretch_oracle((0, 8, 12), truth, (0, 50)) == [(0, 0, 10, 0), (0, 10, 40, 1)]
+    assert labeling.oracle((0, 8, 12), truth) == [(0, 8, 10, 0), (0, 10, 12, 1)]
+
+
+def test_person_labels_a_piece_or_its_stretch(loop_session: tuple[Path, Path]) -> None:
+    from workbench.cycle import SessionScores
+
+    session, _ = loop_session
+    with Session.open(session) as s:
+        log = s.logs()[0]
+    probs = np.zeros((log.n_samples, 2), np.float32)
+    probs[:, 0] = 1.0
+    scores = SessionScores(1, 1, TERRAINS, {log.id: labeling.LogScores(np.zeros(log.n_samples), probs)})
+    truth = {log.id: np.where(np.arange(log.n_samples) < 1000, 0, 1)}
+    pick = labeling.Suggestion(0, 200, 250, 1.0, "r", 0, 0)
+    assert person_labels([(log, pick)], scores, truth, person="piece") == [(log, 200, 250, 0)]
+    assert person_labels([(log, pick)], scores, truth, person="stretch") == [(log, 0, 1000, 0)]
+    assert LoopSettings().strategies == ("combined", "random")

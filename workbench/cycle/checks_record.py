@@ -1,0 +1,85 @@
+"""Test then train: each label a person makes is first a check of the model they were looking at.
+
+``record_check`` keeps what the scored classifier said on the piece (``sessions.Check``) before the label can train
+anything; ``checks_summary`` reads them back as estimates (``labeling.check_estimate``): over spot checks (a fair
+sample of the unlabelled time), over the checks of ranked suggestions and manual labels (where the person looked),
+and per log. A ``stretch`` check (the model's own stretch accepted with ``Y``) agrees with the model by construction
+and is kept but never counted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import labeling
+from sessions import COUNTED_KINDS, Check, Session
+
+from .scores import SessionScores
+
+
+def record_check(
+    session: Session,
+    scores: SessionScores,
+    log_id: int,
+    start: int,
+    stop: int,
+    terrain: str,
+    *,
+    kind: str,
+    author: str,
+) -> Check | None:
+    """Keep what ``scores``' classifier said on ``[start, stop)`` of a log the person labels ``terrain``; ``None``
+    (nothing kept) when the scores hold no classifier's probabilities there."""
+    s = scores.scores.get(log_id)
+    if scores.classifier is None or s is None or s.probs is None or not 0 <= start < stop <= len(s.probs):
+        return None
+    predicted = np.asarray(s.probs[start:stop]).argmax(axis=1)  # (L,)
+    classes = list(scores.classes)
+    most = classes[int(np.bincount(predicted, minlength=len(classes)).argmax())]
+    agreement = float((predicted == classes.index(terrain)).mean()) if terrain in classes else 0.0
+    return session.add_check(
+        log_id,
+        start,
+        stop,
+        terrain,
+        predicted=most,
+        agreement=agreement,
+        classifier=scores.classifier,
+        kind=kind,
+        author=author,
+    )
+
+
+@dataclass(frozen=True)
+class ChecksSummary:
+    """The person's checks as estimates.
+
+    Attributes:
+        spot: Over spot checks: the fair one.
+        suggested: Over the checks of suggestions and manual labels: where the person looked.
+        all: Over every counted check.
+        per_log: Per log id, over its counted checks.
+    """
+
+    spot: labeling.CheckEstimate | None
+    suggested: labeling.CheckEstimate | None
+    all: labeling.CheckEstimate | None
+    per_log: dict[int, labeling.CheckEstimate] = field(default_factory=dict)
+
+
+def checks_summary(session: Session, *, log_ids: Collection[int] | None = None) -> ChecksSummary:
+    """The estimates of the session's checks (of ``log_ids`` only, when given)."""
+    checks = [c for c in session.checks() if c.kind in COUNTED_KINDS and (log_ids is None or c.log_id in log_ids)]
+    by_log: dict[int, list[bool]] = {}
+    for c in checks:
+        by_log.setdefault(c.log_id, []).append(c.right)
+    per_log = {k: e for k, v in by_log.items() if (e := labeling.check_estimate(v)) is not None}
+    return ChecksSummary(
+        labeling.check_estimate([c.right for c in checks if c.kind == "spot check"]),
+        labeling.check_estimate([c.right for c in checks if c.kind != "spot check"]),
+        labeling.check_estimate([c.right for c in checks]),
+        per_log,
+    )
