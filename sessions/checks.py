@@ -63,6 +63,38 @@ class Check:
 _COLS = "id, log_id, start, stop, terrain, predicted, agreement, classifier, kind, author, at"
 
 
+def insert_check(
+    conn: sqlite3.Connection,
+    log_id: int,
+    start: int,
+    stop: int,
+    terrain: str,
+    *,
+    predicted: str,
+    agreement: float,
+    classifier: int,
+    kind: str,
+    author: str,
+) -> Check:
+    """Add a check inside the caller's transaction.
+
+    Raises:
+        LabelError: An unknown log or kind, or a bad range or agreement.
+    """
+    if kind not in CHECK_KINDS:
+        raise LabelError(f"unknown check kind {kind!r}; one of {', '.join(CHECK_KINDS)}")
+    if not (0 <= start < stop) or not 0.0 <= agreement <= 1.0:
+        raise LabelError(f"a check of [{start}, {stop}) agreeing {agreement}: not a piece of a log")
+    try:
+        cur = conn.execute(
+            f"INSERT INTO checks ({_COLS.split(', ', 1)[1]}) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (log_id, start, stop, terrain, predicted, agreement, classifier, kind, author, now()),
+        )
+    except sqlite3.IntegrityError:
+        raise LabelError(f"a check of unknown log {log_id}") from None
+    return Check(*conn.execute(f"SELECT {_COLS} FROM checks WHERE id = ?", (cur.lastrowid,)).fetchone())
+
+
 class CheckStore:
     """The checks part of :class:`sessions.Session` (a mixin over its connection, lock and path)."""
 
@@ -89,20 +121,19 @@ class CheckStore:
         Raises:
             LabelError: An unknown log or kind, or a bad range or agreement.
         """
-        if kind not in CHECK_KINDS:
-            raise LabelError(f"unknown check kind {kind!r}; one of {', '.join(CHECK_KINDS)}")
-        if not (0 <= start < stop) or not 0.0 <= agreement <= 1.0:
-            raise LabelError(f"a check of [{start}, {stop}) agreeing {agreement}: not a piece of a log")
         with self._write() as conn:  # type: ignore[attr-defined]
-            try:
-                cur = conn.execute(
-                    f"INSERT INTO checks ({_COLS.split(', ', 1)[1]}) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                    (log_id, start, stop, terrain, predicted, agreement, classifier, kind, author, now()),
-                )
-            except sqlite3.IntegrityError:
-                raise LabelError(f"a check of unknown log {log_id}") from None
-            row = conn.execute(f"SELECT {_COLS} FROM checks WHERE id = ?", (cur.lastrowid,)).fetchone()
-        return Check(*row)
+            return insert_check(
+                conn,
+                log_id,
+                start,
+                stop,
+                terrain,
+                predicted=predicted,
+                agreement=agreement,
+                classifier=classifier,
+                kind=kind,
+                author=author,
+            )
 
     def checks(self, log_id: int | None = None) -> list[Check]:
         """The checks, of one log or all, oldest first."""

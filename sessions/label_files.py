@@ -11,9 +11,12 @@ from itertools import pairwise
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 if TYPE_CHECKING:  # pandas loads where a table is read: commands that read none start sooner
     import pandas as pd
 
+from .checks import CHECK_KINDS, insert_check
 from .errors import LabelError
 from .label_studio import is_label_studio, label_studio_frame
 from .labels import add_segment
@@ -158,6 +161,7 @@ def read_frame(path: Path, *, max_rows: int = MAX_LABEL_ROWS, logs: list[LogInfo
         raise
     except Exception as exc:
         raise LabelError(f"{path}: cannot read label file ({type(exc).__name__}: {exc})") from None
+    frame = frame.reset_index(drop=True)  # row i is line i + 2, whatever index a Parquet file stored
     _check_names(frame, path)
     return frame
 
@@ -268,6 +272,17 @@ class Row:
     author: str | None
 
 
+def unlabelled_rows(frame: pd.DataFrame) -> tuple[pd.DataFrame, list[int]]:
+    """The rows whose terrain is filled in, and the line numbers of those whose terrain is empty: a row of
+    ``workbench suggest``'s file nobody has labelled yet (its terrain column left blank) is no label, and not an
+    error either."""
+    if "terrain" not in frame.columns:
+        return frame, []
+    blank = frame["terrain"].isna().to_numpy() | (frame["terrain"].astype("string").str.strip() == "").fillna(True)
+    blank = np.asarray(blank, bool)
+    return frame[~blank], [int(i) + 2 for i in np.flatnonzero(blank)]  # the index keeps each row's line
+
+
 def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path) -> list[Row]:
     """Every row of a label file resolved against the session, or a ``LabelError`` naming the first bad row.
 
@@ -284,7 +299,8 @@ def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *,
     for log in logs:
         by_name.setdefault(log.name, log)
     out = []
-    for i, row in enumerate(frame.itertuples(index=False), start=2):  # line 1 is the header
+    for index, row in zip(frame.index, frame.itertuples(index=False), strict=True):
+        i = int(index) + 2  # line 1 is the header; a row left out (unlabelled_rows) keeps the others' lines
         where = str(row.at) if "at" in frame.columns else f"row {i}"
         log = by_name.get(str(row.log))
         if log is None:
@@ -312,8 +328,13 @@ def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *,
 def import_rows(
     conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path, author: str
 ) -> list[Segment]:
-    """Add every row as a segment inside the caller's transaction; any bad row refuses the whole file."""
+    """Add every row as a segment inside the caller's transaction; any bad row refuses the whole file.
+
+    A file written by ``workbench suggest`` (columns ``guess``, ``kind`` and ``classifier``) is also a set of
+    checks: each row filled in keeps what that classifier guessed there (``checks.py``), as a label made in the
+    page does."""
     out = []
+    checks = set(frame.columns) >= CHECK_COLUMNS
     for row in parse_rows(frame, logs, terrains, path=path):
         try:
             out.append(
@@ -328,9 +349,34 @@ def import_rows(
                     kind="import",
                 )
             )
+            if checks:
+                _check_of(conn, frame.loc[row.line - 2], row, author=row.author or author)
         except LabelError as exc:
             raise LabelError(f"{path}: {row.where}: {exc}; nothing was imported") from None
     return out
+
+
+CHECK_COLUMNS = {"guess", "kind", "classifier"}  # the columns of a suggestion file that make its rows checks
+
+
+def _check_of(conn, cells: pd.Series, row: Row, *, author: str) -> None:
+    """The check a filled-in row of a suggestion file is: the classifier's guess against the person's terrain (its
+    guess over the piece, so agreement is 1 or 0)."""
+    guess, kind, version = cells["guess"], cells["kind"], cells["classifier"]
+    if not (_given(guess) and _given(kind) and _given(version)):
+        return  # a row the classifier had no guess for (no classifier yet): no check
+    insert_check(
+        conn,
+        row.log.id,
+        row.start,
+        row.stop,
+        row.terrain,
+        predicted=str(guess),
+        agreement=float(str(guess) == row.terrain),
+        classifier=int(float(version)),
+        kind=str(kind) if str(kind) in CHECK_KINDS else "suggestion",
+        author=author,
+    )
 
 
 def import_reference_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path) -> int:

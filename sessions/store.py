@@ -421,7 +421,9 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore):
             )
         return list(zip(paths, logs, strict=True))
 
-    def import_labels(self, path: str | Path, *, author: str, create_terrains: bool = False) -> list[Segment]:
+    def import_labels(
+        self, path: str | Path, *, author: str, create_terrains: bool = False, blank: list[int] | None = None
+    ) -> list[Segment]:
         """Import a label file in one transaction: every row, or none when any row is refused.
 
         Args:
@@ -429,15 +431,19 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore):
             author: Author of rows that name none.
             create_terrains: Add the terrains the file names that the session lacks (in the same transaction:
                 a refused file adds none).
+            blank: Given a list, the line numbers of the rows left out because their terrain is empty (a row of
+                ``workbench suggest``'s file nobody labelled) are appended to it.
 
         Raises:
             LabelError: Unreadable file, missing columns, unknown logs or terrains, or overlaps.
         """
-        from .label_files import import_rows, read_frame
+        from .label_files import import_rows, read_frame, unlabelled_rows
 
         path = Path(path)
         logs = self.logs()
-        frame = read_frame(path, logs=logs)
+        frame, empty = unlabelled_rows(read_frame(path, logs=logs))
+        if blank is not None:
+            blank.extend(empty)
         with self._write() as conn:
             terrains = self._terrains_for(conn, frame, create_terrains)
             return import_rows(conn, frame, logs, terrains, path=path, author=author)

@@ -1,4 +1,5 @@
-"""CLI commands for label files: ``workbench labels export`` and ``workbench labels import``."""
+"""CLI commands for label files: ``workbench labels export``, ``workbench labels import`` and ``workbench suggest`` (the
+next segments to label, as a label file to fill in)."""
 
 from __future__ import annotations
 
@@ -76,8 +77,68 @@ def labels_import(
             n = s.import_reference(file, create_terrains=create_terrains)
             print(f"imported {n} reference row(s) from {shown(file)} (evaluation only, never labels)")
         else:
-            added = s.import_labels(file, author=author or getpass.getuser(), create_terrains=create_terrains)
-            print(f"imported {len(added)} segment(s) from {shown(file)}")
+            blank: list[int] = []
+            added = s.import_labels(
+                file, author=author or getpass.getuser(), create_terrains=create_terrains, blank=blank
+            )
+            left = f"; {len(blank)} row(s) with no terrain left out (not labelled yet)" if blank else ""
+            print(f"imported {len(added)} segment(s) from {shown(file)}{left}")
         new = [t.name for t in s.terrains() if t.name not in before]
         if new:
             print(f"added terrain(s): {', '.join(shown(t) for t in new)}")
+
+
+def suggest(
+    session: Pos[Path],
+    out: Path,
+    n: int = 12,
+    strategy: Literal["combined", "random", "entropy", "margin", "disagreement", "surprise"] = "combined",
+) -> None:
+    """Write the next segments to label, the page's suggestion queue, as a label file whose terrain column is empty.
+
+    Fill in the terrain of the rows you label (leave the others empty) and `workbench labels import SESSION OUT`
+    takes them as labels, each also a check of the model that suggested it, as a label made in the page is; then
+    `workbench train SESSION --stage classifier` retrains. A script or another labelling tool drives the cycle so.
+
+    Args:
+        session: The session folder (trained: stage 1 at least; the guesses need a classifier).
+        out: The file to write: .csv, .parquet or .json, with columns log, start_s, end_s (seconds from the log's
+            start, as label files give them), terrain (empty), reason, guess, kind (suggestion or spot check) and
+            classifier (the version that guessed).
+        n: How many segments.
+        strategy: How they are ranked (combined: the page's).
+    """
+    import pandas as pd
+
+    from sessions import write_frame
+
+    from ..cycle import compute_scores, signal_change_points, suggest_for_session
+
+    if n < 1:
+        raise WorkbenchError(f"--n {n}: ask for at least one segment")
+    if out.exists():
+        raise WorkbenchError(f"{out}: exists already; choose a new file")
+    with Session.open(session) as s:
+        scores = compute_scores(s)
+        if scores.predictor is None:
+            raise WorkbenchError(f"{s.path}: no model yet; run `workbench train {s.path}` first")
+        logs = [x for x in s.logs() if x.id in scores.scores]
+        points = {x.id: signal_change_points(s, x) for x in logs}
+        picks = suggest_for_session(s, scores, points, logs=logs, n=n, strategy=strategy)
+        rows = [
+            (
+                log.name,
+                p.start / log.rate_hz,
+                p.stop / log.rate_hz,
+                "",
+                p.reason,
+                None if p.guess is None else scores.classes[p.guess],
+                p.kind,
+                scores.classifier,
+            )
+            for log, p in picks
+        ]
+    columns = ["log", "start_s", "end_s", "terrain", "reason", "guess", "kind", "classifier"]
+    frame = pd.DataFrame(rows, columns=columns).astype({"terrain": "string", "guess": "string"})
+    write_frame(frame, out)
+    print(f"wrote {len(rows)} segment(s) to {shown(out)}: fill in their terrain, then `workbench labels import`")

@@ -337,6 +337,7 @@ COMMANDS = {
     "classify": model_commands.classify,
     "evaluate": evaluate_command.evaluate,
     "labels": labels,
+    "suggest": label_commands.suggest,
     "terrains": terrains,
     "serve": serve,
     "demo": demo,

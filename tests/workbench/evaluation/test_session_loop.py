@@ -122,3 +122,40 @@ def test_person_labels_a_piece_or_its_stretch(loop_session: tuple[Path, Path]) -
     assert person_labels([(log, pick)], scores, truth, person="piece") == [(log, 200, 250, 0)]
     assert person_labels([(log, pick)], scores, truth, person="stretch") == [(log, 0, 1000, 0)]
     assert LoopSettings().strategies == ("combined", "random")
+
+
+def test_the_headless_loop_suggest_fill_in_import_train(
+    loop_session: tuple[Path, Path], tmp_path: Path, capsys
+) -> None:
+    """Issue 65, item 6: `workbench suggest` writes the queue as a label file; its rows filled in import as labels
+    and as checks of the classifier that guessed; the rows left blank are left out; `train` closes the cycle."""
+    import shutil
+
+    session = tmp_path / "s"
+    shutil.copytree(loop_session[0], session)
+    out = tmp_path / "next.csv"
+    assert main(["suggest", str(session), "--out", str(out)]) == 2
+    assert "no model yet" in capsys.readouterr().err
+    assert main(["train", str(session)]) == 0
+    assert main(["suggest", str(session), "--out", str(out), "--n", "6"]) == 0
+    assert "wrote 6 segment(s)" in capsys.readouterr().out
+    rows = pd.read_csv(out, keep_default_na=False)
+    assert list(rows.columns) == ["log", "start_s", "end_s", "terrain", "reason", "guess", "kind", "classifier"]
+    assert (rows["terrain"] == "").all() and set(rows["kind"]) == {"suggestion", "spot check"}
+    assert main(["suggest", str(session), "--out", str(out)]) == 2  # never over a file
+    truth = pd.read_csv(loop_session[1])
+    for i in range(4):  # the person labels four of the six from the truth, leaves two
+        mid = (rows.loc[i, "start_s"] + rows.loc[i, "end_s"]) / 2
+        hit = truth[(truth["log"] == rows.loc[i, "log"]) & (truth["start_s"] <= mid) & (mid < truth["end_s"])]
+        rows.loc[i, "terrain"] = hit["terrain"].iloc[0]
+    rows.to_csv(out, index=False)
+    capsys.readouterr()
+    assert main(["labels", "import", str(session), str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "imported" in said and "2 row(s) with no terrain left out" in said, said
+    with Session.open(session) as s:
+        checks = s.checks()
+        version = s.active_model("classifier").id
+    assert len(checks) == 4 and {c.classifier for c in checks} == {version}
+    assert all(c.predicted == g for c, g in zip(checks, rows["guess"][:4], strict=True))
+    assert main(["train", str(session), "--stage", "classifier"]) == 0
