@@ -1,5 +1,7 @@
 """Suggestions: never on labelled time, never overlapping, deterministic, with reasons and guesses."""
 
+import itertools
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -208,7 +210,7 @@ def test_spot_checks_are_drawn_uniformly_from_unlabelled_time_and_placed_last() 
     assert [p.kind for p in picks] == ["suggestion"] * 4 + ["spot check"] * 2
     assert all(p.guess is not None and p.reason.startswith("spot check") for p in picks[4:])
     spans = sorted((p.log, p.start, p.stop) for p in picks)
-    assert all(a[0] != b[0] or a[2] <= b[1] for a, b in zip(spans, spans[1:], strict=False))  # no overlap
+    assert all(a[0] != b[0] or a[2] <= b[1] for a, b in itertools.pairwise(spans))  # no overlap
     assert all(not (p.log == 0 and p.start < 1900) for p in picks)  # never on labels
     # uniform over the unlabelled time: log 1 holds 6000 of its 6100 steps, so nearly every draw lands there
     logs = [p.log for seed in range(40) for p in suggest(scores, n=1, spot_checks=1, seed=seed, **kwargs)]
