@@ -51,6 +51,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "SAME_RUN",
             "estimate_headline",
             "estimate_table",
+            "majority_words",
             "missed_terrains",
             "missed_words",
             "terrain_estimate",

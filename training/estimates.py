@@ -44,8 +44,9 @@ def terrain_estimate(
         ``accuracy`` and ``balanced_accuracy`` over each terrain's chosen figure (``None`` when no terrain could
         be measured), ``kind`` (which figures it rests on), ``per_terrain`` (name -> ``recall``, ``by``, ``logs``,
         ``same_run``, ``held_out``), ``gap`` (mean same-run minus held-out-logs recall over the terrains measured
-        both ways, ``None`` when none is) with ``gap_terrains``, and ``note``, one line for the person deciding
-        whether to label more.
+        both ways, ``None`` when none is) with ``gap_terrains``, ``majority`` (the terrain most common among the
+        steps measured and the accuracy of always answering it: the baseline), and ``note``, one line for the
+        person deciding whether to label more (first, when the model is no better than that baseline).
     """
     s_true, s_pred = (np.asarray(a) for a in same_run)
     h_true, h_pred = (np.asarray(a) for a in held_out) if held_out is not None else (np.zeros(0), np.zeros(0))
@@ -70,10 +71,14 @@ def terrain_estimate(
         per[name] = {"recall": recall, "by": by, "logs": int(logs_per_class[k]), "same_run": same, "held_out": held}
     kinds = {e["by"] for e in per.values()} - {NOT_MEASURED}
     kind = HELD_OUT if kinds == {HELD_OUT} else SAME_RUN if kinds == {SAME_RUN} else MIXED if kinds else NOT_MEASURED
+    majority = None
     if chosen_true:
         t, p = np.concatenate(chosen_true), np.concatenate(chosen_pred)
         accuracy = float((t == p).mean())
         balanced = float(np.mean([e["recall"] for e in per.values() if e["recall"] is not None]))
+        counts = np.bincount(t.astype(np.int64), minlength=len(classes))
+        # always answering the most common terrain of the same steps: the figure a model must beat to mean anything
+        majority = {"terrain": classes[int(counts.argmax())], "accuracy": float(counts.max() / len(t))}
     else:
         accuracy = balanced = None
     gap = float(np.mean(gaps)) if gaps else None
@@ -84,8 +89,25 @@ def terrain_estimate(
         "per_terrain": per,
         "gap": gap,
         "gap_terrains": len(gaps),
-        "note": _note(per, kind, gap, len(gaps)),
+        "majority": majority,
+        "note": _note(per, kind, gap, len(gaps), below=_below_majority(accuracy, majority)),
     }
+
+
+def _below_majority(accuracy: float | None, majority: Mapping | None) -> str:
+    """``"below always answering grass (76 %)"`` when the accuracy is not above the majority baseline, else empty."""
+    if accuracy is None or majority is None or accuracy > majority["accuracy"]:
+        return ""
+    return f"no better than always answering {majority['terrain']} ({100 * majority['accuracy']:.0f} %)"
+
+
+def majority_words(estimate: Mapping) -> str | None:
+    """``"always the most common terrain (grass): 76 %"``; ``None`` for an estimate without one (saved before it
+    existed, or nothing measured)."""
+    m = estimate.get("majority")
+    if not m:
+        return None
+    return f"always the most common terrain ({m['terrain']}): {100 * m['accuracy']:.0f} %"
 
 
 def missed_terrains(estimate: Mapping, *, below: float = MISSED_RECALL) -> list[tuple[str, float]]:
@@ -113,10 +135,10 @@ def missed_words(missed: Sequence[tuple[str, float]]) -> str:
     return "the model misses " + _names(named)
 
 
-def _note(per: Mapping[str, dict], kind: str, gap: float | None, gap_terrains: int) -> str:
+def _note(per: Mapping[str, dict], kind: str, gap: float | None, gap_terrains: int, *, below: str = "") -> str:
     one_log = sorted(n for n, e in per.items() if e["by"] == SAME_RUN)
     unmeasured = sorted(n for n, e in per.items() if e["by"] == NOT_MEASURED)
-    parts = []
+    parts = [f"the model is {below}"] if below else []
     missed = missed_terrains({"per_terrain": per})
     if missed:  # first: what the person can fix by labelling
         parts.append(f"{missed_words(missed)}: label more of {'it' if len(missed) == 1 else 'them'}")

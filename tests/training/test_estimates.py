@@ -82,3 +82,18 @@ def test_terrain_recalls_line_up_with_the_classes_and_leave_the_unmeasured_as_na
     got = terrain_recalls(estimate, ["grass", "sand", "ice"])
     assert got[1] == 0.2 and np.isnan(got[0]) and np.isnan(got[2])
     assert np.isnan(terrain_recalls(None, ["a"])).all()
+
+
+def test_the_majority_baseline_stands_beside_the_estimate_and_a_model_under_it_is_named() -> None:
+    """Issue 65, item 5: a gait session's headline (75.3 %) sat under always answering its most common class
+    (75.5 %) and nothing said so."""
+    from training import majority_words, terrain_estimate
+
+    truth = np.array([0] * 76 + [1] * 24)
+    lazy = terrain_estimate(["walk", "stairs"], {0: 3, 1: 3}, (truth, truth), (truth, np.zeros(100, np.int64)))
+    assert lazy["majority"] == {"terrain": "walk", "accuracy": 0.76}
+    assert lazy["accuracy"] == 0.76 and lazy["note"].startswith("the model is no better than always answering walk")
+    assert majority_words(lazy) == "always the most common terrain (walk): 76 %"
+    good = terrain_estimate(["walk", "stairs"], {0: 3, 1: 3}, (truth, truth), (truth, truth))
+    assert "no better" not in good["note"] and good["majority"]["accuracy"] == 0.76
+    assert majority_words({"accuracy": 0.9}) is None  # an estimate saved before the baseline existed

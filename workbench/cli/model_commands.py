@@ -246,6 +246,10 @@ def _train_classifier(
     estimate = m.get("estimate")
     if estimate:
         _print_estimate(v.id, str(v.config.get("model", "paper")), m, estimate)
+        checked = cycle.checks_summary(s)
+        if checked.all is not None:  # the person's own held-out evidence: each label first tested the model
+            spot = f"; spot checks: {checked.spot.words('spot checks')}" if checked.spot else ""
+            print(f"  your checks: {checked.all.words()}{spot}")
         return
     held = m.get("held_out_logs")
     if held:
@@ -262,13 +266,15 @@ def _train_classifier(
 
 def _print_estimate(version: int, model: str, m: dict, estimate: dict) -> None:
     """The estimate that exists per terrain, saying which it is (``training.estimates``)."""
-    from training import estimate_headline
+    from training import estimate_headline, majority_words
 
     words = estimate_headline(estimate) or "accuracy not measurable"
     balanced = estimate.get("balanced_accuracy")
+    baseline = majority_words(estimate)
     print(
         f"classifier v{version} ({model} family): {words}"
         + (f", balanced {100 * balanced:.1f} %" if balanced is not None else "")
+        + (f" ({baseline})" if baseline else "")
         + f", on {m['n_segments']} segments ({m['labelled_seconds']:.0f} s labelled)"
     )
     if estimate["note"]:

@@ -178,6 +178,8 @@ def evaluate_session(
         "over the held-out reference time of terrains labelled outside its fold (balanced: the mean of the "
         "terrains' recalls).",
         "",
+        _majority_line(np.concatenate(y_true), classes, float(m["accuracy"])),
+        "",
         "| terrain | recall (%) |",
         "| --- | --- |",
         *recall_rows,
@@ -192,6 +194,14 @@ def evaluate_session(
         ),
     ]
     return "\n".join(lines) + "\n"
+
+
+def _majority_line(truth: np.ndarray, classes: Sequence[str], accuracy: float) -> str:
+    """Always answering the most common terrain of the time scored: the baseline a model must beat."""
+    counts = np.bincount(truth.astype(np.int64), minlength=len(classes))
+    share = counts.max() / max(len(truth), 1)
+    below = "; **the model is no better**" if accuracy <= share else ""
+    return f"Always the most common terrain ({classes[int(counts.argmax())]}): {100 * share:.2f} %{below}."
 
 
 def _enough_reference(judged: Sequence[object], path: Path) -> None:

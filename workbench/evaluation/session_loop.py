@@ -91,6 +91,7 @@ class LoopRound:
         checks: Right and counted checks in the new logs so far (``cycle.checks_summary``: each the model of its
             round, before the label trained it).
         spot: The same over spot checks only.
+        majority: Always answering the most common labelled terrain on the same time: its name and accuracy.
     """
 
     round: int
@@ -107,6 +108,7 @@ class LoopRound:
     seconds: float = 0.0
     checks: tuple[int, int] = (0, 0)
     spot: tuple[int, int] = (0, 0)
+    majority: tuple[str, float] = ("", float("nan"))
 
 
 @dataclass(frozen=True)
@@ -295,6 +297,7 @@ def run_arm(
                     time.monotonic() - t0,
                     (checked.all.right, checked.all.n) if checked.all else (0, 0),
                     (checked.spot.right, checked.spot.n) if checked.spot else (0, 0),
+                    measured.majority,
                 )
             )
             log(
@@ -389,8 +392,17 @@ def evaluate_loop(
             "arms": {k: [asdict(r) for r in v] for k, v in arms.items()},
         }
         out.write_text(json.dumps(data, indent=1))
+    first = next(iter(arms.values()))[0]
+    names = [x.name for x in new]
     return loop_report(
-        session.path.name, arms, settings, family=family, new=[x.name for x in new], new_s=total_new, seconds=took
+        session.path.name,
+        arms,
+        settings,
+        family=family,
+        new=names,
+        new_s=total_new,
+        seconds=took,
+        majority=first.majority,
     )
 
 
@@ -407,6 +419,7 @@ def loop_report(
     new: Sequence[str],
     new_s: float,
     seconds: float,
+    majority: tuple[str, float] = ("–", float("nan")),
 ) -> str:
     """Markdown: per strategy and round, where the labels went and what they did to the new logs."""
     lines = [
@@ -415,6 +428,9 @@ def loop_report(
         f"{settings.rounds} round(s) of {settings.per_round} suggestions, the person labelling each as a "
         f"`{settings.person}`; after each round stage 2 of the {family} family from scratch on every label (as the "
         f"Retrain ends). Accuracy on the new logs' time nobody labelled, against the reference. {seconds:.0f} s.",
+        "",
+        f"Always the most common labelled terrain ({majority[0]}) would score {_pct(majority[1])} % on that time "
+        "at the start.",
         "",
         "| strategy | round | labelled s (in new logs) | picks in new logs | in the worst new log | accuracy (%) | "
         "balanced (%) | the model's estimate (%) | checks in new logs right (spot checks) |",

@@ -11,10 +11,12 @@ from training import (
     ModelBundle,
     estimate_headline,
     estimate_table,
+    majority_words,
     parameter_count,
 )
 
-from ..expectations import SHORTEST_STRETCH_S
+from ..cycle import ChecksSummary
+from ..expectations import SHORTEST_STRETCH_S, card_accuracy
 
 
 def _estimate_section(m: dict) -> list[str]:
@@ -29,6 +31,8 @@ def _estimate_section(m: dict) -> list[str]:
         "",
         f"**{words}**" + (f", balanced accuracy {balanced:.1%}" if balanced is not None else "") + ".",
         "",
+        f"Beside it, {majority_words(estimate)} on the same steps." if majority_words(estimate) else "",
+        "",
         f"{estimate['note'][:1].upper()}{estimate['note'][1:]}." if estimate["note"] else "",
         "",
         "A terrain labelled in two logs or more is measured on held-out logs: each of its labelled steps predicted by "
@@ -40,6 +44,33 @@ def _estimate_section(m: dict) -> list[str]:
         *estimate_table(estimate),
         "",
     ]
+
+
+def _checks_section(checks: ChecksSummary | None, m: dict) -> list[str]:
+    """What the person's checks said: each label made where a model already answered, before it trained on it."""
+    if checks is None or checks.all is None:
+        return []
+    lines = [
+        "## Your checks",
+        "",
+        "Each label made in the page (or imported from `workbench suggest`'s file) first tested the model the person "
+        "was looking at, on time it had not trained on. Spot checks are drawn at random from the unlabelled time: "
+        "their share right is a fair estimate there; the checks of ranked suggestions are where the model was "
+        "unsure, drifted or unchecked, and run low. Earlier models answered the earlier checks.",
+        "",
+        f"- all: {checks.all.words()}",
+    ]
+    if checks.spot is not None:
+        lines.append(f"- spot checks: {checks.spot.words('spot checks')}")
+    if checks.suggested is not None:
+        lines.append(f"- suggestions and manual labels: {checks.suggested.words()}")
+    card = card_accuracy(m)
+    if card is not None and abs(card - checks.all.accuracy) >= 0.10 and not checks.all.low <= card <= checks.all.high:
+        lines.append(
+            f"- **the estimate above ({100 * card:.0f} %) lies outside the checks' interval by 10 points or more: "
+            "trust the checks on these runs**"
+        )
+    return [*lines, ""]
 
 
 def _held_out_section(m: dict) -> list[str]:
@@ -131,11 +162,13 @@ def model_card(
     drifted: Mapping[str, float] | None = None,
     unlabelled: Mapping[str, tuple[float, int]] | None = None,
     unlabelled_agreement: float | None = None,
+    checks: ChecksSummary | None = None,
 ) -> str:
     """A Markdown description of a bundle: what it is, what it was trained on, how well it does, and where it does
     not know (``drifted``: per log name, the share of its time with a drift score above 1; ``unlabelled``: per log
     with no label, the accuracy expected at its drift and its steps; ``unlabelled_agreement``: the share of those
-    logs' steps predicted as their stretch's most predicted terrain)."""
+    logs' steps predicted as their stretch's most predicted terrain; ``checks``: what the person's checks said,
+    test then train)."""
     m, family = bundle.metrics, bundle.stage2_family()
     lines = [
         f"# Terrain classifier v{version}",
@@ -155,6 +188,7 @@ def model_card(
         f"({m.get('labelled_fraction', 0):.1%} of the time)",
         "",
         *_estimate_section(m),
+        *_checks_section(checks, m),
         *_drift_section(bundle, drifted, unlabelled, unlabelled_agreement),
         "## Out-of-fold metrics (same logs)",
         "",

@@ -124,7 +124,7 @@ def _write_export(
 ) -> list[tuple[Path, str]]:
     from training import check_onnx, export_onnx
 
-    from ..cycle import model_logs, score_session
+    from ..cycle import checks_summary, model_logs, score_session
 
     written: list[tuple[Path, str]] = []
     shutil.copytree(session.path / version.path, out / "bundle")
@@ -151,6 +151,7 @@ def _write_export(
         drifted=drifted,
         unlabelled=unlabelled,
         unlabelled_agreement=agreement,
+        checks=checks_summary(session),
     )
     (out / "bundle" / "MODEL_CARD.md").write_text(card)
     written.append((out / "bundle", f"model bundle v{version.id} (safetensors + model.json + MODEL_CARD.md)"))

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from sessions import WorkbenchError
-from training import estimate_headline
+from training import estimate_headline, majority_words
 
 from .plots import confusion_image, learning_curve_image
 
@@ -121,9 +121,11 @@ class TrainPanel:
                 held, estimate = m.get("held_out_logs"), m.get("estimate")
                 if estimate:
                     balanced = estimate.get("balanced_accuracy")
+                    baseline = majority_words(estimate)
                     figure = (
                         f"{estimate_headline(estimate) or 'accuracy not measurable'}, "
                         + (f"balanced {100 * balanced:.0f} %, " if balanced is not None else "")
+                        + (f"{baseline}, " if baseline else "")
                         + f"{estimate['note']}, "
                     )
                 else:  # a version from before the estimate, a quick fine-tune, the paper family

@@ -9,12 +9,16 @@ from typing import TYPE_CHECKING
 
 from training import HELD_OUT, estimate_headline, missed_terrains, missed_words
 
+from ..cycle import ChecksSummary, checks_summary
+from ..expectations import card_accuracy
+
 if TYPE_CHECKING:
     from .host import PanelHost
 
 RETRAIN = "Retrain"
 EXPORT = "Export"
 MISSED = "#c62828"  # what the model misses or is expected to miss: a terrain, a log
+CHECKS_DISAGREE = 0.10  # the card this far from the person's checks (and outside their interval) is flagged
 
 
 def status_html(host: PanelHost) -> str:
@@ -24,8 +28,10 @@ def status_html(host: PanelHost) -> str:
     classifier = session.active_model("classifier")
     predictor = session.active_model("predictor")
     if classifier is not None:
-        model = f"<b>{html.escape(str(classifier.config.get('model', 'paper')))} v{classifier.id}</b>" + figure_html(
-            classifier.metrics
+        model = (
+            f"<b>{html.escape(str(classifier.config.get('model', 'paper')))} v{classifier.id}</b>"
+            + figure_html(classifier.metrics)
+            + checks_html(checks_summary(session), classifier.metrics)
         )
     elif predictor is not None:
         model = f"<b>stage 1 v{predictor.id}</b> · no classifier yet"
@@ -70,6 +76,25 @@ def figure_html(m: dict) -> str:
     if acc is None and m.get("out_of_fold"):  # a quick fine-tune measures no held-out logs; its refit will
         acc, where = m.get("accuracy"), "out of fold"
     return f" · {100 * acc:.0f} % {where}" if acc is not None and acc == acc else ""
+
+
+def checks_html(summary: ChecksSummary, m: dict) -> str:
+    """What the person's own checks say (test then train: ``cycle.checks_summary``), and a warning when the card's
+    figure lies outside their 95 % interval by 10 points or more."""
+    if summary.all is None:
+        return ""
+    est = summary.all
+    spot = f", spot checks {summary.spot.right} of {summary.spot.n}" if summary.spot else ""
+    text = f"your checks: right on {est.right} of {est.n} ({100 * est.accuracy:.0f} %){spot}"
+    card = card_accuracy(m)
+    far = card is not None and abs(card - est.accuracy) >= CHECKS_DISAGREE and not est.low <= card <= est.high
+    if far:
+        return (
+            f" · <b style='color:{MISSED}' title='the model was right on {est.right} of your {est.n} checks "
+            f"(95 % interval {100 * est.low:.0f}–{100 * est.high:.0f} %), its estimate says {100 * card:.0f} %'>"
+            f"{html.escape(text)}: not what the estimate says</b>"
+        )
+    return f" · {html.escape(text)}"
 
 
 class StatusBar:

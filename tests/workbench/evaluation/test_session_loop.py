@@ -158,4 +158,8 @@ def test_the_headless_loop_suggest_fill_in_import_train(
         version = s.active_model("classifier").id
     assert len(checks) == 4 and {c.classifier for c in checks} == {version}
     assert all(c.predicted == g for c, g in zip(checks, rows["guess"][:4], strict=True))
+    capsys.readouterr()
     assert main(["train", str(session), "--stage", "classifier"]) == 0
+    printed = capsys.readouterr().out
+    assert re.search(r"your checks: right on \d of 4 checks", printed), printed  # what the person's checks say
+    assert "always the most common terrain" in printed  # the baseline beside the estimate (item 5)
