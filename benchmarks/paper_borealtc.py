@@ -1,6 +1,6 @@
 """Paper-scale runs on BorealTC: both model families on both protocols, and the label-efficiency simulation.
 
-    python benchmarks/paper_borealtc.py [protocol|simulate|issue54|all]
+    python benchmarks/paper_borealtc.py [protocol|simulate|issue54|issue65|all]
     python benchmarks/paper_borealtc.py issue54 PART...   # some of its parts: labels, card-runs, ...
 
 ``protocol``: the default family (about 2 minutes on 2 CPU cores) and the paper family (about an hour per split) on
@@ -15,6 +15,12 @@ expected accuracy per held-out run against what it scored (on BorealTC's runs an
 changes), the card against ``workbench evaluate session`` on BorealTC sessions, and the label efficiency on folds by
 run (``workbench evaluate borealtc --simulate --split runs``, 3 seeds); 82 minutes as one command on 2 cores (at
 76f3e90), each output written to ``benchmarks/results/issue-54-*.txt``, which ends with its seconds.
+
+``issue65``: `workbench evaluate loop` (4 rounds of 12 suggestions, a piece person) on BorealTC with one run per
+terrain left unlabelled, on BorealTC with a run spliced from five (26 terrain changes), and on demo walks whose
+terrain changes, each with ``combined``, its ablations (``combined-no-unchecked``: new runs not first;
+``combined-no-votes``: a run's labels not voting over its frames) and ``random``, on seeds the choices were not made
+on; and the run votes' screen on demo walks never used for the choice. About 40 minutes a loop part on 2 cores.
 
 Writes Markdown reports (and the simulation plot) to ``benchmarks/results/``. Skips with a reason when
 ``../shared/data/borealtc`` is absent (a user's clone).
@@ -55,11 +61,19 @@ ISSUE54 = (  # (name, arguments to python): each prints its own table
     ("card-runs", [f"{BENCH}/card_vs_session_borealtc.py", "runs"]),
     ("efficiency-runs", ["-m", "workbench.cli", "evaluate", "borealtc", str(DATA), *SIMULATE_RUNS]),
 )
+LOOP_ARMS = ("--strategies", "combined", "combined-no-unchecked", "combined-no-votes", "random")
+ISSUE65 = (
+    ("loop-walks", [f"{BENCH}/loop_walks.py", "--seed", "1", *LOOP_ARMS]),
+    ("loop-new-runs", [f"{BENCH}/loop_borealtc.py", "new-runs", "--seed", "1", *LOOP_ARMS]),
+    ("loop-spliced", [f"{BENCH}/loop_borealtc.py", "spliced", "--seed", "1", *LOOP_ARMS]),
+    ("propagate-demo-s2", [f"{BENCH}/propagate_screen.py", "demo", "--seed", "2"]),
+)
+ISSUES = {"issue54": ISSUE54, "issue65": ISSUE65}
 
 
 def main(which: str = "all", *, parts: list[str] | None = None) -> int:
-    if parts and which != "issue54":
-        print(f"paper_borealtc.py: parts are for issue54 only, not {which}", file=sys.stderr)
+    if parts and which not in ISSUES:
+        print(f"paper_borealtc.py: parts are for {' and '.join(ISSUES)} only, not {which}", file=sys.stderr)
         return 2
     if not DATA.is_dir():
         print(f"skipped: {DATA} is absent (BorealTC is not shipped with the project)")
@@ -93,22 +107,24 @@ def main(which: str = "all", *, parts: list[str] | None = None) -> int:
         )
         (RESULTS / "borealtc-simulate.md").write_text(report + f"\n\n{time.monotonic() - t:.0f} s\n")
         print(report)
-    if which in ("issue54", "all"):
-        return run_issue54(parts or [name for name, _ in ISSUE54])
-    return 0
+    code = 0
+    for issue, table in ISSUES.items():
+        if which in (issue, "all"):
+            code = max(code, run_parts(issue, table, parts or [name for name, _ in table]))
+    return code
 
 
-def run_issue54(parts: list[str]) -> int:
-    """Run the named parts of ``ISSUE54`` in its order; each output goes to ``issue-54-NAME.txt`` headed by the
-    commit it ran at and ending with its seconds, so parts run at different times say which code gave them."""
-    known = [name for name, _ in ISSUE54]
+def run_parts(issue: str, table: tuple, parts: list[str]) -> int:
+    """Run the named parts of an issue's ``table`` in its order; each output goes to ``issue-NN-NAME.txt`` headed by
+    the commit it ran at and ending with its seconds, so parts run at different times say which code gave them."""
+    known = [name for name, _ in table]
     unknown = sorted(set(parts) - set(known))
     if unknown:
         print(f"paper_borealtc.py: no part named {', '.join(unknown)} (the parts: {', '.join(known)})", file=sys.stderr)
         return 2
     commit = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True, text=True, cwd=ROOT)
     failed = []
-    for name, args in ISSUE54:
+    for name, args in table:
         if name not in parts:
             continue
         print(f"## {name} (started {time.strftime('%H:%M:%S')})", flush=True)
@@ -117,12 +133,13 @@ def run_issue54(parts: list[str]) -> int:
         took = f"{time.monotonic() - t:.0f} s" + (f", exit {out.returncode}" if out.returncode else "")
         command = " ".join(a.replace(f"{ROOT}/", "") for a in args)
         text = f"commit {commit.stdout.strip() or 'unknown'}: python {command}\n\n{out.stdout}{out.stderr}\n{took}\n"
-        (RESULTS / f"issue-54-{name}.txt").write_text(text)
+        (RESULTS / f"issue-{issue[5:]}-{name}.txt").write_text(text)
         print(f"\n{text}", flush=True)
         if out.returncode:
             failed.append(name)
     if failed:
-        print(f"paper_borealtc.py: {', '.join(failed)} failed; see benchmarks/results/issue-54-*.txt", file=sys.stderr)
+        where = f"benchmarks/results/issue-{issue[5:]}-*.txt"
+        print(f"paper_borealtc.py: {', '.join(failed)} failed; see {where}", file=sys.stderr)
     return 1 if failed else 0
 
 
