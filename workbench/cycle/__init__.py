@@ -11,7 +11,7 @@ frames per log, the unlabelled stretches self-training reads), ``scores`` (the o
 the model: test then train).
 """
 
-from .checks_record import ChecksSummary, checks_summary, record_check
+from .checks_record import ChecksSummary, checks_summary, estimate_disagrees, record_check
 from .frame_stage1 import train_frame_predictor, train_stage1
 from .front_end import (
     STRETCH_S,
@@ -67,6 +67,7 @@ __all__ = [
     "classifier_family",
     "compute_scores",
     "consistency_pairs",
+    "estimate_disagrees",
     "follow_predictor_training",
     "free_stretches",
     "front_end_of",

@@ -83,3 +83,14 @@ def checks_summary(session: Session, *, log_ids: Collection[int] | None = None) 
         labeling.check_estimate([c.right for c in checks]),
         per_log,
     )
+
+
+DISAGREE = 0.10  # the model's estimate this far from the spot checks' share, and outside their interval, is flagged
+
+
+def estimate_disagrees(estimate: float | None, spot: labeling.CheckEstimate | None) -> bool:
+    """Whether the model's estimate lies outside the spot checks' 95 % interval by ``DISAGREE`` or more: the spot
+    checks are the fair sample of the unlabelled time, the ranked suggestions' checks run low by design."""
+    if estimate is None or spot is None or abs(estimate - spot.accuracy) < DISAGREE:
+        return False
+    return not spot.low <= estimate <= spot.high

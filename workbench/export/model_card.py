@@ -15,7 +15,7 @@ from training import (
     parameter_count,
 )
 
-from ..cycle import ChecksSummary
+from ..cycle import ChecksSummary, estimate_disagrees
 from ..expectations import SHORTEST_STRETCH_S, card_accuracy
 
 
@@ -65,10 +65,10 @@ def _checks_section(checks: ChecksSummary | None, m: dict) -> list[str]:
     if checks.suggested is not None:
         lines.append(f"- suggestions and manual labels: {checks.suggested.words()}")
     card = card_accuracy(m)
-    if card is not None and abs(card - checks.all.accuracy) >= 0.10 and not checks.all.low <= card <= checks.all.high:
+    if estimate_disagrees(card, checks.spot):
         lines.append(
-            f"- **the estimate above ({100 * card:.0f} %) lies outside the checks' interval by 10 points or more: "
-            "trust the checks on these runs**"
+            f"- **the estimate above ({100 * card:.0f} %) lies outside the spot checks' interval by 10 points or "
+            "more: trust the spot checks on these runs**"
         )
     return [*lines, ""]
 

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import labeling
 from sessions import IngestError, Session, WorkbenchError
 
+from ..cycle import checks_summary
 from ..expectations import FileExpectation, file_expectation
 from .charts import DRIFT
 from .status_bar import MISSED
@@ -40,6 +41,7 @@ def logs_table_html(
     session: Session,
     drifted: Mapping[int, float | None] | None = None,
     expected: Mapping[int, FileExpectation | None] | None = None,
+    checks: Mapping[int, labeling.CheckEstimate] | None = None,
 ) -> str:
     """An HTML table of the session's logs (name, format, duration, rate, channels, labelled time and, once the
     model gives a drift score, the share of each log unlike anything labelled and the accuracy expected at its
@@ -49,6 +51,8 @@ def logs_table_html(
         session: The session.
         drifted: Per log id, the share of its time with a drift score above 1 (``None``: not scored).
         expected: Per log id, its expectation (:func:`workbench.expectations.file_expectation`).
+        checks: Per log id, what the person's checks there say (``cycle.checks_summary``): right on X of N, the 95 %
+            interval on hover.
     """
     logs = session.logs()
     if not logs:
@@ -72,6 +76,8 @@ def logs_table_html(
             cell = f"<td class='n'>{f'<b style=color:{DRIFT}>{text}</b>' if strong else text}</td>"
         if expect_column:
             cell += _expected_cell(expected.get(log.id))  # type: ignore[union-attr]
+        if checks:
+            cell += _checks_cell(checks.get(log.id))
         rows.append(
             f"<tr><td class='n'>{log.id}</td><td title='{title}'>{html.escape(log.name)}</td>"
             f"<td class='n'>{_duration(log.duration_s)}</td><td class='n'>{log.rate_hz:g}</td>"
@@ -91,6 +97,12 @@ def logs_table_html(
             "<th class='n' title='accuracy expected on the log at its drift, else the share of its steps predicted "
             "as their stretch&#39;s most predicted terrain (stretches between change points; both on hover)"
             f"{below}'>expect</th>"
+        )
+    if checks:
+        head += (
+            "<th class='n' title='your checks in the log: how often the model named your terrain before your "
+            "label there trained it (95 % interval on hover); suggestions are where the model was doubted, so "
+            "these run low'>✓</th>"
         )
     total = sum(log.duration_s for log in logs)
     return (
@@ -112,6 +124,12 @@ def _expected_cell(e: FileExpectation | None) -> str:
     both = html.escape(e.figures() or "", quote=True)
     strong = e.below_card or e.disagrees
     return f"<td class='n' title='{both}'>{f'<b style=color:{MISSED}>{text}</b>' if strong else text}</td>"
+
+
+def _checks_cell(est: labeling.CheckEstimate | None) -> str:
+    if est is None:
+        return "<td class='n'>–</td>"
+    return f"<td class='n' title='{html.escape(est.words(), quote=True)}'>{est.right}/{est.n}</td>"
 
 
 class DataPanel:
@@ -149,7 +167,8 @@ class DataPanel:
             )
             for i, s in scores.items()
         }
-        self.logs.content = logs_table_html(session, drifted, expected)
+        checks = checks_summary(session).per_log
+        self.logs.content = logs_table_html(session, drifted, expected, checks)
 
     def _take_upload(self) -> None:
         refused: str | None = None

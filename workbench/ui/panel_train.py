@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sessions import WorkbenchError
+import labeling
+from sessions import COUNTED_KINDS, WorkbenchError
 from training import estimate_headline, majority_words
 
 from .plots import confusion_image, learning_curve_image
@@ -110,7 +111,8 @@ class TrainPanel:
 
     def _versions(self) -> None:
         versions = self.host.state.session.model_versions()
-        key = tuple((v.id, v.active) for v in versions)
+        checks = [c for c in self.host.state.session.checks() if c.kind in COUNTED_KINDS]
+        key = (tuple((v.id, v.active) for v in versions), len(checks))
         if key == self._drawn_versions:
             return
         self._drawn_versions = key
@@ -132,11 +134,13 @@ class TrainPanel:
                     figure = (f"acc {100 * held['accuracy']:.1f} % on held-out logs, " if held else "") + (
                         f"acc {100 * m.get('accuracy', float('nan')):.1f} % (same logs), "
                     )
+                tested = labeling.check_estimate([c.right for c in checks if c.classifier == v.id])
                 what = (
                     f"{v.config.get('model', 'paper')}: {figure}"
                     f"F1 {m.get('macro_f1', float('nan')):.2f}, "
                     f"{m.get('labelled_seconds', 0):.0f} s labelled"
                     + (", quick fine-tune" if v.config.get("new_labels") is not None else "")
+                    + (f"; your checks of it: {tested.words()}" if tested is not None else "")
                 )
             elif "copy_last_mse" in m:  # the default family's next-frame predictor: a fixed number of steps
                 what = (

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 from training import HELD_OUT, estimate_headline, missed_terrains, missed_words
 
-from ..cycle import ChecksSummary, checks_summary
+from ..cycle import ChecksSummary, checks_summary, estimate_disagrees
 from ..expectations import card_accuracy
 
 if TYPE_CHECKING:
@@ -18,7 +18,6 @@ if TYPE_CHECKING:
 RETRAIN = "Retrain"
 EXPORT = "Export"
 MISSED = "#c62828"  # what the model misses or is expected to miss: a terrain, a log
-CHECKS_DISAGREE = 0.10  # the card this far from the person's checks (and outside their interval) is flagged
 
 
 def status_html(host: PanelHost) -> str:
@@ -80,21 +79,26 @@ def figure_html(m: dict) -> str:
 
 def checks_html(summary: ChecksSummary, m: dict) -> str:
     """What the person's own checks say (test then train: ``cycle.checks_summary``), and a warning when the card's
-    figure lies outside their 95 % interval by 10 points or more."""
+    figure lies outside the spot checks' 95 % interval by 10 points or more: the spot checks are the fair sample (a
+    ranked suggestion is where the model is doubted, so those checks run low by design)."""
     if summary.all is None:
         return ""
-    est = summary.all
-    spot = f", spot checks {summary.spot.right} of {summary.spot.n}" if summary.spot else ""
-    text = f"your checks: right on {est.right} of {est.n} ({100 * est.accuracy:.0f} %){spot}"
+    est, spot = summary.all, summary.spot
+    text = f"your checks: right on {est.right} of {est.n}"
+    text += f", spot checks {spot.right} of {spot.n}" if spot else ""
     card = card_accuracy(m)
-    far = card is not None and abs(card - est.accuracy) >= CHECKS_DISAGREE and not est.low <= card <= est.high
-    if far:
+    if spot is not None and card is not None and estimate_disagrees(card, spot):
         return (
-            f" · <b style='color:{MISSED}' title='the model was right on {est.right} of your {est.n} checks "
-            f"(95 % interval {100 * est.low:.0f}–{100 * est.high:.0f} %), its estimate says {100 * card:.0f} %'>"
-            f"{html.escape(text)}: not what the estimate says</b>"
+            f" · <b style='color:{MISSED}' title='the model was right on {spot.right} of your {spot.n} spot "
+            f"checks (95 % interval {100 * spot.low:.0f}–{100 * spot.high:.0f} %), its estimate says "
+            f"{100 * card:.0f} %'>{html.escape(text)}: not what the estimate says</b>"
         )
-    return f" · {html.escape(text)}"
+    title = html.escape(
+        "spot checks are drawn at random from the unlabelled time: the fair sample; the suggestions' checks are where "
+        "the model was doubted and run low",
+        quote=True,
+    )
+    return f" · <span title='{title}'>{html.escape(text)}</span>"
 
 
 class StatusBar:
