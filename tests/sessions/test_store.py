@@ -194,3 +194,28 @@ def test_a_session_folder_that_cannot_be_written_gives_a_clear_error(
     assert [f.name for f in (tmp_path / "s" / "logs").iterdir()] == [".ingest.lock"]  # no staged file
     (log,) = s.ingest([demo_mcap])  # and the session works afterwards
     assert log.n_samples > 0
+
+
+def test_a_session_copies_whole_and_the_copy_is_its_own(tmp_path: Path) -> None:
+    """``Session.copy_to`` (evaluate loop works on copies): the store by SQLite's backup, logs hard-linked, the copy
+    changed without touching the original; a copy never lands on an existing path."""
+    import numpy as np
+    import pandas as pd
+
+    t = np.arange(2000) / 100.0
+    pd.DataFrame({"time": t, "a": np.sin(t)}).to_csv(tmp_path / "w.csv", index=False)
+    with Session.create(tmp_path / "s") as s:
+        s.add_terrain("grass")
+        (log,) = s.ingest([tmp_path / "w.csv"])
+        s.add_segment(log.id, 0, 100, "grass", author="a")
+        copy = s.copy_to(tmp_path / "copy")
+        with pytest.raises(SessionError, match="exists already"):
+            s.copy_to(tmp_path / "copy")
+    with Session.open(copy) as c, Session.open(tmp_path / "s") as s:
+        assert [(g.start, g.stop, g.terrain) for g in c.segments()] == [(0, 100, "grass")]
+        np.testing.assert_array_equal(c.samples(log.id), s.samples(log.id))
+        c.add_segment(log.id, 200, 300, "grass", author="b")
+    with Session.open(tmp_path / "s") as s:
+        assert len(s.segments()) == 1  # the original is as it was
+    original = next((tmp_path / "s" / "logs").glob("*.npy"))
+    assert (copy / "logs" / original.name).stat().st_ino == original.stat().st_ino  # linked, not copied
