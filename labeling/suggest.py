@@ -30,7 +30,8 @@ NOVELTY_FLOOR, CLUSTER_DECAY, PREFILTER = 0.25, 0.05, 10
 DRIFT_PRIORITY = 1.0  # added to a drifted candidate's score (others lie in [0, 1]): drifted time is offered first
 # Added to every candidate in a log nobody has labelled yet: a person's new runs are checked before more time of runs
 # already checked, spread over the runs first (LOG_DECAY), then over time (NEIGHBOUR_DECAY). Issue 65: a run the
-# model got 40 points worse than the rest drew 5 of 45 picks.
+# model got 40 points worse than the rest drew 5 of 45 picks. A log whose checks found the model wrong keeps part of
+# it (``wrong``): a run the model gets wrong is asked about again once checked, not left after its first pick.
 UNCHECKED_PRIORITY = 2.0
 DRIFT_CAP = 4.0  # a drifted candidate's own score is weighted by its drift, up to this
 MISSED_RECALL = 0.5  # a terrain measured under this recall is one the model misses (training.MISSED_RECALL)
@@ -142,6 +143,7 @@ def suggest(
     seed: int = 0,
     unchecked_first: bool = True,
     spot_checks: int = 0,
+    wrong: Sequence[tuple[int, int]] | None = None,
 ) -> list[Suggestion]:
     """The next ``n`` segments to label.
 
@@ -167,6 +169,10 @@ def suggest(
         unchecked_first: ``combined``: the candidates of logs with no labelled span come before every other one,
             spread over those logs and then over their time, so a person's new runs are checked before more time of
             runs already checked.
+        wrong: Per log, ``(wrong, checks)``: how often the person's checks there found the model wrong. ``combined``
+            (with ``unchecked_first``) then offers a checked log's candidates ``UNCHECKED_PRIORITY · wrong /
+            (checks + 1)`` ahead: where checks found the model wrong, more checks follow, behind the logs nobody has
+            checked yet.
         spot_checks: How many of the ``n`` are spot checks, placed last: each a piece around a step drawn uniformly
             from the unlabelled time (``seed``), overlapping neither labels nor the other picks. A check the person
             makes of one is an unbiased sample of the model's accuracy on unlabelled time, which a ranked
@@ -221,11 +227,17 @@ def suggest(
     alive = np.ones(len(cands), bool)
     factor = np.ones(len(cands))
     checked = {g for g, a, b in labelled if b > a}
-    unchecked = np.array([g not in checked for g in logs]) if strategy == "combined" and unchecked_first else None
+    priority = None
+    if strategy == "combined" and unchecked_first:
+        per_log = np.zeros(len(scores))
+        for g, (bad, n_checks) in enumerate(wrong or ()):
+            per_log[g] = UNCHECKED_PRIORITY * bad / (n_checks + 1)
+        per_log[[g for g in range(len(scores)) if g not in checked]] = UNCHECKED_PRIORITY
+        priority = per_log[logs]  # (N,) each candidate's log's
     while len(chosen) < n and alive.any():
         adjusted = np.where(alive, base * factor, -np.inf)
-        if unchecked is not None:  # the logs nobody labelled first
-            adjusted = adjusted + np.where(unchecked, UNCHECKED_PRIORITY, 0.0)
+        if priority is not None:  # the logs nobody labelled first, then those where checks found the model wrong
+            adjusted = adjusted + priority
         # lexsort's last key is the primary: score (descending), then log, then start, for a deterministic order
         best = int(np.lexsort((starts, logs, -adjusted))[0])
         chosen.append(best)

@@ -215,3 +215,15 @@ def test_spot_checks_are_drawn_uniformly_from_unlabelled_time_and_placed_last() 
     # uniform over the unlabelled time: log 1 holds 6000 of its 6100 steps, so nearly every draw lands there
     logs = [p.log for seed in range(40) for p in suggest(scores, n=1, spot_checks=1, seed=seed, **kwargs)]
     assert logs.count(1) >= 36
+
+
+def test_a_checked_log_whose_checks_found_the_model_wrong_is_asked_again() -> None:
+    """Issue 65: once every run is checked, the runs where the checks found the model wrong keep coming first."""
+    scores = make_scores([3000, 3000, 3000], 3, 6)
+    scores[0] = LogScores(scores[0].surprise * 3, scores[0].probs, scores[0].disagreement + 0.5)  # the busiest log
+    labelled = [(0, 100, 200), (1, 100, 200), (2, 100, 200)]  # every log checked once
+    kwargs = dict(labelled=labelled, classes=["a", "b", "c"], n=6, max_len=200, min_len=50)
+    asked = suggest(scores, wrong=[(0, 4), (3, 4), (0, 4)], **kwargs)
+    assert [p.log for p in asked].count(1) >= 4  # the log with 3 of 4 checks wrong
+    plain = suggest(scores, **kwargs)
+    assert [p.log for p in plain].count(1) < [p.log for p in asked].count(1)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 import labeling
-from sessions import LogInfo, Session
+from sessions import COUNTED_KINDS, LogInfo, Session
 from training import terrain_recalls
 
 from .scores import SessionScores
@@ -25,6 +25,16 @@ def suggestion_lengths(rate_hz: float, *, seconds: float = SUGGESTION_S) -> tupl
     return longest, max(1, longest // 2)
 
 
+def _wrong_checks(session: Session, log_ids: list[int]) -> list[tuple[int, int]]:
+    """Per log, ``(wrong, checks)`` of the person's counted checks there."""
+    tally = {i: [0, 0] for i in log_ids}
+    for c in session.checks():
+        if c.kind in COUNTED_KINDS and c.log_id in tally:
+            tally[c.log_id][0] += not c.right
+            tally[c.log_id][1] += 1
+    return [(tally[i][0], tally[i][1]) for i in log_ids]
+
+
 def suggest_for_session(
     session: Session,
     scores: SessionScores,
@@ -36,12 +46,14 @@ def suggest_for_session(
     seed: int = 0,
     unchecked_first: bool = True,
     spot_checks: int | None = None,
+    wrong_first: bool = True,
 ) -> list[tuple[LogInfo, labeling.Suggestion]]:
     """The session's suggestion queue: ``n`` segments of ``SUGGESTION_S / 2`` to ``SUGGESTION_S`` to label next,
     with the log each lies in. ``seed``: of the ``random`` strategy and the clustering; ``unchecked_first``: see
     ``labeling.suggest`` (off only to measure what it is worth); ``spot_checks``: how many of the ``n`` are spot
     checks (default ``SPOT_CHECKS`` in a ranked queue of 4 or more once a classifier has scored the logs, else
-    none)."""
+    none); ``wrong_first``: a checked log where the person's checks found the model wrong stays ahead
+    (``labeling.suggest``'s ``wrong``; off only to measure what it is worth)."""
     logs = [x for x in logs if x.id in scores.scores]
     if not logs:
         return []
@@ -74,5 +86,6 @@ def suggest_for_session(
         seed=seed,
         unchecked_first=unchecked_first,
         spot_checks=spot_checks,
+        wrong=_wrong_checks(session, [x.id for x in logs]) if wrong_first else None,
     )
     return [(logs[s.log], s) for s in out]
