@@ -21,7 +21,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from sklearn.model_selection import GroupKFold, StratifiedGroupKFold
 
 from .fitting import Segment
 
@@ -151,6 +150,9 @@ def log_folds(segments: Sequence[Segment], k: int, groups: Sequence[int]) -> lis
     its shuffles and as many dealings of each terrain's recordings to the folds in turn are tried, and the one whose
     held-out segments' terrains stay most in training, by labelled time, is kept.
     """
+    # imported where used: scikit-learn and SciPy add 2 s to every CLI start, and classify, export and serve never fit
+    from sklearn.model_selection import GroupKFold, StratifiedGroupKFold
+
     logs = np.asarray([groups[s[0]] for s in segments])
     n_logs = len(np.unique(logs))
     if n_logs < 2:

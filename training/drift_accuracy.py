@@ -20,7 +20,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
-from sklearn.isotonic import IsotonicRegression
 
 KNOTS = 32  # most bins of held-out rows the relation is kept at: a few hundred bytes of JSON in the bundle
 BIN_ROWS = 40  # fewest held-out rows in a bin
@@ -53,6 +52,9 @@ def accuracy_by_drift(drift: np.ndarray, correct: np.ndarray) -> dict | None:
     centre = np.asarray([drift[b].mean() for b in bins])
     share = np.asarray([correct[b].mean() for b in bins])
     size = np.asarray([len(b) for b in bins], np.float64)
+    # imported where used: scikit-learn and SciPy add 2 s to every CLI start, and classify, export and serve never fit
+    from sklearn.isotonic import IsotonicRegression
+
     fit = IsotonicRegression(increasing=False, y_min=0.0, y_max=1.0).fit(centre, share, sample_weight=size)
     values = fit.predict(centre)
     return {

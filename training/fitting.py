@@ -9,7 +9,6 @@ from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-from sklearn.model_selection import KFold, StratifiedKFold
 
 if TYPE_CHECKING:
     from torch import nn
@@ -34,6 +33,9 @@ def fold_indices(labels: Sequence[int], k: int, seed: int) -> list[tuple[np.ndar
 
     Each segment is wholly in one fold. With fewer than two segments there is one "fold" training on everything.
     """
+    # imported where used: scikit-learn and SciPy add 2 s to every CLI start, and classify, export and serve never fit
+    from sklearn.model_selection import KFold, StratifiedKFold
+
     n = len(labels)
     idx = np.arange(n)
     if n < 2:

@@ -5,7 +5,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from sklearn.metrics import accuracy_score, confusion_matrix, f1_score, recall_score
 
 
 def classification_metrics(y_true: np.ndarray, y_pred: np.ndarray, classes: Sequence[str]) -> dict:
@@ -29,6 +28,9 @@ def classification_metrics(y_true: np.ndarray, y_pred: np.ndarray, classes: Sequ
             "classes": list(classes),
             "n": 0,
         }
+    # imported where used: scikit-learn and SciPy add 2 s to every CLI start, and classify, export and serve never fit
+    from sklearn.metrics import accuracy_score, confusion_matrix, f1_score, recall_score
+
     present = sorted(set(np.asarray(y_true).tolist()))
     recall = recall_score(y_true, y_pred, labels=labels, average=None, zero_division=0)
     return {

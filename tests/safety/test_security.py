@@ -240,6 +240,7 @@ def _long_session(path: Path, samples: int) -> tuple[Session, str]:
     return s, s.logs()[0].name
 
 
+@pytest.mark.slow  # a scale figure (19 s beside the other worker): `make stress` prints it on promise 7's line
 def test_100k_label_rows_import_in_seconds(tmp_path: Path, detail) -> None:
     s, log = _long_session(tmp_path / "s", 250_000)
     n = 100_000
