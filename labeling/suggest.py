@@ -28,11 +28,12 @@ WEIGHTS: dict[str, float] = {"unsure": 0.45, "disagreement": 0.3, "surprise": 0.
 LOG_DECAY, CLASS_DECAY, NEIGHBOUR_DECAY = 0.7, 0.8, 0.5
 NOVELTY_FLOOR, CLUSTER_DECAY, PREFILTER = 0.25, 0.05, 10
 DRIFT_PRIORITY = 1.0  # added to a drifted candidate's score (others lie in [0, 1]): drifted time is offered first
-# Added to every candidate in a log nobody has labelled yet: a person's new runs are checked before more time of runs
-# already checked, spread over the runs first (LOG_DECAY), then over time (NEIGHBOUR_DECAY). Issue 65: a run the
-# model got 40 points worse than the rest drew 5 of 45 picks. A log whose checks found the model wrong keeps part of
-# it (``wrong``): a run the model gets wrong is asked about again once checked, not left after its first pick.
-UNCHECKED_PRIORITY = 2.0
+# A log nobody has labelled yet ranks in a tier above every candidate's own score (drifted and missed-terrain ones
+# included): a person's new runs are checked before more time of runs already checked, spread over the new runs
+# first (LOG_DECAY), then over time (NEIGHBOUR_DECAY). Issue 65: a run the model got 40 points worse than the rest drew
+# 5 of 45 picks; with a fixed +2 (drifted candidates reach 5) one new run among 66 checked ones still drew 1 of 12. A
+# log whose checks found the model wrong keeps ``wrong / (checks + 1)`` of the tier: a run the model gets wrong is
+# asked about again once checked, not left after its first pick.
 DRIFT_CAP = 4.0  # a drifted candidate's own score is weighted by its drift, up to this
 MISSED_RECALL = 0.5  # a terrain measured under this recall is one the model misses (training.MISSED_RECALL)
 MISSED_BOOST = 6.0  # a candidate with all its probability on a fully missed terrain counts (1 + this) times
@@ -170,8 +171,8 @@ def suggest(
             spread over those logs and then over their time, so a person's new runs are checked before more time of
             runs already checked.
         wrong: Per log, ``(wrong, checks)``: how often the person's checks there found the model wrong. ``combined``
-            (with ``unchecked_first``) then offers a checked log's candidates ``UNCHECKED_PRIORITY · wrong /
-            (checks + 1)`` ahead: where checks found the model wrong, more checks follow, behind the logs nobody has
+            (with ``unchecked_first``) then lifts a checked log's candidates by ``wrong / (checks + 1)`` of
+            the new logs' tier: where checks found the model wrong, more checks follow, behind the logs nobody has
             checked yet.
         spot_checks: How many of the ``n`` are spot checks, placed last: each a piece around a step drawn uniformly
             from the unlabelled time (``seed``), overlapping neither labels nor the other picks. A check the person
@@ -229,10 +230,11 @@ def suggest(
     checked = {g for g, a, b in labelled if b > a}
     priority = None
     if strategy == "combined" and unchecked_first:
+        tier = 1.0 + float(base.max(initial=0.0))  # above any candidate's own score
         per_log = np.zeros(len(scores))
         for g, (bad, n_checks) in enumerate(wrong or ()):
-            per_log[g] = UNCHECKED_PRIORITY * bad / (n_checks + 1)
-        per_log[[g for g in range(len(scores)) if g not in checked]] = UNCHECKED_PRIORITY
+            per_log[g] = tier * bad / (n_checks + 1)
+        per_log[[g for g in range(len(scores)) if g not in checked]] = tier
         priority = per_log[logs]  # (N,) each candidate's log's
     while len(chosen) < n and alive.any():
         adjusted = np.where(alive, base * factor, -np.inf)

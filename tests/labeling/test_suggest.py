@@ -202,6 +202,22 @@ def test_logs_nobody_labelled_are_suggested_first_spread_over_them() -> None:
     assert [p.log for p in flat].count(0) > [p.log for p in picks].count(0)
 
 
+def test_one_new_log_among_checked_ones_is_asked_first_even_beside_drifted_time() -> None:
+    """Issue 65, item 2: a new run's candidates come before a checked run's drifted ones (scored up to 5, above a
+    fixed lead of 2): one new run among checked ones drew 1 of 12 picks on BorealTC before the lead was a tier."""
+    scores = make_scores([3000, 3000, 3000], 3, 7)
+    drift = np.full(3000, 3.0)  # all of log 0 far from anything labelled
+    scores[0] = LogScores(scores[0].surprise, scores[0].probs, scores[0].disagreement, drift)
+    for g in (1, 2):
+        scores[g] = LogScores(scores[g].surprise, scores[g].probs, scores[g].disagreement, np.zeros(3000))
+    labelled = [(0, 100, 200), (1, 100, 200)]  # log 2 is the new one
+    kwargs = dict(labelled=labelled, classes=["a", "b", "c"], n=6, max_len=200, min_len=50)
+    picks = suggest(scores, **kwargs)
+    assert [p.log for p in picks] == [2] * 6, picks
+    flat = suggest(scores, unchecked_first=False, **kwargs)  # without the rule the drifted log leads
+    assert flat[0].log == 0 and flat[0].reason.startswith("unlike anything labelled"), flat[0]
+
+
 def test_spot_checks_are_drawn_uniformly_from_unlabelled_time_and_placed_last() -> None:
     scores = make_scores([2000, 6000], 3, 5)
     labelled = [(0, 0, 1900)]
