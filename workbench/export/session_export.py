@@ -39,7 +39,9 @@ from training import (
     run_predictor,
 )
 
-from ..expectations import file_expectation, stretch_share
+from ..cycle import ChecksSummary, estimate_disagrees
+from ..expectations import card_accuracy, file_expectation, stretch_share
+from .bundle_checks import read_checks, write_checks
 from .export_staging import check_target, staged
 from .model_card import model_card
 
@@ -151,9 +153,10 @@ def _write_export(
         drifted=drifted,
         unlabelled=unlabelled,
         unlabelled_agreement=agreement,
-        checks=checks_summary(session),
+        checks=(checks := checks_summary(session)),
     )
     (out / "bundle" / "MODEL_CARD.md").write_text(card)
+    write_checks(out / "bundle", checks)
     written.append((out / "bundle", f"model bundle v{version.id} (safetensors + model.json + MODEL_CARD.md)"))
     onnx = export_onnx(bundle, out / "classifier_stream.onnx")
     logs = model_logs(session, bundle.channels)[:2]
@@ -259,6 +262,27 @@ def _finite_only(names: list[str], scored: list, lines: list[str]) -> list[int]:
     return kept
 
 
+def _checks_lines(bundle_dir: Path, card: float | None) -> tuple[ChecksSummary | None, list[str]]:
+    """The bundle's checks, and what ``classify`` says of them first: the spot checks (else every check) beside the
+    card's estimate, warned of when the estimate lies outside the spot checks' interval by 10 points or more."""
+    checks, damaged = read_checks(bundle_dir)
+    if checks is None:
+        return None, [] if damaged is None else [f"warning: {damaged}"]
+    if checks.spot is not None:
+        lines = [f"your checks in the session (at export): {checks.spot.words('spot checks')}"]
+        if estimate_disagrees(card, checks.spot):
+            lines.append(
+                f"warning: the card's estimate ({card:.0%}) lies outside your spot checks' interval by 10 points or "
+                "more: trust the spot checks"
+            )
+        return checks, lines
+    assert checks.all is not None
+    return checks, [
+        f"your checks in the session (at export): {checks.all.words()}, none of them a spot check (the checks of "
+        "suggestions are where the model was doubted, and run low)"
+    ]
+
+
 def classify_files(
     bundle_dir: Path, files: Sequence[Path], out: Path, options: IngestOptions, *, smooth_s: float | None = None
 ):
@@ -288,7 +312,9 @@ def classify_files(
     as_mcap = Path(out).suffix.lower() == ".mcap"
     if Path(out).suffix.lower() not in OUTPUT_TYPES:
         return 2, [f"error: {out}: unknown output type {Path(out).suffix!r}; use {', '.join(OUTPUT_TYPES)}"]
-    names, arrays, starts, lines = [], [], [], []
+    checks, lines = _checks_lines(bundle_dir, card_accuracy(bundle.metrics))
+    spot = None if checks is None else checks.spot
+    names, arrays, starts = [], [], []
     for name, item in _arrays_for(bundle, files, options):
         if name is None:
             lines.append(f"error: {item}")
@@ -324,6 +350,11 @@ def classify_files(
             )
             if expect is not None:
                 lines += [expect.line(), *filter(None, [expect.warning()])]
+                if estimate_disagrees(expect.expected, spot):
+                    lines.append(
+                        f"warning: {name}: expected accuracy {expect.expected:.0%}, but your spot checks in the "
+                        f"session found the model {spot.words('spot checks')}: trust the checks"
+                    )
         if smooth_s is not None:
             hmm = TerrainFilter.for_dwell(smooth_s, bundle.rate_hz, len(bundle.classes))
             for name, s in zip(names, scored, strict=True):

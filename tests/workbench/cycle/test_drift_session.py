@@ -3,6 +3,7 @@ do not, `combined` offers it first with that reason, `classify` writes the score
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -98,3 +99,34 @@ def test_classify_writes_the_drift_and_warns_once_for_the_shifted_file(drifted, 
     pred = pd.read_csv(tmp_path / "p.csv")
     by_log = pred.groupby("log")["drift"].apply(lambda d: float((d > 1).mean()))
     assert by_log[new.name] > 0.9 and by_log.drop(new.name).max() < 0.4
+
+
+def test_classify_says_the_persons_checks_and_warns_when_the_card_is_outside_them(drifted, tmp_path: Path) -> None:
+    """Issue 65, item 4: the export carries the person's checks (``checks.json``); classify says them first and warns
+    when the card's estimate lies outside the spot checks' interval by 10 points or more."""
+    from sessions import Session
+
+    original, _, shifted = drifted
+    with Session.open(original.copy_to(tmp_path / "copy")) as session:  # the module's other tests see no checks
+        (version,) = [v for v in session.model_versions("classifier") if v.active]
+        a, b = [t.name for t in session.terrains()][:2]
+        log = session.logs()[0]
+        for i in range(8):  # the model wrong on every spot check: the interval ends at 32 %, far under any card
+            session.add_check(
+                log.id, 10 * i, 10 * i + 5, a, predicted=b, agreement=0.0, classifier=version.id, kind="spot check",
+                author="t",
+            )  # fmt: skip
+        out = tmp_path / "export"
+        export_all(session, out)
+    assert json.loads((out / "bundle" / "checks.json").read_text())["spot"] == [0, 8]
+    code, lines = classify_files(out / "bundle", [shifted], tmp_path / "p.csv", IngestOptions())
+    assert code == 0, lines
+    said = "your checks in the session (at export): right on 0 of 8 spot checks (0 %, 95 % interval 0–32 %)"
+    assert lines[0] == said, lines
+    assert lines[1].startswith("warning: the card's estimate (") and "trust the spot checks" in lines[1], lines
+    # a damaged file is named in one line and left out; the predictions are written all the same
+    (out / "bundle" / "checks.json").write_text("[" * 50_000)
+    code, lines = classify_files(out / "bundle", [shifted], tmp_path / "q.csv", IngestOptions())
+    assert code == 0 and (tmp_path / "q.csv").exists(), lines
+    assert lines[0].startswith("warning: ") and "checks.json: damaged" in lines[0], lines
+    assert not any(x.startswith("your checks") for x in lines)
