@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import sqlite3
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -130,3 +131,19 @@ def test_a_predicted_stretch_is_accepted_with_one_key_and_undone(screen: Screen)
     blur(page)
     page.keyboard.press("u")
     wait_until(lambda: rows(session_path) == before, what="the acceptance undone")
+    # Shift+Y labels the stretch on screen with the terrain chosen instead (issue 65, item 3): a counted check
+    with sqlite3.connect(session_path / "session.sqlite") as conn:
+        second = conn.execute("SELECT name FROM terrains ORDER BY position").fetchall()[1][0]
+    blur(page)
+    page.keyboard.press("2")
+    page.keyboard.press("Shift+Y")
+    added = wait_until(lambda: set(rows(session_path)) - set(before), what="the stretch labelled as chosen")
+    assert {(r[3], r[4]) for r in added} == {(second, "manual")}, added
+    with sqlite3.connect(session_path / "session.sqlite") as conn:
+        kind, terrain = conn.execute("SELECT kind, terrain FROM checks ORDER BY id DESC LIMIT 1").fetchone()
+    assert (kind, terrain) == ("manual", second)
+    assert not rows(session_path, "s.source = 'accepted'")  # the plain Y binding did not fire beside it
+    close_notifications(page)
+    blur(page)
+    page.keyboard.press("u")
+    wait_until(lambda: rows(session_path) == before, what="the stretch's label undone")

@@ -22,7 +22,7 @@ KEYS_HELP = (
     "<b>B</b>/<b>E</b> range start/end at cursor · <b>1–9</b> terrain · <b>Enter</b> save · <b>P</b> take snap · "
     "<b>Esc</b> clear · <b>U</b> or Ctrl+Z undo · <b>←/→</b> cursor · <b>↑/↓</b> zoom · <b>N</b> next suggestion · "
     "<b>A</b> accept guess · <b>X</b> skip · <b>J</b>/<b>K</b> model's next/previous stretch · <b>Y</b> accept it · "
-    "<b>R</b> retrain · <b>Space</b> play</div>"
+    "<b>Shift+Y</b> label it as the terrain chosen · <b>R</b> retrain · <b>Space</b> play</div>"
 )
 
 

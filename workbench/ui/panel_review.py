@@ -76,6 +76,17 @@ class ReviewPanel:
 
     def accept(self) -> None:
         """Label the unlabelled time of the stretch under review with the model's terrain, then show the next."""
+        self._label_stretch(None)
+
+    def label_as_chosen(self) -> None:
+        """Label the unlabelled time of the stretch under review with the terrain chosen (1–9 or the dropdown), then
+        show the next: the correction of a whole stretch in one key, where the model named the wrong terrain."""
+        chosen = self.host.label_panel.terrain.value
+        if chosen not in {t.name for t in self.host.state.terrains()}:
+            raise WorkbenchError("no terrain chosen: press 1–9 (or pick one under Label) first")
+        self._label_stretch(chosen)
+
+    def _label_stretch(self, chosen: str | None) -> None:
         log = self.host.log
         here = self.review_range()
         if log is None or here is None or self.current is None:
@@ -84,14 +95,17 @@ class ReviewPanel:
         classes = self.host.state.scores.classes
         if stretch.terrain >= len(classes):
             raise WorkbenchError("the model changed since this stretch was shown; press J again")
-        terrain = classes[stretch.terrain]
+        terrain = chosen or classes[stretch.terrain]
         covered = [(s.start, s.stop) for s in self.host.state.session.segments(log.id)]
         pieces = labeling.uncovered(*here, covered, min_len=round(MIN_PIECE_S * log.rate_hz))
         if not pieces:
             raise WorkbenchError("this stretch is labelled already; press J for the next one")
-        self.host.state.add_labels(log.id, pieces, terrain, author=self.host.author, source="accepted")
+        # the person's own terrain is a check of the model's stretch (counted); accepting the model's is not
+        source = "accepted" if chosen is None else "manual"
+        self.host.state.add_labels(log.id, pieces, terrain, author=self.host.author, source=source)
         seconds = sum(b - a for a, b in pieces) / log.rate_hz
-        self.host.notify("Accepted", f"{terrain}, {seconds:.1f} s in {len(pieces)} piece(s); U undoes")
+        title = "Accepted" if chosen is None else ("Labelled" if chosen == classes[stretch.terrain] else "Corrected")
+        self.host.notify(title, f"{terrain}, {seconds:.1f} s in {len(pieces)} piece(s); U undoes")
         self.step(1)
 
     def refresh(self) -> None:
@@ -103,7 +117,8 @@ class ReviewPanel:
         if self.current is None:
             text = (
                 f"{len(stretches)} stretches predicted in this log. <b>J</b> shows the next one from the cursor, "
-                "<b>Y</b> accepts it (its unlabelled time only) and moves on, <b>U</b> undoes."
+                "<b>Y</b> accepts it (its unlabelled time only) and moves on, <b>Shift+Y</b> labels it with the "
+                "terrain chosen instead, <b>U</b> undoes."
                 if stretches
                 else "No predictions yet: they appear once a classifier is trained."
             )

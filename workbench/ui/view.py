@@ -210,6 +210,13 @@ class ClientView:
         bind("Next stretch", "J", lambda: self.review_panel.step(1), desc="J: the model's next predicted stretch")
         bind("Previous stretch", "K", lambda: self.review_panel.step(-1), desc="K: the model's previous stretch")
         bind("Accept stretch", "Y", self.review_panel.accept, desc="Y: label the stretch as the model predicts")
+        bind(
+            "Label stretch as chosen terrain",
+            "Y",
+            self.review_panel.label_as_chosen,
+            modifier="shift",
+            desc="Shift+Y: label the stretch with the terrain chosen (1–9), correcting the model",
+        )
         bind("Retrain", "R", self.train_panel.retrain, desc="R: retrain the classifier in the background")
         bind("Play / pause", "space", self.robot.toggle_play)
 
