@@ -61,7 +61,14 @@ ISSUE54 = (  # (name, arguments to python): each prints its own table
     ("card-runs", [f"{BENCH}/card_vs_session_borealtc.py", "runs"]),
     ("efficiency-runs", ["-m", "workbench.cli", "evaluate", "borealtc", str(DATA), *SIMULATE_RUNS]),
 )
-LOOP_ARMS = ("--strategies", "combined", "combined-no-unchecked", "combined-no-votes", "random")
+LOOP_ARMS = (
+    "--strategies",
+    "combined",
+    "combined-no-unchecked",
+    "combined-no-wrong-first",
+    "combined-no-votes",
+    "random",
+)
 ISSUE65 = (
     ("loop-walks", [f"{BENCH}/loop_walks.py", "--seed", "1", *LOOP_ARMS]),
     ("loop-new-runs", [f"{BENCH}/loop_borealtc.py", "new-runs", "--seed", "1", *LOOP_ARMS]),
