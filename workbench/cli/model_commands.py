@@ -10,7 +10,7 @@ from typing import Literal
 
 import tyro
 
-from sessions import IngestOptions, Session, WorkbenchError
+from sessions import IngestOptions, ModelVersion, Session, WorkbenchError
 from training import FeatureMode, TrainConfig, family_names
 
 from .terminal import shown
@@ -18,7 +18,7 @@ from .terminal import shown
 Pos = tyro.conf.Positional
 
 
-ModelName = Literal[family_names()]  # type: ignore[valid-type]  # --model: the registry's families, by name
+ModelName = Literal[(*family_names(), "auto")]  # type: ignore[valid-type]  # --model: the families by name, or auto
 PROGRESS_EVERY_S = 10.0  # a progress line this often when the output is not a terminal (a log file, CI)
 
 
@@ -112,8 +112,11 @@ def train(
             the ones before, in seconds; stage 2 is a small convolutional network over the last few spectra, with
             self-training on the unlabelled logs), "minirocket" (the default's stage 1; stage 2 is MiniRocket's
             fixed convolutions of the last 1.7 s of samples and a ridge classifier, the field's standard baseline)
-            or "paper" (the paper's two LSTMs; the options below are their settings). Unset: the active
-            classifier's family, "default" for the first.
+            or "paper" (the paper's two LSTMs; the options below are their settings). "auto": stage 2 of every
+            family over the default's stage 1 (default and minirocket), each a version, the one the session's
+            held-out evidence favours (balanced accuracy; another family must lead the default by a point) made
+            active, and the figures and the rule printed. Unset: the active classifier's family, "default" for
+            the first.
         device: Where to train.
         max_epochs: Upper bound on epochs (early stopping on validation loss usually ends sooner).
         patience: Epochs without improvement before stopping.
@@ -155,8 +158,8 @@ def train(
             cycle.follow_predictor_training(config=config, hidden=hidden)
         else:
             with Session.open(session) as s:
-                if stage in ("predictor", "all"):
-                    _on_free_cpus(lambda: _train_predictor(s, config, hidden, model))
+                if stage in ("predictor", "all"):  # auto's families share the default's stage 1
+                    _on_free_cpus(lambda: _train_predictor(s, config, hidden, None if model == "auto" else model))
                 if stage in ("classifier", "all"):
                     _train_classifier(s, config, hidden, feature_mode, stage, model)
     finally:
@@ -235,6 +238,9 @@ def _train_classifier(
     if stage == "all" and len(terrains) < 2:
         print("classifier: skipped (label segments of at least two terrains first)")
         return
+    if model == "auto":
+        _train_auto(s)
+        return
     bar = _Bar("classifier")
     try:
         v = cycle.train_classifier(
@@ -242,6 +248,25 @@ def _train_classifier(
         )
     finally:
         bar.close()
+    _report_classifier(s, v)
+
+
+def _train_auto(s: Session) -> None:
+    from .. import cycle
+
+    bar = _Bar("classifier (auto: each family)")
+    try:
+        choice = cycle.train_best_classifier(s, progress=bar)
+    finally:
+        bar.close()
+    for v in choice.fitted:
+        _report_classifier(s, v)
+    print(f"auto: {choice.why}; classifier v{choice.kept.id} is active (the Train tab can make another active)")
+
+
+def _report_classifier(s: Session, v: ModelVersion) -> None:
+    from .. import cycle
+
     m = v.metrics
     estimate = m.get("estimate")
     if estimate:

@@ -8,10 +8,12 @@ default family's stage 1, and which stage 1 a family trains), ``stage_inputs`` (
 1's cache per predictor version, the paper family's stage-2 features, change points), ``front_end`` (the spectral
 frames per log, the unlabelled stretches self-training reads), ``scores`` (the one scoring path), ``score_store``
 (the last scoring kept in the session), ``suggestions`` (the queue), ``checks_record`` (each label first a check of
-the model: test then train).
+the model: test then train), ``family_choice`` (``--model auto``: every family over the default stage 1 fitted, the one
+the session's held-out evidence favours kept).
 """
 
 from .checks_record import ChecksSummary, checks_summary, estimate_disagrees, record_check
+from .family_choice import FamilyChoice, auto_families, train_best_classifier
 from .frame_stage1 import train_frame_predictor, train_stage1
 from .front_end import (
     STRETCH_S,
@@ -58,10 +60,12 @@ __all__ = [
     "STRETCH_S",
     "SUGGESTION_S",
     "ChecksSummary",
+    "FamilyChoice",
     "SessionScores",
     "StoredScores",
     "active_bundle",
     "active_predictor",
+    "auto_families",
     "checks_summary",
     "choose_front_end",
     "classifier_family",
@@ -94,6 +98,7 @@ __all__ = [
     "stretch_units",
     "suggest_for_session",
     "suggestion_lengths",
+    "train_best_classifier",
     "train_classifier",
     "train_frame_predictor",
     "train_predictor",

@@ -259,3 +259,28 @@ def test_the_minirocket_family_trains_scores_streams_and_exports_in_a_session(se
     written = dict((p.name, what) for p, what in export_all(session, tmp_path / "export"))
     assert "checked with onnxruntime" in written["classifier_stream.onnx"]
     assert "MiniRocket family" in (tmp_path / "export" / "bundle" / "MODEL_CARD.md").read_text()
+
+
+def test_model_auto_fits_each_family_over_the_default_stage1_and_keeps_the_better(
+    session: Session, tmp_path: Path
+) -> None:
+    """Issue 65, item 7: ``train --model auto`` fits default and MiniRocket, each a version, and makes active the one
+    whose held-out balanced accuracy leads (another family by a point or more), saying both figures and the rule."""
+    from workbench.cycle.family_choice import MARGIN, evidence
+
+    assert cycle.auto_families() == ("default", "minirocket")  # the paper's LSTM has a stage 1 of its own
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("training.minirocket.rocket_steps_fit.FEATURES", 840)
+        choice = cycle.train_best_classifier(session)
+    default, rocket = choice.fitted
+    assert (default.config["model"], rocket.config["model"]) == ("default", "minirocket")
+    a, b = evidence(default.metrics)[0], evidence(rocket.metrics)[0]
+    assert a is not None and b is not None
+    assert choice.kept.id == (rocket.id if b >= a + MARGIN else default.id)
+    assert session.active_model("classifier").id == choice.kept.id and choice.kept.active
+    assert f"default balanced {100 * a:.1f} %" in choice.why and f"minirocket balanced {100 * b:.1f} %" in choice.why
+    rule = "kept minirocket, ahead of default" if choice.kept.id == rocket.id else "kept default: no other family led"
+    assert rule in choice.why, choice.why
+    # evidence of a version with no estimate: nothing measured, never a number
+    assert evidence({}) == (None, "not measurable")
+    cycle.train_classifier(session, model="default")  # the module's later tests start from the default family
