@@ -76,9 +76,9 @@ def train_best_classifier(session: Session, **fit) -> FamilyChoice:
     said = "; ".join(f"{name} {words}" for (_, words), name, _ in scored)
     if best is not None and (first_value is None or best[0][0] >= first_value + MARGIN):  # type: ignore[operator]
         kept = best[2]
-        rule = f"kept {best[1]}, ahead of {first_name} by {MARGIN:.0%} or more"
+        rule = f"kept {best[1]}, ahead of {first_name} by {100 * MARGIN:g} point(s) or more"
     elif best is not None:
-        rule = f"kept {first_name}: no other family led it by {MARGIN:.0%} or more"
+        rule = f"kept {first_name}: no other family led it by {100 * MARGIN:g} point(s) or more"
     else:
         rule = f"kept {first_name}: no other family could be measured"
     session.activate_model(kept.id)
