@@ -21,6 +21,7 @@ LONGEST_FIRST = (
     "tests/browser/test_first_screen.py",
     "tests/safety/test_hostile_cli.py",
     "tests/safety/test_upload_totals.py",
+    "tests/workbench/evaluation/test_session_loop.py",
     "tests/workbench/cycle/test_cycle.py",
     "tests/workbench/cycle/test_frame_stage1.py",
     "tests/workbench/cli/test_own_logs.py",
