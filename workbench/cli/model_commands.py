@@ -158,8 +158,9 @@ def train(
             cycle.follow_predictor_training(config=config, hidden=hidden)
         else:
             with Session.open(session) as s:
-                if stage in ("predictor", "all"):  # auto's families share the default's stage 1
-                    _on_free_cpus(lambda: _train_predictor(s, config, hidden, None if model == "auto" else model))
+                if stage in ("predictor", "all"):  # auto's families share one stage 1: the first one's
+                    first = cycle.auto_families()[0] if model == "auto" else model
+                    _on_free_cpus(lambda: _train_predictor(s, config, hidden, first))
                 if stage in ("classifier", "all"):
                     _train_classifier(s, config, hidden, feature_mode, stage, model)
     finally:
