@@ -54,7 +54,7 @@ def read_checks(folder: Path) -> tuple[ChecksSummary | None, str | None]:
             if not 0 <= right <= n or n == 0:
                 raise ValueError(f"{kind}: right on {right} of {n}")
             estimates[kind] = labeling.CheckEstimate(right, n, *labeling.wilson(right, n))
-    except (OSError, ValueError, TypeError, AttributeError, RecursionError) as exc:
+    except (OSError, ValueError, TypeError, AttributeError, RecursionError, OverflowError) as exc:
         return None, f"{path}: damaged ({type(exc).__name__}: {str(exc)[:200]}); your checks are left out"
     if not estimates:
         return None, None

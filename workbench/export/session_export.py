@@ -276,9 +276,11 @@ def _checks_lines(bundle_dir: Path, card: float | None) -> tuple[ChecksSummary |
                 "more: trust the spot checks"
             )
         return checks, lines
-    assert checks.all is not None
+    counted = checks.all or checks.suggested  # a hand-edited file may hold either alone
+    if counted is None:
+        return None, []
     return checks, [
-        f"your checks in the session (at export): {checks.all.words()}, none of them a spot check (the checks of "
+        f"your checks in the session (at export): {counted.words()}, none of them a spot check (the checks of "
         "suggestions are where the model was doubted, and run low)"
     ]
 
