@@ -68,13 +68,10 @@ def train_best_classifier(session: Session, **fit) -> FamilyChoice:
     fitted = tuple(train_classifier(session, model=name, warm_start=False, **fit) for name in names)
     scored = [(evidence(v.metrics), name, v) for name, v in zip(names, fitted, strict=True)]
     (first_value, _), first_name, kept = scored[0]
-    best = max(
-        (s for s in scored[1:] if s[0][0] is not None),
-        key=lambda s: s[0][0],  # type: ignore[arg-type, return-value]
-        default=None,
-    )
+    measured = [(value, name, v) for (value, _), name, v in scored[1:] if value is not None]
+    best = max(measured, key=lambda s: s[0], default=None)
     said = "; ".join(f"{name} {words}" for (_, words), name, _ in scored)
-    if best is not None and (first_value is None or best[0][0] >= first_value + MARGIN):  # type: ignore[operator]
+    if best is not None and (first_value is None or best[0] >= first_value + MARGIN):
         kept = best[2]
         rule = f"kept {best[1]}, ahead of {first_name} by {100 * MARGIN:g} point(s) or more"
     elif best is not None:
