@@ -26,7 +26,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
     __name__,
     {
         # the shared machinery
-        "registry": ("DEFAULT_FAMILY", "FAMILY_ROOMS", "Family", "family", "family_names"),
+        "registry": ("DEFAULT_FAMILY", "FAMILY_ROOMS", "Family", "device_refusal", "family", "family_names"),
         "runtime": (
             "MAX_DWELL_S",
             "ModelBundle",

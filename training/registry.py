@@ -68,6 +68,9 @@ class Family:
         stage1: Its stage 1: ``"lstm"`` (the paper's predictor of the next raw sample, whose outputs the paper's
             stage 2 reads) or ``"next-frame"`` (the default family's predictor of the next spectral frame, which
             draws the surprise highlight and the suggestions' embeddings; stage 2 reads the frames).
+        devices: Where its fits and passes run: ``("cpu",)`` or ``("cpu", "cuda")``. ``--device cuda`` with a family
+            that has no CUDA path is refused in one line (:func:`device_refusal`), never run on the CPU unsaid.
+        cpu_only_why: Why it has no CUDA path, in a clause (the refusal's words).
     """
 
     name: str
@@ -89,6 +92,8 @@ class Family:
     after_first: tuple[str, ...] = ()
     retired_kinds: Mapping[str, str] = field(default_factory=dict)
     stage1: Literal["lstm", "next-frame"] = "lstm"
+    devices: tuple[str, ...] = ("cpu",)
+    cpu_only_why: str = ""
 
 
 def family_names() -> tuple[str, ...]:
@@ -120,3 +125,18 @@ def family_of_kind(kind: str, *, where: str = "the bundle") -> Family:
         if kind in fam.retired_kinds:
             raise BundleError(f"{where}: {fam.retired_kinds[kind]}")
     raise BundleError(f"{where}: a classifier of kind {kind!r}, which no model family of this workbench knows")
+
+
+def device_refusal(name: str, device: str) -> str | None:
+    """The one line refusing ``--device DEVICE`` for family ``name``, or ``None`` when it runs there.
+
+    Raises:
+        KeyError: No family has that name.
+    """
+    fam = family(name)
+    if device in fam.devices:
+        return None
+    gpu = [n for n in family_names() if device in family(n).devices]
+    other = f"; --model {' or --model '.join(gpu)} trains on {device}" if gpu else ""
+    why = f" ({fam.cpu_only_why})" if fam.cpu_only_why else ""
+    return f"--device {device}: the {name} family trains and scores on the CPU only{why}{other}; or leave --device out"

@@ -72,4 +72,5 @@ FAMILY = Family(
     onnx_usage=_onnx_usage,
     fit=_fit,
     stage1="next-frame",
+    cpu_only_why="its stage 1 is the default family's; no CUDA path for its transform is built or tested yet",
 )

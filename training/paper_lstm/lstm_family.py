@@ -54,6 +54,7 @@ FAMILY = Family(
     stream_axes=STREAM_AXES,
     zero_state=zero_state,
     after_first=("started",),
+    devices=("cpu", "cuda"),
     describe=_describe,
     onnx_usage=_onnx_usage,
 )

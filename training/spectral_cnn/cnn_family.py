@@ -86,6 +86,7 @@ FAMILY = Family(
     fit=_fit,
     fine_tune=_fine_tune,
     stage1="next-frame",
+    cpu_only_why="its fits are small networks run side by side, one per core; no CUDA path is built or tested yet",
     retired_kinds={
         k: "a default-family classifier from an older workbench (a linear model on window summaries); train it "
         "again (workbench train SESSION): labels are kept"

@@ -8,10 +8,11 @@ from typing import Literal
 
 import tyro
 
+from sessions import WorkbenchError
 from training import FeatureMode
 
 from ..retrain import RETRAIN
-from .model_commands import check_device
+from .model_commands import check_device, refuse_family_device
 
 STAGE2_EPOCHS = 150  # the protocols' stage 2 (the paper family) when --stage2-epochs is not given
 
@@ -92,13 +93,20 @@ def evaluate(
         members: With --simulate: stage-2 ensemble members per retrain (the UI's Retrain trains 5).
         stage1: With --simulate, default family: the stage 1 drawing the surprise and the suggestions' embeddings,
             its own next-frame predictor or the paper's LSTM (as sessions trained before it), to compare the two.
-        device: Where both stages train and run.
+        device: Where both stages train and run: "cuda" for the paper family (the default family and the loop and
+            session protocols, which run on the CPU, refuse it in one line).
         reference: With session or loop: a label file (the columns of `workbench labels export`) stored as the
             reference labels of the logs it names before scoring (loop: in its copy of the session only).
     """
     from ..evaluation import protocols as ev
 
     check_device(device)
+    if dataset in ("loop", "session") and device != "cpu":  # both fit as the session's Retrain does: on the CPU
+        raise WorkbenchError(
+            f"--device {device}: evaluate {dataset} fits as the Retrain does, on the CPU; leave --device out"
+        )
+    if simulate or dataset == "borealtc":
+        refuse_family_device(("default", "paper") if model == "both" else (model,), device)
     if dataset == "loop":
         from sessions import Session
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Literal
 
@@ -85,6 +86,16 @@ def check_device(device: str) -> None:
             raise WorkbenchError("--device cuda: no CUDA device is available on this machine")
 
 
+def refuse_family_device(names: Sequence[str], device: str) -> None:
+    """Refuse, in one line, a ``--device`` that one of the families ``names`` has no path for (never ignore it)."""
+    from training import device_refusal
+
+    for name in names:
+        line = device_refusal(name, device)
+        if line is not None:
+            raise WorkbenchError(line)
+
+
 def train(
     session: Pos[Path],
     stage: Literal["predictor", "classifier", "all"] = "all",
@@ -117,7 +128,8 @@ def train(
             held-out evidence favours (balanced accuracy; another family must lead the default by a point) made
             active, and the figures and the rule printed. Unset: the active classifier's family, "default" for
             the first.
-        device: Where to train.
+        device: Where to train: "cuda" trains the paper family there; a family without a CUDA path (default,
+            minirocket) refuses it in one line rather than train on the CPU unsaid.
         max_epochs: Upper bound on epochs (early stopping on validation loss usually ends sooner).
         patience: Epochs without improvement before stopping.
         feature_mode: Paper family: what stage 1 hands stage 2.
@@ -158,6 +170,8 @@ def train(
             cycle.follow_predictor_training(config=config, hidden=hidden)
         else:
             with Session.open(session) as s:
+                names = cycle.auto_families() if model == "auto" else (cycle.stage1_family(s, model).name,)
+                refuse_family_device(names, device)
                 if stage in ("predictor", "all"):  # auto's families share one stage 1: the first one's
                     first = cycle.auto_families()[0] if model == "auto" else model
                     _on_free_cpus(lambda: _train_predictor(s, config, hidden, first))
