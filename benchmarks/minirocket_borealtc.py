@@ -27,6 +27,20 @@ def balanced(metrics: dict) -> float:
     return float(np.mean(list(metrics["per_class_recall"].values())))
 
 
+def _pool_share(share: float) -> None:
+    """Every fit's pool budget becomes ``share`` of its stretches' bytes (``fit_window.pool_draw``'s budget)."""
+    from training.spectral_cnn import fit_window
+
+    draw = fit_window.pool_draw
+
+    def shared(features, stretches, *, budget_mib: float, seed: int) -> np.ndarray:
+        every = draw(features, stretches, budget_mib=0, seed=seed)
+        whole, _ = fit_window.stretch_pool(features, stretches, fit_window.PSEUDO_STRIDE, keep=every)
+        return draw(features, stretches, budget_mib=share * whole.nbytes / 2**20, seed=seed)
+
+    fit_window.pool_draw = shared
+
+
 def main() -> int:
     args = borealtc_arguments(__doc__)
     args.add_argument("--labelled", type=float, nargs="+", default=[0.05, 0.1, 0.25, 1.0])
@@ -38,7 +52,16 @@ def main() -> int:
     args.add_argument("--unit-agree", type=float, default=None, help="WindowFitConfig.unit_agree (a screen)")
     args.add_argument("--agree", type=float, default=None, help="WindowFitConfig.agree (a screen)")
     args.add_argument("--no-member", action="store_true", help="the default family alone (a screen of its settings)")
+    args.add_argument(
+        "--pool-share",
+        type=float,
+        default=None,
+        help="self-training's pool holds this share of its stretches' bytes, a draw of whole stretches, as "
+        "WindowFitConfig.pool_mib draws them on a fleet's hours (issue 66: 0.073 is 512 MiB of 100 h of 22 channels)",
+    )
     opts = args.parse_args()
+    if opts.pool_share is not None:
+        _pool_share(opts.pool_share)
     if (data := borealtc_runs(opts)) is None:
         return 0
     from workbench.evaluation import RocketMember, WindowProtocol, borealtc_window_protocol

@@ -285,3 +285,37 @@ def test_units_lend_a_span_s_terrain_to_its_pieces_that_alone_do_not_agree(logs)
         taken[unit_agree] = fit.metrics["pseudo_stretches"]
     # alone, the mixed piece (1800-2200) never agrees at 0.9; in its span (five sixths one terrain) it is taken
     assert taken[0.0] <= 2 * len(mixed) < taken[0.6] == 3 * len(mixed), taken
+
+
+def test_self_trainings_pool_keeps_to_its_budget_with_a_draw_of_whole_stretches(logs) -> None:
+    """Issue 66: past ``pool_mib`` the pool holds a seeded draw of the stretches, each whole (so each still passes
+    or fails the agreement rule as before), and never more bytes than the budget; under it, every stretch."""
+    from training.spectral_cnn.fit_window import PSEUDO_STRIDE, pool_draw, stretch_pool
+
+    arrays, terrains = logs
+    normalizer = Normalizer.fit(arrays)
+    config = SpectralConfig.for_log(arrays[0], RATE)
+    feats = _features(arrays, normalizer, config)
+    stretches = [(i, a, a + 500) for i in range(len(arrays)) for a in (1000, 1500)]
+    whole, bounds = stretch_pool(feats, stretches, PSEUDO_STRIDE)
+    sizes = np.diff(bounds) * whole.itemsize * whole.shape[1]
+    budget_mib = sizes.sum() / 3 / 2**20
+    assert pool_draw(feats, stretches, budget_mib=2 * sizes.sum() / 2**20, seed=0).all()
+    assert pool_draw(feats, stretches, budget_mib=0, seed=0).all()  # 0: no bound
+    keep = pool_draw(feats, stretches, budget_mib=budget_mib, seed=0)
+    assert 0 < keep.sum() < len(stretches) and sizes[keep].sum() <= budget_mib * 2**20
+    assert (pool_draw(feats, stretches, budget_mib=budget_mib, seed=0) == keep).all()
+    pool, kept_bounds = stretch_pool(feats, stretches, PSEUDO_STRIDE, keep=keep)
+    assert pool.nbytes <= budget_mib * 2**20
+    assert (np.diff(kept_bounds) == np.where(keep, np.diff(bounds), 0)).all()  # a kept stretch keeps all its rows
+    for j in np.flatnonzero(keep):  # the same rows as the unbounded pool's
+        assert np.array_equal(pool[kept_bounds[j] : kept_bounds[j + 1]], whole[bounds[j] : bounds[j + 1]])
+    segments = [(i, 300, 900, k) for i, k in enumerate(terrains)]
+    settings = WindowFitConfig(k_folds=2, epochs=8, refit_epochs=4, held_out=False, calibrate=False)
+    taken = {
+        mib: fit_window_classifier(
+            feats, segments, ("a", "b", "c"), config=replace(settings, pool_mib=mib), stretches=stretches
+        ).metrics["pseudo_stretches"]
+        for mib in (0.0, budget_mib)
+    }
+    assert 0 < taken[budget_mib] <= keep.sum() < taken[0.0], taken

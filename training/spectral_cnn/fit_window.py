@@ -68,13 +68,36 @@ def _row_steps(features: SpectralSteps, start: int, stop: int, stride: int) -> n
     return steps[::stride]
 
 
+def pool_draw(
+    features: Sequence[SpectralSteps], stretches: Sequence[Stretch], *, budget_mib: float, seed: int
+) -> np.ndarray:
+    """Which ``stretches`` self-training's pool holds ``(S,)``: all of them, or as many, drawn at random (``seed``),
+    as fit ``budget_mib`` (their rows as :func:`stretch_pool` fills them). A stretch is kept whole or left out, so
+    the rule that its rows agree judges what it did before; only fewer of them are judged."""
+    keep = np.ones(len(stretches), bool)
+    if not stretches or budget_mib <= 0:
+        return keep
+    row_bytes = 4 * features[0].shape[1]
+    sizes = np.asarray([len(_row_steps(features[i], a, b, PSEUDO_STRIDE)) for i, a, b in stretches]) * row_bytes
+    budget = budget_mib * 2**20
+    if sizes.sum() <= budget:
+        return keep
+    order = np.random.default_rng(seed).permutation(len(stretches))
+    keep[:] = False
+    keep[order[np.cumsum(sizes[order]) <= budget]] = True
+    return keep
+
+
 def stretch_pool(
-    features: Sequence[SpectralSteps], stretches: Sequence[Stretch], stride: int
+    features: Sequence[SpectralSteps], stretches: Sequence[Stretch], stride: int, *, keep: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Every ``stride``-th frame row of each stretch in one array ``(N, W·F)``, and where each stretch's rows begin
-    and end in it ``(S + 1,)``. One array filled in place: per-stretch arrays (or strided views of all rows) held
-    three times the memory on 10 hours of logs."""
-    counts = [len(_row_steps(features[i], a, b, stride)) for i, a, b in stretches]
+    and end in it ``(S + 1,)``; a stretch ``keep`` leaves out has none. One array filled in place: per-stretch arrays
+    (or strided views of all rows) held three times the memory on 10 hours of logs."""
+    counts = [
+        len(_row_steps(features[i], a, b, stride)) if keep is None or keep[j] else 0
+        for j, (i, a, b) in enumerate(stretches)
+    ]
     bounds = np.concatenate([[0], np.cumsum(counts, dtype=np.int64)])
     pool = np.empty((int(bounds[-1]), features[0].shape[1] if features else 0), np.float32)
     for j, (i, a, b) in enumerate(stretches):
@@ -279,7 +302,10 @@ def fit_window_classifier(
     use_stretches = config.self_training and len(stretches) > 0
     # consecutive frames' windows share all but one frame: every PSEUDO_STRIDE-th row of a stretch carries nearly
     # all it holds, and the refits (most of a fit's time) read a third of the rows
-    pool, bounds = stretch_pool(features, stretches if use_stretches else [], PSEUDO_STRIDE)
+    # past config.pool_mib (a fleet's hours) a draw of the stretches: memory stays flat with the hours
+    used = stretches if use_stretches else []
+    keep = pool_draw(features, used, budget_mib=config.pool_mib, seed=config.seed)
+    pool, bounds = stretch_pool(features, used, PSEUDO_STRIDE, keep=keep)
     unit_of = None if units is None else np.asarray(units, np.int64)
 
     def fit_on(

@@ -66,6 +66,10 @@ class WindowFitConfig:
             terrain, whatever each says alone; 0 (the default) judges each alone. Off: at 0.6 it gained 1.9 points
             on BorealTC's inner folds by run at 10 % of labels (one terrain per run) and lost 0.4 to 3.4 on demo
             walks whose terrain changes every 5-36 s (``benchmarks/units_walks.py``).
+        pool_mib: Most memory self-training's pool of unlabelled rows holds: past it, a random draw of the stretches
+            that fits (``fit_window.pool_draw``), each read whole. A row is ``window`` frames (12.6 KiB at 22
+            channels, every third frame read), so 10 hours of unlabelled logs fill 700 MiB and 100 hours 7 GiB: the
+            part of a fit that grew with a fleet's hours (issue 66). 0: no bound.
         held_out: Also measure accuracy on held-out logs (folds over logs: as many fits again).
         calibrate: Divide the members' logits by a temperature fitted on held-out predictions.
         seed: Seed of the folds, initial weights and batches.
@@ -86,6 +90,7 @@ class WindowFitConfig:
     self_training: bool = True
     agree: float = 0.9
     unit_agree: float = 0.0
+    pool_mib: float = 512.0
     held_out: bool = True
     calibrate: bool = True
     seed: int = 0
