@@ -120,6 +120,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "fit_temperature",
             "scale_head",
             "fit_window_classifier",
+            "drop_pages",
             "frame_ends",
             "frame_features",
             "log_frames",

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import pytest
 
 from training import (
     SpectralConfig,
@@ -69,3 +72,33 @@ def test_summary_windows_are_mean_and_spread_of_the_last_frames() -> None:
     np.testing.assert_allclose(s[20, :4], frames[13:21].mean(0), rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(s[20, 4:], frames[13:21].std(0), rtol=1e-4, atol=1e-5)
     np.testing.assert_allclose(s[2, :4], frames[:3].mean(0), rtol=1e-5, atol=1e-6)  # short at the start
+
+
+def _resident_file_kb() -> int:
+    """This process's resident pages of mapped files (``RssFile``, Linux)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("RssFile:"):
+            return int(line.split()[1])
+    pytest.skip("no RssFile in /proc/self/status (not Linux)")
+
+
+def test_drop_pages_gives_back_what_a_pass_over_a_memory_map_made_resident(tmp_path: Path) -> None:
+    """Issue 66: a pass over every log's cached frames must not leave them all resident (3.3 GB at 100 h)."""
+    from training.spectral_cnn.spectra import drop_pages, frame_moments
+
+    path = tmp_path / "frames.npy"
+    np.save(path, np.arange(12_000_000, dtype=np.float32).reshape(-1, 6))  # 48 MB
+    frames = np.load(path, mmap_mode="r")
+    before = _resident_file_kb()
+    total = float(frames[:, 0].astype(np.float64).sum())
+    read = _resident_file_kb()
+    drop_pages(frames[10:])  # a view of the map finds it too
+    after = _resident_file_kb()
+    assert read - before > 30_000 and read - after > 30_000, (before, read, after)
+    assert float(frames[:, 0].astype(np.float64).sum()) == total  # still readable, from the file
+    drop_pages(np.ones(3))  # an array in memory: nothing to give back
+    drop_pages(frames)
+    after = _resident_file_kb()
+    mean, _ = frame_moments([np.load(path, mmap_mode="r")])
+    assert abs(mean[0] - np.arange(0, 12_000_000, 6).mean()) < 1.0
+    assert _resident_file_kb() - after < 30_000  # the pass left its pages out of the resident set

@@ -25,6 +25,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "SpectralConfig",
             "SpectralSteps",
             "SpectralStream",
+            "drop_pages",
             "frame_ends",
             "frame_features",
             "log_frames",

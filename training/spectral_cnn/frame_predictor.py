@@ -23,7 +23,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
-from .spectra import frame_moments
+from .spectra import drop_pages, frame_moments
 
 FRAME_PREDICTOR_KIND = "next-frame"  # the ``kind`` a bundle's predictor config carries for this module
 RESIDUAL_FRAMES = 4096  # frames of each log that measure the features' residuals after training
@@ -175,6 +175,8 @@ def fit_frame_predictor(
                 raise ValueError("the frame predictor's training diverged (a non-finite loss)")
             history.append(float(np.mean(running)))
             running = []
+            for x in usable:  # the crops read from mapped frames leave the resident set (a fleet's hours)
+                drop_pages(x)
             if progress:
                 progress(
                     Progress(

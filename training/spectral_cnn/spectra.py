@@ -13,6 +13,7 @@ as the offline pass (:class:`SpectralStream`). Arrays in, arrays out; no torch.
 from __future__ import annotations
 
 import functools
+import mmap
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -130,15 +131,29 @@ def frame_features(x: np.ndarray, config: SpectralConfig) -> np.ndarray:
     return out
 
 
+def drop_pages(array: np.ndarray) -> None:
+    """Give back the pages a pass over a memory-mapped ``array`` (a cached log's frames) put in this process's
+    resident set; the file's pages stay in the kernel's cache, and a later read maps them again. Without it a pass
+    over every log holds the whole cache resident: 3.3 GB of frames at 100 hours of 22 channels. Nothing for an
+    array in memory."""
+    base = array
+    while isinstance(base, np.ndarray):
+        base = base.base
+    if isinstance(base, mmap.mmap) and hasattr(mmap, "MADV_DONTNEED"):
+        base.madvise(mmap.MADV_DONTNEED)
+
+
 def frame_moments(logs: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Per-feature mean and spread ``(F,)`` of the frames ``(N, F)`` of every log, summed a log at a time: a fleet's
-    frames never sit in memory together."""
+    frames never sit in memory together, nor stay resident once read (:func:`drop_pages`)."""
     n, total, total_sq = 0, 0.0, 0.0
     for frames in logs:
         rows = np.asarray(frames, np.float64)  # (N, F) of one log
         n += len(rows)
         total = total + rows.sum(0)
         total_sq = total_sq + np.square(rows).sum(0)
+        del rows
+        drop_pages(frames)
     mean = total / max(n, 1)
     std = np.sqrt(np.maximum(total_sq / max(n, 1) - np.square(mean), 0.0))
     return np.asarray(mean, np.float32), np.asarray(std, np.float32)

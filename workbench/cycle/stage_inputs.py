@@ -23,6 +23,7 @@ from training import (
     Piece,
     Stage1Outputs,
     TrainConfig,
+    drop_pages,
     frame_surprise,
     neighbour_pairs,
     predictor_pass,
@@ -118,6 +119,7 @@ def _frame_outputs(
         frames = log_frame_files(session, bundle.normalizer, missing, bundle.spectral)
         for x, f in zip(missing, frames, strict=True):
             surprise, hidden = frame_surprise(bundle.predictor, f)  # (N,), (N, H): a 10-hour log is 46 MB of it
+            drop_pages(f)  # the pass read the whole log's mapped frames: not kept resident over a fleet's logs
             # hidden features go to disk as float16 (the LSTM's cache does the same): half the disk, 1e-3 relative
             for name, array in (("frame-hidden", hidden.astype(np.float16)), (FRAME_MARK, surprise)):
                 tmp = cache / f".{x.id:06d}.{name}.{tag}.npy"
