@@ -319,3 +319,28 @@ def test_self_trainings_pool_keeps_to_its_budget_with_a_draw_of_whole_stretches(
         for mib in (0.0, budget_mib)
     }
     assert 0 < taken[budget_mib] <= keep.sum() < taken[0.0], taken
+
+
+def test_window_rows_hold_each_segments_frames_once_and_stack_what_features_at_gives(logs) -> None:
+    """Issue 66: the labelled rows a fit draws from are the frames they read, stacked per batch; every row equals
+    ``frame_rows`` (``SpectralSteps.at``), the windows at a log's start that repeat its first frame included."""
+    from training.spectral_cnn.fit_window import every_row, frame_rows
+    from training.spectral_cnn.window_rows import window_rows
+
+    arrays, _ = logs
+    normalizer = Normalizer.fit(arrays)
+    config = SpectralConfig.for_log(arrays[0], RATE)
+    feats = _features(arrays, normalizer, config)
+    spans = [(0, 0, 700), (1, 300, 900), (2, 2000, 2400), (3, 5, 30), (0, 1000, 1001)]  # a log's start; too short
+    rows, ends = window_rows(feats, spans, every_row)
+    dense = np.concatenate([frame_rows(feats[i], a, b) for i, a, b in spans])
+    assert rows.shape == dense.shape and np.array_equal(
+        ends[1:] - ends[:-1], [len(frame_rows(feats[i], a, b)) for i, a, b in spans]
+    )
+    assert np.array_equal(rows.dense(), dense)
+    pick = np.random.default_rng(0).permutation(len(rows))[:17]
+    assert np.array_equal(rows.take(pick), dense[pick]) and np.array_equal(rows[3:9], dense[3:9])
+    assert rows.take(np.zeros(0, np.int64)).shape == (0, dense.shape[1])
+    assert rows.nbytes * 3 < dense.nbytes  # each frame once, not once per window that holds it
+    empty, ends = window_rows(feats, [], every_row)
+    assert len(empty) == 0 and list(ends) == [0]

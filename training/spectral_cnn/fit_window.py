@@ -20,6 +20,7 @@ screened) scored 81.8 % against 81.3 %.
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Sequence
 from functools import partial
@@ -41,8 +42,10 @@ from .window_calibration import fit_temperature, scale_head
 from .window_classifier import WindowClassifier, WindowClassifierConfig
 from .window_config import WindowFitConfig
 from .window_drift import REFERENCE_ROWS, fit_drift, held_out_relation
+from .window_rows import WindowRows, window_rows
 
 BLOCK_GUARDS = 4  # a block is four guards long: a fold's guard never takes more than half of a block next to it
+HELD_ROWS = 8192  # a member's held-out rows the drift reads: a sample past it (100 hours at 5 %: 18,000 each)
 PSEUDO_STRIDE = 3  # rows of a stretch self-training reads: every third frame
 PREDICT_CHUNK = 4096  # steps per call when scoring segments: bounds the stacked frames in memory
 Stretch = tuple[int, int, int]  # (log index, start, stop): unlabelled, no change point inside
@@ -88,6 +91,11 @@ def pool_draw(
     return keep
 
 
+def every_row(features: SpectralSteps, start: int, stop: int) -> np.ndarray:
+    """The steps of ``[start, stop)`` whose rows a labelled segment contributes (:func:`frame_rows`'s)."""
+    return _row_steps(features, start, stop, 1)
+
+
 def stretch_pool(
     features: Sequence[SpectralSteps], stretches: Sequence[Stretch], stride: int, *, keep: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -108,7 +116,7 @@ def stretch_pool(
 
 def train_rows(
     model: WindowClassifier,
-    x: np.ndarray,
+    x: np.ndarray | WindowRows,
     y: np.ndarray,
     epochs: int,
     config: WindowFitConfig,
@@ -119,16 +127,19 @@ def train_rows(
     more: tuple[np.ndarray, np.ndarray] | None = None,
     prior: np.ndarray | None = None,
 ) -> WindowClassifier:
-    """``epochs`` passes of AdamW over rows ``x (N, W·F)`` with classes ``y (N,)`` (at most ``config.max_steps``);
+    """``epochs`` passes of AdamW over rows ``x (N, W·F)`` (stacked, or :class:`WindowRows`) with classes ``y (N,)``
+    (at most ``config.max_steps``);
     ``config.augment``'s draws need the frames' layout, ``front``. ``more``: rows ``pool[index]`` after ``x`` (``y``
     covers both), read where they are: the batches of ``x`` and ``pool[index]`` concatenated, without the copy.
     ``prior``: the classes' shares ``config.balance`` evens out (default: their shares of ``y``)."""
     gen = torch.Generator().manual_seed(seed)
     draws = RowDraws(seed, dropout=model.config.dropout)
     augment = config.augment if front is not None and config.augment.active else None
-    if more is not None and augment is not None:  # its draws mix rows of the whole set
-        x, more = np.concatenate([x, more[0][more[1]]]), None
-    rows = _Rows(torch.from_numpy(np.ascontiguousarray(x, np.float32)), more)
+    if augment is not None:  # its draws mix rows of the whole set: every row stacked
+        x = x.dense() if isinstance(x, WindowRows) else x
+        if more is not None:
+            x, more = np.concatenate([x, more[0][more[1]]]), None
+    rows = _Rows(x if isinstance(x, WindowRows) else torch.from_numpy(np.ascontiguousarray(x, np.float32)), more)
     yt = torch.from_numpy(np.asarray(y, np.int64))
     k = model.config.n_classes
     loss_of = BalancedLoss(config.balance, class_shares(y, k) if prior is None else np.asarray(prior))
@@ -158,9 +169,10 @@ def train_rows(
 
 
 class _Rows:
-    """Rows ``x (N, D)`` followed by ``pool[index]``, read as one array without building it."""
+    """Rows ``x (N, D)`` (a tensor, or :class:`WindowRows` stacked a batch at a time) followed by ``pool[index]``,
+    read as one array without building it."""
 
-    def __init__(self, x: torch.Tensor, more: tuple[np.ndarray, np.ndarray] | None) -> None:
+    def __init__(self, x: torch.Tensor | WindowRows, more: tuple[np.ndarray, np.ndarray] | None) -> None:
         self.x = x
         self.pool = None if more is None else torch.from_numpy(more[0])
         self.index = None if more is None else torch.from_numpy(np.asarray(more[1], np.int64))
@@ -172,14 +184,20 @@ class _Rows:
         """Rows ``idx``, and ``idx`` reordered as the rows are: those of ``x`` first, then the pool's (a batch's
         order does not matter to its mean loss, and two gathers into place beat masked writes)."""
         if self.pool is None:
-            return self.x[idx], idx
+            return self._own(idx), idx
         n = len(self.x)
         own = idx < n
         mine, theirs = idx[own], idx[~own]
-        out = torch.empty((len(idx), self.x.shape[1]), dtype=self.x.dtype)
-        torch.index_select(self.x, 0, mine, out=out[: len(mine)])
+        out = torch.empty((len(idx), self.x.shape[1]), dtype=torch.float32)
+        if isinstance(self.x, WindowRows):
+            out[: len(mine)] = torch.from_numpy(self.x.take(mine.numpy()))
+        else:
+            torch.index_select(self.x, 0, mine, out=out[: len(mine)])
         torch.index_select(self.pool, 0, self.index[theirs - n], out=out[len(mine) :])
         return out, torch.cat([mine, theirs])
+
+    def _own(self, idx: torch.Tensor) -> torch.Tensor:
+        return torch.from_numpy(self.x.take(idx.numpy())) if isinstance(self.x, WindowRows) else self.x[idx]
 
 
 @torch.inference_mode()
@@ -193,11 +211,13 @@ def predict_steps(model: WindowClassifier, features: SpectralSteps, start: int, 
 
 
 @torch.inference_mode()
-def row_logits(model: WindowClassifier, x: np.ndarray) -> np.ndarray:
-    """Logits ``(N, K)`` of rows ``(N, W·F)``."""
+def row_logits(model: WindowClassifier, x: np.ndarray | WindowRows) -> np.ndarray:
+    """Logits ``(N, K)`` of rows ``(N, W·F)`` (stacked, or :class:`WindowRows` stacked a chunk at a time)."""
     if len(x) == 0:
         return np.zeros((0, model.config.n_classes), np.float32)
-    chunks = np.array_split(x, -(-len(x) // PREDICT_CHUNK))
+    n, big = divmod(len(x), -(-len(x) // PREDICT_CHUNK))  # np.array_split's chunks: ``big`` one row longer
+    cuts = np.concatenate([[0], np.cumsum([n + 1] * big + [n] * (-(-len(x) // PREDICT_CHUNK) - big))])
+    chunks = (np.asarray(x[a:b], np.float32) for a, b in itertools.pairwise(cuts))
     return torch.cat([model.logits(torch.from_numpy(c)) for c in chunks]).numpy()
 
 
@@ -310,7 +330,7 @@ def fit_window_classifier(
 
     def fit_on(
         train: Sequence[Segment], skip_logs: set[int], seed: int
-    ) -> tuple[WindowClassifier, int, set[int], np.ndarray]:
+    ) -> tuple[WindowClassifier, int, set[int], WindowRows]:
         """A fold's network on ``train``, trained again with the stretches of logs outside ``skip_logs``; with the
         classes it saw and the labelled rows it trained on."""
 
@@ -321,11 +341,11 @@ def fit_window_classifier(
             model.set_standardisation(mean, std)
             return model
 
-        rows = [frame_rows(features[i], a, b) for i, a, b, _ in train]
-        if not any(len(r) for r in rows):
+        x, ends = window_rows(features, [s[:3] for s in train], every_row)  # each segment's frames held once
+        if len(x) == 0:
             raise ValueError("the labelled segments are shorter than one frame: nothing to train the classifier on")
-        labelled = x = np.concatenate(rows)
-        y = np.concatenate([np.full(len(r), s[3]) for r, s in zip(rows, train, strict=True)])
+        labelled = x
+        y = np.repeat(np.asarray([s[3] for s in train], np.int64), np.diff(ends))
         model = train_rows(fresh(), x, y, config.epochs, config, seed, cancel, front=front)
         seen = {int(c) for c in np.unique(y)}
         kept = [j for j, s in enumerate(stretches) if s[0] not in skip_logs] if use_stretches else []
@@ -344,13 +364,11 @@ def fit_window_classifier(
         pred = [predict_steps(model, features[i], a, b) for i, a, b, _ in held]
         return np.concatenate(true), np.concatenate(pred)
 
-    def held_rows(held: Sequence[Segment], seen: set[int]) -> tuple[np.ndarray, np.ndarray]:
+    def held_rows(held: Sequence[Segment], seen: set[int]) -> tuple[WindowRows, np.ndarray]:
         """The frame rows of ``held`` and their classes, terrains outside ``seen`` left out."""
-        rows = [(frame_rows(features[i], a, b), c) for i, a, b, c in held if c in seen]
-        rows = [(r, c) for r, c in rows if len(r)]
-        if not rows:
-            return np.zeros((0, features[0].shape[1]), np.float32), np.zeros(0, np.int64)
-        return np.concatenate([r for r, _ in rows]), np.concatenate([np.full(len(r), c) for r, c in rows])
+        kept = [s for s in held if s[3] in seen]
+        rows, ends = window_rows(features, [s[:3] for s in kept], every_row)
+        return rows, np.repeat(np.asarray([s[3] for s in kept], np.int64), np.diff(ends))
 
     # the ensemble's folds hold out contiguous blocks, a guard wider than a step's input around them: labels given
     # as whole runs (one segment per terrain) still leave every fold every terrain
@@ -363,21 +381,26 @@ def fit_window_classifier(
     by_log = log_folds(segments, config.k_folds, group_of) if config.held_out and shared else []
     total = blocked.k + len(by_log)
 
-    def member(f: int) -> tuple[WindowClassifier, int, set[int], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def member(f: int) -> tuple:
         """Blocked fold ``f``'s model, the stretches it took, the classes it saw, the labelled rows the drift
-        reference keeps (``REFERENCE_ROWS`` of those it trained on), and its held-out block's rows, their classes
-        and their steps' truth and prediction."""
+        reference keeps (``REFERENCE_ROWS`` of those it trained on), its held-out block's logits and classes, which
+        of those rows the drift's relation to accuracy reads (at most ``HELD_ROWS``) and those rows, and its steps'
+        truth and prediction."""
         held = [pieces[j] for j in blocked.held_out(f)]
         train = blocked.training(f) if blocked.k > 1 else pieces
         if not any(b > a and b >= front.frame for _, a, b, _ in train):  # a piece has rows once it reaches a frame
             # tiny labels close together: the guards took every other piece; this one fold trains on them whole
             train = [pieces[j] for j, g in enumerate(blocked.fold_of) if g != f] or pieces
         model, taken, seen, labelled = fit_on(train, set(), config.seed + f + 1)
+        pick = np.arange(len(labelled))
         if len(labelled) > REFERENCE_ROWS:  # what the drift reference keeps of them; the rest is not held meanwhile
-            pick = np.random.default_rng([config.seed, f]).choice(len(labelled), REFERENCE_ROWS, replace=False)
-            labelled = labelled[np.sort(pick)]
+            pick = np.sort(np.random.default_rng([config.seed, f]).choice(len(labelled), REFERENCE_ROWS, replace=False))
         rows, rows_y = held_rows(held, seen) if blocked.k > 1 else held_rows([], seen)
-        return model, taken, seen, labelled, rows, rows_y, *predict(held, model)
+        logits = row_logits(model, rows)  # every held-out row: the calibration's
+        some = np.arange(len(rows))
+        if len(rows) > HELD_ROWS:  # the drift's figures read a sample: all of a fleet's would be held at once
+            some = np.sort(np.random.default_rng([config.seed, f, 1]).choice(len(rows), HELD_ROWS, replace=False))
+        return model, taken, seen, labelled.take(pick), logits, rows_y, some, rows.take(some), *predict(held, model)
 
     def log_fit(f_i: int, train_idx: np.ndarray, val_idx: np.ndarray) -> tuple[np.ndarray, ...]:
         """Truth, prediction, logits and classes of a fold over logs' held-out segments, by a model fitted without
@@ -400,13 +423,15 @@ def fit_window_classifier(
     results = run_fits(jobs, workers=fit_workers(total) if workers is None else workers, done=reported)
     models, histories, oof_true, oof_pred, pseudo = [], [], [], [], []
     trained_rows, oof_rows, oof_logits, oof_classes = [], [], [], []  # per member: for the drift and calibration
-    for model, taken, seen, labelled, rows, rows_y, true, pred in results[: blocked.k]:
+    right = []  # per member: whether it named each row of its drift sample right
+    for model, taken, seen, labelled, logits, rows_y, some, rows, true, pred in results[: blocked.k]:
         pseudo.append(taken)
         models.append(model)
         trained_rows.append(labelled)
         oof_rows.append(rows)
-        oof_logits.append(row_logits(model, rows))
+        oof_logits.append(logits)
         oof_classes.append(rows_y)
+        right.append(logits[some].argmax(1) == rows_y[some])
         histories.append(
             [{"epoch": config.epochs, "pseudo_stretches": taken, "val_accuracy": float((true == pred).mean())}]
         )
@@ -447,7 +472,6 @@ def fit_window_classifier(
         scale_head(model, temperature)
     metrics["calibration"] = {"temperature": temperature, "on": source if temperature != 1.0 else None, "n": len(truth)}
     drift = fit_drift(models, trained_rows, oof_rows, seed=config.seed)
-    right = [logits.argmax(1) == y for logits, y in zip(oof_logits, oof_classes, strict=True)]
     if blocked.k > 1 and (relation := held_out_relation(drift, models, oof_rows, right)):
         metrics["drift_accuracy"] = relation
     return ClassifierFit(

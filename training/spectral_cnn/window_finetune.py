@@ -14,6 +14,7 @@ their terrain.
 from __future__ import annotations
 
 import copy
+import itertools
 import time
 from collections.abc import Sequence
 from dataclasses import replace
@@ -24,11 +25,12 @@ from ..fitting import ClassifierFit, Segment
 from ..metrics import classification_metrics
 from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
 from .class_balance import class_shares
-from .fit_window import frame_rows, predict_steps, row_logits, train_rows
+from .fit_window import HELD_ROWS, every_row, predict_steps, row_logits, train_rows
 from .spectra import SpectralSteps
 from .window_classifier import WindowClassifier
 from .window_config import WindowFitConfig
-from .window_drift import fit_drift, held_out_relation
+from .window_drift import REFERENCE_ROWS, fit_drift, held_out_relation
+from .window_rows import window_rows
 
 
 def assign_folds(labels: Sequence[int], known: Sequence[int], k: int) -> list[int]:
@@ -100,7 +102,9 @@ def fine_tune_window_classifier(
     fold_of = np.asarray(folds)
     is_new = np.zeros(len(segments), bool)
     is_new[list(new)] = True
-    rows = [frame_rows(features[i], a, b) for i, a, b, _ in segments]  # (n_i, W·F) one per completed frame
+    # one row per completed frame, each segment's frames held once (a fleet's labels stacked would be 7 times that)
+    every, ends = window_rows(features, [s[:3] for s in segments], every_row)
+    rows = [np.arange(a, b) for a, b in itertools.pairwise(ends)]  # each segment's rows in ``every``
     rng = np.random.default_rng(config.seed)
     # the balance evens out the whole label set's shares, not those of the new labels and their replayed rows
     prior = class_shares(
@@ -114,7 +118,7 @@ def fine_tune_window_classifier(
         learn = np.flatnonzero(is_new & (fold_of != m))
         model = copy.deepcopy(old).eval()
         if len(learn):
-            x_new = np.concatenate([rows[i] for i in learn])
+            x_new = np.concatenate([rows[i] for i in learn])  # indices into ``every``, stacked when drawn
             y_new = np.concatenate([np.full(len(rows[i]), segments[i][3]) for i in learn])
             keep = np.flatnonzero(~is_new & (fold_of != m))
             if len(keep) and len(x_new):
@@ -122,6 +126,7 @@ def fine_tune_window_classifier(
                 y_old = np.concatenate([np.full(len(rows[i]), segments[i][3]) for i in keep])
                 take = rng.choice(len(x_old), min(len(x_old), max(len(x_new), config.batch)), replace=False)
                 x_new, y_new = np.concatenate([x_new, x_old[take]]), np.concatenate([y_new, y_old[take]])
+            x_new = every.take(x_new)
             if len(x_new):
                 model = train_rows(model, x_new, y_new, steps, tune, config.seed + m + 1, cancel, prior=prior)
         models.append(model)
@@ -138,22 +143,24 @@ def fine_tune_window_classifier(
     metrics["new_segments"] = int(is_new.sum())
     history = [[{"steps": steps, "new_segments": int((is_new & (fold_of != m)).sum())}] for m in range(k)]
 
-    def stacked(which: np.ndarray) -> np.ndarray:
-        picked = [rows[i] for i in which if len(rows[i])]
-        return np.concatenate(picked) if picked else np.zeros((0, features[0].shape[1]), np.float32)
+    def stacked(which: np.ndarray, most: int, draw: int) -> tuple[np.ndarray, np.ndarray]:
+        """The rows of segments ``which``, at most ``most`` of them (a seeded draw), and their classes."""
+        idx = np.concatenate([rows[i] for i in which] or [np.zeros(0, np.int64)]).astype(np.int64)
+        y = np.concatenate([np.full(len(rows[i]), segments[i][3]) for i in which] or [np.zeros(0, np.int64)])
+        if len(idx) > most:  # the drift reads a sample: a fleet's labels stacked per member would not fit
+            pick = np.sort(np.random.default_rng([config.seed, draw]).choice(len(idx), most, replace=False))
+            idx, y = idx[pick], y[pick]
+        return every.take(idx), y
 
     # the members' embeddings moved: the drift reference is drawn again from the rows each one trained on
-    trained = [stacked(np.flatnonzero(fold_of != m)) for m in range(k)]
-    held = [stacked(np.flatnonzero(fold_of == m)) if k > 1 else stacked(np.zeros(0, int)) for m in range(k)]
+    trained = [stacked(np.flatnonzero(fold_of != m), REFERENCE_ROWS, m)[0] for m in range(k)]
+    held_xy = [stacked(np.flatnonzero(fold_of == m) if k > 1 else [], HELD_ROWS, k + m) for m in range(k)]
+    held = [x for x, _ in held_xy]
     if not any(len(t) for t in trained):  # a single fold model trains on its own fold
-        trained = [stacked(np.arange(len(segments)))] * k
+        trained = [stacked(np.arange(len(segments)), REFERENCE_ROWS, 2 * k)[0]] * k
     drift = fit_drift(models, trained, held, seed=config.seed)
     if k > 1:
-        held_y = [
-            np.concatenate([np.full(len(rows[i]), segments[i][3]) for i in np.flatnonzero(fold_of == m)] or [[]])
-            for m in range(k)
-        ]
-        right = [row_logits(model, x).argmax(1) == y for model, x, y in zip(models, held, held_y, strict=True)]
+        right = [row_logits(model, x).argmax(1) == y for model, (x, y) in zip(models, held_xy, strict=True)]
         if relation := held_out_relation(drift, models, held, right):
             metrics["drift_accuracy"] = relation
     return ClassifierFit(
