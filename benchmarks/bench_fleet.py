@@ -228,6 +228,7 @@ def main() -> None:
     p.add_argument("--quick", action="store_true", help="2 hours: checks the script runs, figures mean little")
     p.add_argument("--hours", type=float, default=100.0)
     p.add_argument("--keep", type=Path, default=None, help="build the session here and keep it (default: a temp dir)")
+    p.add_argument("--until", choices=tuple(STEPS), default=None, help="stop after this step and print what ran")
     args = p.parse_args()
     hours = 2.0 if args.quick else args.hours
     r: dict[str, dict] = {}
@@ -237,6 +238,8 @@ def main() -> None:
         for step in STEPS:
             r[step] = child(step, str(folder), *([str(hours)] if step == "write" else []))
             print(f"{step} {r[step]}", flush=True)
+            if step == args.until:
+                return
     gib = 2**30
     data = r["label"]["data"] / gib
     where = (

@@ -27,20 +27,6 @@ def balanced(metrics: dict) -> float:
     return float(np.mean(list(metrics["per_class_recall"].values())))
 
 
-def _pool_share(share: float) -> None:
-    """Every fit's pool budget becomes ``share`` of its stretches' bytes (``fit_window.pool_draw``'s budget)."""
-    from training.spectral_cnn import fit_window
-
-    draw = fit_window.pool_draw
-
-    def shared(features, stretches, *, budget_mib: float, seed: int) -> np.ndarray:
-        every = draw(features, stretches, budget_mib=0, seed=seed)
-        whole, _ = fit_window.stretch_pool(features, stretches, fit_window.PSEUDO_STRIDE, keep=every)
-        return draw(features, stretches, budget_mib=share * whole.nbytes / 2**20, seed=seed)
-
-    fit_window.pool_draw = shared
-
-
 def main() -> int:
     args = borealtc_arguments(__doc__)
     args.add_argument("--labelled", type=float, nargs="+", default=[0.05, 0.1, 0.25, 1.0])
@@ -56,12 +42,10 @@ def main() -> int:
         "--pool-share",
         type=float,
         default=None,
-        help="self-training's pool holds this share of its stretches' bytes, a draw of whole stretches, as "
-        "WindowFitConfig.pool_mib draws them on a fleet's hours (issue 66: 0.073 is 512 MiB of 100 h of 22 channels)",
+        help="WindowFitConfig.pool_share: self-training's pool holds this share of its stretches' bytes, a draw of "
+        "whole stretches as pool_mib draws them on fleet hours (issue 66: 0.073 is 512 MiB of 100 h, 22 channels)",
     )
     opts = args.parse_args()
-    if opts.pool_share is not None:
-        _pool_share(opts.pool_share)
     if (data := borealtc_runs(opts)) is None:
         return 0
     from workbench.evaluation import RocketMember, WindowProtocol, borealtc_window_protocol
@@ -73,6 +57,8 @@ def main() -> int:
         fit = replace(fit, agree=opts.agree)
     if opts.unit_agree is not None:
         fit = replace(fit, unit_agree=opts.unit_agree)
+    if opts.pool_share is not None:
+        fit = replace(fit, pool_share=opts.pool_share)
     member = None if opts.no_member else RocketMember(stride=round(opts.stride * RATE_HZ), biases_from=opts.biases)
     # the default family's frames: 0.4 s (--frame) every 0.2 s, as many as the span holds (7 for 1.7 s, 16 for 3.4 s)
     protocol = WindowProtocol(

@@ -305,6 +305,8 @@ def test_self_trainings_pool_keeps_to_its_budget_with_a_draw_of_whole_stretches(
     keep = pool_draw(feats, stretches, budget_mib=budget_mib, seed=0)
     assert 0 < keep.sum() < len(stretches) and sizes[keep].sum() <= budget_mib * 2**20
     assert (pool_draw(feats, stretches, budget_mib=budget_mib, seed=0) == keep).all()
+    shared = pool_draw(feats, stretches, budget_mib=0, share=1 / 3, seed=0)  # the same draw, by share of the bytes
+    assert (shared == keep).all()
     pool, kept_bounds = stretch_pool(feats, stretches, PSEUDO_STRIDE, keep=keep)
     assert pool.nbytes <= budget_mib * 2**20
     assert (np.diff(kept_bounds) == np.where(keep, np.diff(bounds), 0)).all()  # a kept stretch keeps all its rows

@@ -72,17 +72,25 @@ def _row_steps(features: SpectralSteps, start: int, stop: int, stride: int) -> n
 
 
 def pool_draw(
-    features: Sequence[SpectralSteps], stretches: Sequence[Stretch], *, budget_mib: float, seed: int
+    features: Sequence[SpectralSteps],
+    stretches: Sequence[Stretch],
+    *,
+    budget_mib: float,
+    seed: int,
+    share: float = 1.0,
 ) -> np.ndarray:
     """Which ``stretches`` self-training's pool holds ``(S,)``: all of them, or as many, drawn at random (``seed``),
-    as fit ``budget_mib`` (their rows as :func:`stretch_pool` fills them). A stretch is kept whole or left out, so
-    the rule that its rows agree judges what it did before; only fewer of them are judged."""
+    as fit ``budget_mib`` (0: no bound) and ``share`` of their bytes (their rows as :func:`stretch_pool` fills them).
+    A stretch is kept whole or left out, so the rule that its rows agree judges what it did before; only fewer of
+    them are judged."""
     keep = np.ones(len(stretches), bool)
-    if not stretches or budget_mib <= 0:
+    if not stretches or (budget_mib <= 0 and share >= 1.0):
         return keep
     row_bytes = 4 * features[0].shape[1]
     sizes = np.asarray([len(_row_steps(features[i], a, b, PSEUDO_STRIDE)) for i, a, b in stretches]) * row_bytes
-    budget = budget_mib * 2**20
+    budget = share * sizes.sum()
+    if budget_mib > 0:
+        budget = min(budget, budget_mib * 2**20)
     if sizes.sum() <= budget:
         return keep
     order = np.random.default_rng(seed).permutation(len(stretches))
@@ -324,7 +332,7 @@ def fit_window_classifier(
     # all it holds, and the refits (most of a fit's time) read a third of the rows
     # past config.pool_mib (a fleet's hours) a draw of the stretches: memory stays flat with the hours
     used = stretches if use_stretches else []
-    keep = pool_draw(features, used, budget_mib=config.pool_mib, seed=config.seed)
+    keep = pool_draw(features, used, budget_mib=config.pool_mib, share=config.pool_share, seed=config.seed)
     pool, bounds = stretch_pool(features, used, PSEUDO_STRIDE, keep=keep)
     unit_of = None if units is None else np.asarray(units, np.int64)
 

@@ -70,6 +70,8 @@ class WindowFitConfig:
             that fits (``fit_window.pool_draw``), each read whole. A row is ``window`` frames (12.6 KiB at 22
             channels, every third frame read), so 10 hours of unlabelled logs fill 700 MiB and 100 hours 7 GiB: the
             part of a fit that grew with a fleet's hours (issue 66). 0: no bound.
+        pool_share: At most this share of the pool's bytes, drawn as ``pool_mib`` draws: what the budget keeps of a
+            fleet's hours, reproduced on a small set to measure its cost (1: all).
         held_out: Also measure accuracy on held-out logs (folds over logs: as many fits again).
         calibrate: Divide the members' logits by a temperature fitted on held-out predictions.
         seed: Seed of the folds, initial weights and batches.
@@ -91,6 +93,7 @@ class WindowFitConfig:
     agree: float = 0.9
     unit_agree: float = 0.0
     pool_mib: float = 512.0
+    pool_share: float = 1.0
     held_out: bool = True
     calibrate: bool = True
     seed: int = 0
