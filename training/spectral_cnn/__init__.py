@@ -11,9 +11,10 @@ from the ones before, trained on all logs without labels; :mod:`.frame_outputs` 
 
 Modules: ``spectra`` (the front end), ``window_config`` (fit settings), ``window_augment`` (run-to-run changes
 drawn on training rows), ``window_classifier`` (the network), ``fit_window`` / ``window_finetune`` (the fits),
-``window_calibration`` (the ensemble's temperature), ``window_drift`` (how unlike the labelled frames a step is),
-``window_step`` (one sample at a time), ``frame_predictor`` (a stage 1 over the frames: the next frame from the
-ones before), ``frame_outputs`` (its outputs per sample step), ``cnn_family`` (what the registry reads).
+``window_rows`` (their labelled rows, held as the frames they read), ``window_calibration`` (the ensemble's
+temperature), ``window_drift`` (how unlike the labelled frames a step is), ``window_step`` (one sample at a time),
+``frame_predictor`` (a stage 1 over the frames: the next frame from the ones before), ``frame_outputs`` (its outputs
+per sample step), ``cnn_family`` (what the registry reads).
 """
 
 from ..lazy_names import lazy_exports

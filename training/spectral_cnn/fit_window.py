@@ -136,9 +136,9 @@ def train_rows(
     prior: np.ndarray | None = None,
 ) -> WindowClassifier:
     """``epochs`` passes of AdamW over rows ``x (N, W·F)`` (stacked, or :class:`WindowRows`) with classes ``y (N,)``
-    (at most ``config.max_steps``);
-    ``config.augment``'s draws need the frames' layout, ``front``. ``more``: rows ``pool[index]`` after ``x`` (``y``
-    covers both), read where they are: the batches of ``x`` and ``pool[index]`` concatenated, without the copy.
+    (at most ``config.max_steps``); ``config.augment``'s draws need the frames' layout, ``front``. ``more``: rows
+    ``pool[index]`` after ``x`` (``y`` covers both), read where they are: the batches of ``x`` and ``pool[index]``
+    concatenated, without the copy.
     ``prior``: the classes' shares ``config.balance`` evens out (default: their shares of ``y``)."""
     gen = torch.Generator().manual_seed(seed)
     draws = RowDraws(seed, dropout=model.config.dropout)
