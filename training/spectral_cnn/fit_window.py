@@ -42,7 +42,7 @@ from .window_calibration import fit_temperature, scale_head
 from .window_classifier import WindowClassifier, WindowClassifierConfig
 from .window_config import WindowFitConfig
 from .window_drift import REFERENCE_ROWS, fit_drift, held_out_relation
-from .window_rows import WindowRows, window_rows
+from .window_rows import WindowRows, at_most, window_rows
 
 BLOCK_GUARDS = 4  # a block is four guards long: a fold's guard never takes more than half of a block next to it
 HELD_ROWS = 8192  # a member's held-out rows the drift reads: a sample past it (100 hours at 5 %: 18,000 each)
@@ -400,14 +400,10 @@ def fit_window_classifier(
             # tiny labels close together: the guards took every other piece; this one fold trains on them whole
             train = [pieces[j] for j, g in enumerate(blocked.fold_of) if g != f] or pieces
         model, taken, seen, labelled = fit_on(train, set(), config.seed + f + 1)
-        pick = np.arange(len(labelled))
-        if len(labelled) > REFERENCE_ROWS:  # what the drift reference keeps of them; the rest is not held meanwhile
-            pick = np.sort(np.random.default_rng([config.seed, f]).choice(len(labelled), REFERENCE_ROWS, replace=False))
+        pick = at_most(len(labelled), REFERENCE_ROWS, (config.seed, f))  # what the drift reference keeps of them
         rows, rows_y = held_rows(held, seen) if blocked.k > 1 else held_rows([], seen)
         logits = row_logits(model, rows)  # every held-out row: the calibration's
-        some = np.arange(len(rows))
-        if len(rows) > HELD_ROWS:  # the drift's figures read a sample: all of a fleet's would be held at once
-            some = np.sort(np.random.default_rng([config.seed, f, 1]).choice(len(rows), HELD_ROWS, replace=False))
+        some = at_most(len(rows), HELD_ROWS, (config.seed, f, 1))  # the drift's figures read a sample
         return model, taken, seen, labelled.take(pick), logits, rows_y, some, rows.take(some), *predict(held, model)
 
     def log_fit(f_i: int, train_idx: np.ndarray, val_idx: np.ndarray) -> tuple[np.ndarray, ...]:

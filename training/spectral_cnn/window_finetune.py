@@ -30,7 +30,7 @@ from .spectra import SpectralSteps
 from .window_classifier import WindowClassifier
 from .window_config import WindowFitConfig
 from .window_drift import REFERENCE_ROWS, fit_drift, held_out_relation
-from .window_rows import window_rows
+from .window_rows import at_most, window_rows
 
 
 def assign_folds(labels: Sequence[int], known: Sequence[int], k: int) -> list[int]:
@@ -147,10 +147,8 @@ def fine_tune_window_classifier(
         """The rows of segments ``which``, at most ``most`` of them (a seeded draw), and their classes."""
         idx = np.concatenate([rows[i] for i in which] or [np.zeros(0, np.int64)]).astype(np.int64)
         y = np.concatenate([np.full(len(rows[i]), segments[i][3]) for i in which] or [np.zeros(0, np.int64)])
-        if len(idx) > most:  # the drift reads a sample: a fleet's labels stacked per member would not fit
-            pick = np.sort(np.random.default_rng([config.seed, draw]).choice(len(idx), most, replace=False))
-            idx, y = idx[pick], y[pick]
-        return every.take(idx), y
+        pick = at_most(len(idx), most, (config.seed, draw))  # a fleet's labels stacked per member would not fit
+        return every.take(idx[pick]), y[pick]
 
     # the members' embeddings moved: the drift reference is drawn again from the rows each one trained on
     trained = [stacked(np.flatnonzero(fold_of != m), REFERENCE_ROWS, m)[0] for m in range(k)]

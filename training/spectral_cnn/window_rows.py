@@ -18,6 +18,14 @@ from .spectra import SpectralSteps, last_frame
 Span = tuple[int, int, int]  # (log index, start, stop) in steps
 
 
+def at_most(n: int, most: int, seed: Sequence[int]) -> np.ndarray:
+    """Indices of ``n`` rows: all of them, or a seeded draw of ``most`` in ascending order (what the drift reads of a
+    fleet's labelled rows)."""
+    if n <= most:
+        return np.arange(n)
+    return np.sort(np.random.default_rng(list(seed)).choice(n, most, replace=False))
+
+
 class WindowRows:
     """Rows ``(N, W·F)`` of stacked frame windows, held as their frames ``(M, F)`` and each row's first frame.
 
