@@ -1,7 +1,8 @@
 """Time to a first model, as a new user meets it: `workbench train SESSION` (both stages, the default family) on a
 new session of 1 hour and of 10 hours of 22-channel 100 Hz logs (demo walks as ROS 2 MCAP) with 5 % of the time
 labelled; `workbench train` then `workbench export --predictions` on a session shaped as a quadruped's logs (11 IMU
-CSVs of 6 to 10 minutes, 6 channels at 50 Hz, 10 % labelled in 5 s pieces: :mod:`imu_logs`); and `workbench demo`'s
+CSVs of 6 to 10 minutes, 6 channels at 50 Hz, 10 % labelled in 5 s pieces: :mod:`imu_logs`), by the default family
+and by MiniRocket (`--model minirocket`) on copies of the same session; and `workbench demo`'s
 first start to a served page.
 
 Each step runs in a fresh interpreter, as a person runs the command, and reports its wall time and peak resident set
@@ -12,6 +13,7 @@ References, measured in the same run on the same session:
 - for `workbench train`: reading the logs and computing the default family's spectral frames from them (fitting the
   input normalisation over every log, choosing the front end, the frames of every log), in a fresh interpreter
   too. No stage 1 over the frames can take less; the figure says what training adds to it.
+- for MiniRocket's train + export: the default family's on the same session.
 - for the demo: writing its six walks and ingesting them (`generate_demo_logs` and `workbench ingest`), the part
   of its first start that has no model in it.
 """
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import json
 import resource
+import shutil
 import socket
 import subprocess
 import sys
@@ -102,10 +105,10 @@ def run_child(step: str, args: list[str]) -> None:
             normalizer = Normalizer.fit([s.rows(x.id) for x in logs])
             front = choose_front_end(s, logs)
             extra = {"frames": sum(len(log_frames(s.rows(x.id), front, transform=normalizer)) for x in logs)}
-    elif step == "train":  # what `workbench train SESSION` runs, in this interpreter so that its peak is this one's
+    elif step == "train":  # `workbench train SESSION --model FAMILY`, in this interpreter: its peak is this one's
         from workbench.cli import main as workbench
 
-        if workbench(["train", args[0]]) != 0:
+        if workbench(["train", args[0], "--model", args[1]]) != 0:
             raise SystemExit("workbench train failed")
         from sessions import Session
 
@@ -164,41 +167,70 @@ def demo_first_start(folder: Path, *, quick: bool) -> tuple[float, float]:
     return served, time.perf_counter() - t
 
 
-def session_steps(setup_step: str, args: list[str], *, export: bool) -> tuple[dict, dict, dict, dict | None]:
-    """In a temporary folder, each in a fresh interpreter: the set-up, the reference (the frames), `workbench train`
-    and, with ``export``, `workbench export --predictions`; what each reported."""
+def session_steps(
+    setup_step: str, args: list[str], *, export: bool, models: tuple[str, ...] = ("default",)
+) -> tuple[dict, dict, dict[str, tuple[dict, dict | None]]]:
+    """In a temporary folder, each in a fresh interpreter: the set-up, the reference (the frames), then per family in
+    ``models`` on its own copy of the session: `workbench train --model FAMILY` and, with ``export``, `workbench
+    export --predictions`; what each reported."""
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         setup = child(setup_step, str(folder), *args)
         print(f"set-up {setup}", flush=True)
-        session = str(folder / "session")
-        ref = child("frames", session)
+        ref = child("frames", str(folder / "session"))
         print(f"reference {ref}", flush=True)
-        train = child("train", session)
-        print(f"train {train}", flush=True)
-        exported = child("export", session, str(folder / "export")) if export else None
-        if exported:
-            print(f"export {exported}", flush=True)
-    return setup, ref, train, exported
+        runs = {}
+        for model in models:
+            session = str(folder / f"session-{model}")
+            shutil.copytree(folder / "session", session)
+            train = child("train", session, model)
+            print(f"train {model} {train}", flush=True)
+            exported = child("export", session, str(folder / f"export-{model}")) if export else None
+            if exported:
+                print(f"export {model} {exported}", flush=True)
+            runs[model] = (train, exported)
+    return setup, ref, runs
 
 
-def imu_first_model(*, quick: bool) -> Row:
-    """`workbench train` then `workbench export --predictions` on a session shaped as a quadruped's IMU logs."""
+def imu_first_model(*, quick: bool) -> list[Row]:
+    """`workbench train` then `workbench export --predictions` on a session shaped as a quadruped's IMU logs, by the
+    default family and by MiniRocket on copies of the same session."""
     n_logs, low, high = ("3", "1", "2") if quick else ("11", "6", "10")
-    setup, ref, train, export = session_steps("setup-imu", [n_logs, low, high], export=True)
-    total = train["seconds"] + export["seconds"]
-    return Row(
-        f"`workbench train` + `export --predictions` (default family), {setup['logs']} logs of {low}-{high} min, "
-        f"{setup['steps']:,} steps of {setup['channels']}-channel {setup['rate']:.0f} Hz IMU CSV, "
-        f"{setup['labelled']:.1%} labelled in 5 s pieces",
-        f"{total:.0f} s (train {train['seconds']:.0f} s, export {export['seconds']:.0f} s), "
-        f"peak {max(train['peak'], export['peak']) / 2**30:.2f} GiB RSS",
-        f"reading the logs + computing the frames: {ref['seconds']:.0f} s",
-        f"{total / ref['seconds']:.1f}× the reference",
-        "≤ 60 s",
-        bool(total <= 60),
-        f"stage 1: {train['stage1']}; classifier v{train['classifier']}",
+    setup, ref, runs = session_steps("setup-imu", [n_logs, low, high], export=True, models=("default", "minirocket"))
+    shape = (
+        f"{setup['logs']} logs of {low}-{high} min, {setup['steps']:,} steps of {setup['channels']}-channel "
+        f"{setup['rate']:.0f} Hz IMU CSV, {setup['labelled']:.1%} labelled in 5 s pieces"
     )
+
+    def figure(model: str) -> tuple[float, str]:
+        train, export = runs[model]
+        total = train["seconds"] + export["seconds"]
+        peak = max(train["peak"], export["peak"]) / 2**30
+        parts = f"train {train['seconds']:.0f} s, export {export['seconds']:.0f} s"
+        return total, f"{total:.0f} s ({parts}), peak {peak:.2f} GiB RSS"
+
+    default, default_text = figure("default")
+    rocket, rocket_text = figure("minirocket")
+    return [
+        Row(
+            f"`workbench train` + `export --predictions` (default family), {shape}",
+            default_text,
+            f"reading the logs + computing the frames: {ref['seconds']:.0f} s",
+            f"{default / ref['seconds']:.1f}× the reference",
+            "≤ 60 s",
+            bool(default <= 60),
+            f"stage 1: {runs['default'][0]['stage1']}; classifier v{runs['default'][0]['classifier']}",
+        ),
+        Row(
+            "`workbench train --model minirocket` + `export --predictions`, the same session",
+            rocket_text,
+            f"the default family's train + export, same session: {default:.0f} s",
+            f"{rocket / default:.2f}× the default",
+            "≤ 2× the default",
+            bool(rocket <= 2 * default),
+            f"classifier v{runs['minirocket'][0]['classifier']}",
+        ),
+    ]
 
 
 def main() -> None:
@@ -210,7 +242,8 @@ def main() -> None:
     sizes = ((2, 3.0, 60.0), (4, 6.0, 600.0)) if args.quick else ((6, 10.0, 60.0), (20, 30.0, 600.0))
     rows = []
     for n_logs, minutes, target in sizes:
-        setup, ref, train, _ = session_steps("setup", [str(n_logs), str(minutes)], export=False)
+        setup, ref, runs = session_steps("setup", [str(n_logs), str(minutes)], export=False)
+        train = runs["default"][0]
         hours, gb = setup["hours"], train["peak"] / 2**30
         rows.append(
             Row(
@@ -224,7 +257,7 @@ def main() -> None:
                 f"stage 1: {train['stage1']}; classifier v{train['classifier']}",
             )
         )
-    rows.append(imu_first_model(quick=args.quick))
+    rows.extend(imu_first_model(quick=args.quick))
     with tempfile.TemporaryDirectory() as tmp:
         served, reference = demo_first_start(Path(tmp), quick=args.quick)
     rows.append(

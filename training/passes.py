@@ -56,7 +56,9 @@ def ensemble_pass(
     """Every ensemble member over whole logs' features, handing each chunk's probabilities to ``sink``.
 
     Args:
-        models: The ``M`` members.
+        models: The ``M`` members. Where their class has ``ensemble_forward(models)`` and it gives a function
+            (``(B, L, F)`` -> ``(M, B, L, K)`` logits: stateless members sharing work, as one MiniRocket fit's folds
+            share its transform), that runs once per chunk instead of each member.
         features: Per log, ``(T, F)`` features (or a ``LazyFeatures``: only one chunk is computed at a time).
         sink: Called as ``sink(log, start, stop, probs)`` with ``probs`` ``(M, stop − start, K)`` float32, in
             order of ``start`` within each log.
@@ -66,6 +68,8 @@ def ensemble_pass(
     """
     for model in models:
         model.to(device).eval()
+    joint = getattr(type(models[0]), "ensemble_forward", None)  # members that share work run it once for all
+    together = joint(models) if joint is not None else None
     for group in padded_groups([len(f) for f in features], batch):
         lengths = [len(features[i]) for i in group]
         n, width = max(lengths), features[group[0]].shape[1]
@@ -79,9 +83,12 @@ def ensemble_pass(
                     f[j, : min(size, lengths[j] - c0)] = features[i][c0 : c0 + size]
             ft = torch.from_numpy(f).to(device)
             probs = np.empty((len(models), len(group), size, models[0].config.n_classes), np.float32)
-            for m, model in enumerate(models):
-                logits, states[m] = model(ft, states[m])  # (B, L, K)
-                probs[m] = torch.softmax(logits, -1).cpu().numpy()
+            if together is not None:  # stateless members: every one's logits in one call
+                probs[:] = torch.softmax(together(ft), -1).cpu().numpy()  # (M, B, L, K)
+            else:
+                for m, model in enumerate(models):
+                    logits, states[m] = model(ft, states[m])  # (B, L, K)
+                    probs[m] = torch.softmax(logits, -1).cpu().numpy()
             for j, i in enumerate(group):
                 k = min(size, lengths[j] - c0)
                 if k > 0:

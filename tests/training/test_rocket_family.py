@@ -10,6 +10,8 @@ from training import (
     HELD_OUT,
     Normalizer,
     RawSteps,
+    RocketClassifier,
+    RocketTransform,
     SpectralConfig,
     StreamingClassifier,
     WindowFitConfig,
@@ -85,6 +87,21 @@ def test_bundle_stream_and_onnx_give_the_offline_numbers(fitted, tmp_path) -> No
     both = np.stack([two.step(np.stack([arrays[0][t], arrays[1][t]])) for t in range(120)])  # (T, 2, K)
     np.testing.assert_allclose(both[:, 0], offline[:120], atol=1e-5)
     assert check_onnx(export_onnx(loaded, tmp_path / "m.onnx"), loaded, arrays[0][:80]) < 1e-4
+
+
+def test_the_offline_pass_runs_the_shared_transform_once_and_gives_each_members_numbers(fitted, monkeypatch) -> None:
+    _, _, feats, fit = fitted
+    calls = []
+    forward = RocketTransform.forward
+    monkeypatch.setattr(RocketTransform, "forward", lambda self, x: calls.append(len(x)) or forward(self, x))
+    together = run_classifiers(fit.models, feats[:2])
+    once = sum(calls)
+    monkeypatch.setattr(RocketClassifier, "ensemble_forward", staticmethod(lambda members: None))
+    calls.clear()
+    apart = run_classifiers(fit.models, feats[:2])
+    assert sum(calls) == len(fit.models) * once  # each member ran the transform over the same windows
+    for a, b in zip(together, apart, strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-6)
 
 
 def test_one_terrain_labelled_is_refused_in_one_line(fitted) -> None:

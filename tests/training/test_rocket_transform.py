@@ -90,9 +90,10 @@ def test_the_classifier_tells_new_windows_apart_and_never_predicts_a_terrain_wit
 
 
 def test_on_the_grid_every_order_of_sums_gives_the_same_features() -> None:
-    # on the grid every sum is exact, so aeon's order (NumPy, centre tap first) and ours (channels mixed, then a
-    # grouped conv1d) must agree to the bit. Off the grid they usually agree too (these windows do); the exported
-    # step on demo walks did not (2.6e-4 from PyTorch), which is why the classifier's inputs go on the grid
+    # on the grid every sum is exact, so aeon's order (NumPy, centre tap first) and ours (one conv1d of each
+    # kernel's taps on its channels) must agree to the bit. Off the grid they usually agree too (these windows do);
+    # the exported step on demo walks did not (2.6e-4 from PyTorch), which is why the classifier's inputs go on the
+    # grid
     rng = np.random.default_rng(2)
     x = on_grid(np.cumsum(rng.normal(size=(5, 3, 90)), axis=2) * 0.3)  # (N, C, L)
     params = fit_rocket(x, features=840, seed=0)
@@ -110,3 +111,17 @@ def test_on_the_grid_every_order_of_sums_gives_the_same_features() -> None:
                 want[i, f0 + k * nf : f0 + (k + 1) * nf] = (c[:, None] > b[None, :]).mean(0)
         f0 += 84 * nf
     np.testing.assert_array_equal(ours, want)
+
+
+def test_the_sorted_count_and_the_graphs_comparisons_give_the_same_features(monkeypatch) -> None:
+    # offline the positions above each bias are counted by sorting; a traced forward (ONNX) compares every pair.
+    # The biases are quantiles of these very windows' convolutions, so positions equal to a bias (ties) are many
+    rng = np.random.default_rng(3)
+    x = on_grid(np.cumsum(rng.normal(size=(12, 4, 70)), axis=2) * 0.3)  # (N, C, L)
+    transform = RocketTransform.from_parameters(fit_rocket(x, features=840, seed=1))
+    with torch.no_grad():
+        sorted_ = transform(torch.as_tensor(x)).numpy()
+        monkeypatch.setattr("training.minirocket.rocket_transform._traced", lambda: True)
+        compared = transform(torch.as_tensor(x)).numpy()
+    np.testing.assert_array_equal(sorted_, compared)
+    assert 0.0 < sorted_.mean() < 1.0

@@ -8,6 +8,7 @@ probabilities by a temperature fitted on held-out windows.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import torch
@@ -90,3 +91,32 @@ class RocketClassifier(nn.Module):
         row and the result is repeated.
         """
         return per_distinct_row(self.logits, features), None
+
+    @staticmethod
+    def ensemble_forward(members: Sequence[nn.Module]) -> Callable[[torch.Tensor], torch.Tensor] | None:
+        """Every member's logits at once where they share one transform (one fit's folds differ in heads only):
+        ``features (B, T, L·C)`` -> ``(M, B, T, K)``, the transform run once, not once per member. ``None`` where the
+        members are not MiniRocket classifiers sharing a transform (the offline pass then runs each)."""
+        if len(members) < 2 or not all(isinstance(m, RocketClassifier) for m in members):
+            return None
+        rockets = [m for m in members if isinstance(m, RocketClassifier)]
+        if not shares_transform(rockets):
+            return None
+
+        def heads(windows: torch.Tensor) -> torch.Tensor:  # (N, L·C) -> (N, M·K)
+            feats = rockets[0].transformed(windows)  # (N, F) once
+            return torch.cat([m.head(feats * m.scale) / m.temperature for m in rockets], 1)
+
+        def forward(features: torch.Tensor) -> torch.Tensor:
+            b, t, _ = features.shape
+            logits = per_distinct_row(heads, features)  # (B, T, M·K)
+            return logits.view(b, t, len(rockets), -1).permute(2, 0, 1, 3)  # (M, B, T, K)
+
+        return forward
+
+
+def shares_transform(members: Sequence[RocketClassifier]) -> bool:
+    """Every member's transform is the first's (masks and biases): one fit's ensemble, whose folds differ in heads."""
+    first = members[0].transform
+    return all(torch.equal(m.transform.masks, first.masks) and torch.equal(m.transform.biases, first.biases)
+               for m in members[1:])  # fmt: skip

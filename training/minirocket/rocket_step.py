@@ -18,7 +18,7 @@ import torch
 from torch import nn
 
 from ..training_errors import BundleError
-from .rocket_classifier import RocketClassifier
+from .rocket_classifier import RocketClassifier, shares_transform
 
 if TYPE_CHECKING:
     from ..runtime import ModelBundle
@@ -32,13 +32,6 @@ def _members(bundle: ModelBundle) -> list[RocketClassifier]:
     if not members or len(members) != len(bundle.classifiers):
         raise BundleError("the bundle has no trained MiniRocket classifier: train stage 2 first")
     return members
-
-
-def shares_transform(members: list[RocketClassifier]) -> bool:
-    """Every member's transform is the first's (masks and biases): one fit's ensemble, whose folds differ in heads."""
-    first = members[0].transform
-    return all(torch.equal(m.transform.masks, first.masks) and torch.equal(m.transform.biases, first.biases)
-               for m in members[1:])  # fmt: skip
 
 
 def ensemble_probs(members: list[RocketClassifier], windows: torch.Tensor, *, shared: bool) -> torch.Tensor:
