@@ -7,7 +7,9 @@ MCAP, 5 % of the time labelled.
 
 Each step runs in a fresh interpreter, as a person runs the command (the first screen and the Retrain as
 `workbench serve` hosts them), and reports its wall time and peak resident set (``ru_maxrss``: mapped file pages
-count in it once read). Writing the logs and labelling them are set-up, timed but not part of any figure.
+count in it once read), and beside it the peak of what is not file pages (``RssAnon`` sampled every 50 ms: the
+memory the process itself holds; mapped pages of the session's files are the kernel's to take back). Writing the
+logs and labelling them are set-up, timed but not part of any figure.
 
 References, measured in the same run on the same session:
 
@@ -208,11 +210,28 @@ STEPS = {
 }
 
 
+def _anonymous_peak(stop: threading.Event, out: dict) -> None:
+    """The highest ``RssAnon`` (memory the process itself holds, not mapped file pages, which the kernel takes back
+    when it needs them) seen every 50 ms until ``stop``."""
+    while True:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("RssAnon:"):
+                    out["anon"] = max(out.get("anon", 0), int(line.split()[1]) * 1024)
+        if stop.wait(0.05):
+            return
+
+
 def run_child(step: str, folder: Path, extra: list[str]) -> None:
     t = time.perf_counter()
+    stop, anon = threading.Event(), {}
+    sampler = threading.Thread(target=_anonymous_peak, args=(stop, anon), daemon=True)
+    sampler.start()
     out = STEPS[step](folder, *(float(a) for a in extra))
+    stop.set()
+    sampler.join()
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # kB on Linux
-    print(json.dumps({"peak": peak, "seconds": time.perf_counter() - t, **out}))
+    print(json.dumps({"peak": peak, "anon": anon.get("anon", 0), "seconds": time.perf_counter() - t, **out}))
 
 
 def main() -> None:
@@ -248,7 +267,7 @@ def main() -> None:
     )
 
     def peak(step: str) -> str:
-        return f"peak {r[step]['peak'] / gib:.2f} GiB RSS"
+        return f"peak {r[step]['peak'] / gib:.2f} GiB RSS ({r[step]['anon'] / gib:.2f} GiB not file pages)"
 
     rows = [
         Row(

@@ -37,6 +37,7 @@ DRIFT_PRIORITY = 1.0  # added to a drifted candidate's score (others lie in [0, 
 DRIFT_CAP = 4.0  # a drifted candidate's own score is weighted by its drift, up to this
 MISSED_RECALL = 0.5  # a terrain measured under this recall is one the model misses (training.MISSED_RECALL)
 MISSED_BOOST = 6.0  # a candidate with all its probability on a fully missed terrain counts (1 + this) times
+NEAREST_MIB = 64  # scikit-learn's working memory for the candidates' nearest labelled segment, a block at a time
 MISSED_SAY = 0.1  # the pull (missed share x probability) from which the reason names the missed terrain
 
 
@@ -313,12 +314,6 @@ def _spot_checks(
     return out
 
 
-def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Euclidean distances ``(N, D), (M, D) -> (N, M)`` without an ``(N, M, D)`` temporary."""
-    sq = (a * a).sum(1)[:, None] + (b * b).sum(1)[None] - 2.0 * a @ b.T
-    return np.sqrt(np.maximum(sq, 0.0))
-
-
 def _novelty(
     cands: Sequence[Span], labelled: Sequence[Span], embeddings: Sequence[np.ndarray]
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -327,6 +322,9 @@ def _novelty(
     Novelty is the distance to the nearest labelled segment over the median such distance, capped at 1: it only
     holds back candidates like what is labelled (an uncapped distance would chase outliers). 1 with no labels.
     """
+
+    from sklearn import config_context
+    from sklearn.metrics import pairwise_distances_argmin_min
 
     def mean(g: int, a: int, b: int) -> np.ndarray:
         return np.asarray(embeddings[g][a:b], np.float64).mean(axis=0)
@@ -337,7 +335,10 @@ def _novelty(
     done = [(mean(g, a, b) - mu) / sd for g, a, b in labelled if b > a]
     if not done:
         return emb, np.ones(len(cands))
-    dist = _distances(emb, np.array(done)).min(axis=1)  # (N,)
+    # the nearest labelled segment of each candidate, a block of candidates at a time: the whole (N, M) matrix grew
+    # with the hours squared (candidates times labels: 469 MB at 10 hours of logs, 5 % labelled)
+    with config_context(working_memory=NEAREST_MIB):
+        _, dist = pairwise_distances_argmin_min(emb, np.array(done))  # (N,)
     ref = float(np.median(dist)) or 1.0
     return emb, np.minimum(dist / ref, 1.0)
 

@@ -243,3 +243,35 @@ def test_a_checked_log_whose_checks_found_the_model_wrong_is_asked_again() -> No
     assert [p.log for p in asked].count(1) >= 4  # the log with 3 of 4 checks wrong
     plain = suggest(scores, **kwargs)
     assert [p.log for p in plain].count(1) < [p.log for p in asked].count(1)
+
+
+def test_novelty_is_the_nearest_labelled_distance_found_a_block_at_a_time(monkeypatch) -> None:
+    # candidates times labels grew with the hours squared as one matrix (469 MB at 10 h); the nearest labelled
+    # segment is now found in blocks, with the same distances as the whole matrix
+    import sys
+    import tracemalloc
+
+    import sklearn.metrics  # noqa: F401  (imported before tracing: the import is not what is measured)
+
+    from labeling.suggest import _novelty
+
+    monkeypatch.setattr(sys.modules["labeling.suggest"], "NEAREST_MIB", 4)  # the package's `suggest` is a function
+    rng = np.random.default_rng(0)
+    emb = rng.normal(size=(12_000, 8))  # one log, a step per row
+    cands = [(0, i, i + 2) for i in range(0, 8_000, 2)]  # 4,000 candidates
+    labelled = [(0, i, i + 2) for i in range(8_000, 12_000, 2)]  # 2,000 labelled pieces: 61 MiB as one matrix
+    tracemalloc.start()
+    got, novelty = _novelty(cands, labelled, [emb])
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 30 * 2**20, f"{peak / 2**20:.0f} MiB"
+
+    def means(spans: list) -> np.ndarray:
+        return np.stack([emb[a:b].mean(0) for _, a, b in spans])
+
+    mu, sd = means(cands).mean(0), means(cands).std(0) + 1e-9
+    a, b = (means(cands) - mu) / sd, (means(labelled) - mu) / sd
+    nearest = np.sqrt(np.maximum((a * a).sum(1)[:, None] + (b * b).sum(1)[None] - 2 * a @ b.T, 0)).min(1)
+    np.testing.assert_allclose(got, a, atol=1e-9)
+    np.testing.assert_allclose(novelty, np.minimum(nearest / np.median(nearest), 1.0), atol=1e-6)
+    assert 0.0 < novelty.mean() < 1.0
