@@ -9,6 +9,7 @@ import pytest
 from tests.conftest import REPO
 
 INDEPENDENT = ("sessions", "training", "labeling")
+SHARED_ROOMS = ("figures", "running", "runtime")  # training's rooms that are not a family's
 
 
 def imported_packages(package: str) -> dict[str, set[str]]:
@@ -256,10 +257,20 @@ def test_nothing_outside_a_family_room_imports_its_private_modules() -> None:
                 continue
             for module in _resolved_imports(path):
                 parts = module.split(".")
-                private = len(parts) > 2 and parts[0] == "training" and parts[1] in FAMILY_ROOMS
+                private = len(parts) > 2 and parts[0] == "training" and parts[1] in (*FAMILY_ROOMS, *SHARED_ROOMS)
                 if private and rel.parts[:2] != ("training", parts[1]):
                     bad.append(f"{rel} imports {module}")
     assert not bad, "\n".join(bad)
+
+
+def test_training_top_level_holds_at_most_ten_modules_and_each_room_says_what_it_is_for() -> None:
+    top = sorted(p.name for p in (REPO / "training").glob("*.py") if p.name != "__init__.py")
+    assert len(top) <= 10, f"training/ holds {len(top)} modules: put them in rooms by purpose: {top}"
+    rooms = sorted((REPO / "training").glob("*/__init__.py"))
+    assert {"figures", "running", "runtime"} <= {p.parent.name for p in rooms}
+    for init in rooms:
+        doc = ast.get_docstring(ast.parse(init.read_text())) or ""
+        assert len(doc) > 80, f"{init.relative_to(REPO)}: its docstring should say what the room is for"
 
 
 def test_workbench_top_level_holds_at_most_five_modules() -> None:

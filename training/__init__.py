@@ -5,12 +5,14 @@ Rooms (one per family, found by name through :mod:`.registry`):
     ``paper_lstm``    the paper's two stacked LSTMs (``--model paper``)
     ``minirocket``    MiniRocket's fixed convolutions and a ridge head (``--model minirocket``)
 and ``runtime``, what ships to a robot: ``bundle`` (a model as files), ``stream`` (one sample at a time),
-``onnx_export``.
+``onnx_export``. Two rooms hold what every family shares:
+    ``figures``  what a fit's numbers mean: ``blocking`` (folds by blocks of time and by log), ``metrics``,
+                 ``estimates`` (per terrain, and which kind of figure), ``drift_accuracy`` (accuracy at a drift)
+    ``running``  how fits run: ``cpu_threads``, ``fit_threads``, ``distributed`` (``torchrun``), ``checkpoint``,
+                 ``progress``
 
-Shared at this level: ``registry`` (family name -> room), ``passes`` (stage 2 over whole logs), ``checkpoint``,
-``distributed``, ``cpu_threads`` (threads for the free CPUs), ``drift_accuracy`` (a file's expected accuracy from its
-drift), ``fitting`` (what every stage-2 fit returns),
-``normalizer``, ``metrics``, ``progress``, ``training_errors``.
+At this level: ``registry`` (family name -> room), ``passes`` (stage 2 over whole logs), ``fitting`` (what every
+stage-2 fit returns), ``normalizer``, ``training_errors``, ``lazy_names``.
 
 Takes arrays, never sessions: ``workbench`` wires it to the session store and scores logs with it. The evaluation
 protocols (BorealTC, QCAT, held-out logs) live with the datasets they read, in ``workbench.evaluation``.
@@ -39,11 +41,11 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "run_onnx",
             "save_bundle",
         ),
-        "checkpoint": ("Checkpoint", "load_checkpoint", "save_checkpoint"),
-        "cpu_threads": ("free_cpus", "threads_for", "use_free_cpus", "usable_cpus"),
+        "running.checkpoint": ("Checkpoint", "load_checkpoint", "save_checkpoint"),
+        "running.cpu_threads": ("free_cpus", "threads_for", "use_free_cpus", "usable_cpus"),
         "fitting": ("ClassifierFit", "Segment", "fold_indices", "to_dict"),
-        "blocking": ("Block", "BlockedFolds", "blocked_folds", "cut_blocks", "log_folds"),
-        "estimates": (
+        "figures.blocking": ("Block", "BlockedFolds", "blocked_folds", "cut_blocks", "log_folds"),
+        "figures.estimates": (
             "HELD_OUT",
             "MISSED_RECALL",
             "MIXED",
@@ -57,11 +59,11 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "terrain_estimate",
             "terrain_recalls",
         ),
-        "drift_accuracy": ("accuracy_by_drift", "expected_accuracy"),
+        "figures.drift_accuracy": ("accuracy_by_drift", "expected_accuracy"),
         "normalizer": ("Normalizer", "Rows"),
         "passes": ("ensemble_pass", "padded_groups", "run_classifiers"),
-        "metrics": ("classification_metrics", "expected_calibration_error"),
-        "progress": ("CancelFn", "Cancelled", "Progress", "ProgressFn", "never"),
+        "figures.metrics": ("classification_metrics", "expected_calibration_error"),
+        "running.progress": ("CancelFn", "Cancelled", "Progress", "ProgressFn", "never"),
         "training_errors": ("BundleError", "TrainingError"),
         # the paper family's room
         "paper_lstm": (
@@ -147,5 +149,5 @@ __all__, __getattr__, __dir__ = lazy_exports(
         ),
     },
     globals(),
-    submodules=("distributed",),
+    submodules=("running.distributed",),
 )

@@ -16,14 +16,16 @@ def lazy_exports(
         package: The package's ``__name__``.
         table: Module (relative to the package) -> the public names it defines.
         namespace: The package's ``globals()``: a name, once loaded, is stored there and never looked up again.
-        submodules: Modules that are themselves public names (``training.distributed``).
+        submodules: Modules that are themselves public names, by their path in the package: ``running.distributed``
+            is ``training.distributed``.
     """
     owner = {name: module for module, names in table.items() for name in names}
-    public = sorted([*owner, *submodules])
+    paths = {path.rsplit(".", 1)[-1]: path for path in submodules}
+    public = sorted([*owner, *paths])
 
     def getattr_(name: str) -> Any:
-        if name in submodules:
-            return importlib.import_module(f".{name}", package)
+        if name in paths:
+            return importlib.import_module(f".{paths[name]}", package)
         module = owner.get(name)
         if module is None:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")

@@ -3,7 +3,7 @@ well below the card's figure (issue 54).
 
 Two figures, each from what the model does on the file, with no label read:
 
-- the accuracy at its drift (:mod:`training.drift_accuracy`'s relation);
+- the accuracy at its drift (:mod:`training.figures.drift_accuracy`'s relation);
 - the agreement of its predictions within each stretch between change points (:func:`labeling.stretch_agreement`),
   no stretch shorter than ``SHORTEST_STRETCH_S``: where a stretch is one terrain, accuracy is at most this, and
   equal to it where the stretch's most predicted terrain is right. It cannot see a stretch the model gets wholly

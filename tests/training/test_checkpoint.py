@@ -9,9 +9,8 @@ import numpy as np
 import pytest
 import torch
 
-from training import TrainConfig, fit_predictor
-from training.checkpoint import Checkpoint, fingerprint, load_checkpoint, save_checkpoint
-from training.progress import Cancelled
+from training import Cancelled, TrainConfig, fit_predictor
+from training.running.checkpoint import Checkpoint, fingerprint, load_checkpoint, save_checkpoint
 
 from .test_models import sine_logs
 

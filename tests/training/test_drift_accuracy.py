@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from training import accuracy_by_drift, expected_accuracy
-from training.drift_accuracy import MIN_ROWS
+from training.figures import MIN_ROWS
 
 
 def held_out_rows(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

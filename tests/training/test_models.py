@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from training import (
+    Cancelled,
     Classifier,
     ClassifierConfig,
     Normalizer,
@@ -23,7 +24,6 @@ from training import (
     run_predictor,
     stage1_batch,
 )
-from training.progress import Cancelled
 
 TINY = TrainConfig(max_epochs=3, patience=2, chunk=16, piece=64, batch_size=8, label_piece=32, context=8, k_folds=3)
 

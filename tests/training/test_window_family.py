@@ -14,6 +14,7 @@ from training import (
     HELD_OUT,
     SAME_RUN,
     BundleError,
+    Cancelled,
     ModelBundle,
     Normalizer,
     Predictor,
@@ -32,7 +33,6 @@ from training import (
     run_classifiers,
     save_bundle,
 )
-from training.progress import Cancelled
 
 RATE = 100.0
 

@@ -13,11 +13,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..blocking import blocked_folds, log_folds
-from ..estimates import terrain_estimate
+from ..figures import blocked_folds, classification_metrics, log_folds, terrain_estimate
 from ..fitting import ClassifierFit, Segment
-from ..metrics import classification_metrics
-from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from ..running import CancelFn, Cancelled, Progress, ProgressFn, never
 from ..spectral_cnn import WindowFitConfig
 from .raw_steps import RawSteps
 from .rocket_classifier import RocketClassifier

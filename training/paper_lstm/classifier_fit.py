@@ -9,9 +9,9 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
+from ..figures import classification_metrics
 from ..fitting import ClassifierFit, Segment, fold_indices
-from ..metrics import classification_metrics
-from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from ..running import CancelFn, Cancelled, Progress, ProgressFn, never
 from .lstm_config import ClassifierConfig, TrainConfig
 from .lstm_losses import classifier_loss, consistency_loss, masked_cross_entropy
 from .lstm_models import Classifier, feature_moments

@@ -20,10 +20,21 @@ import torch
 from torch.nn.parallel import DistributedDataParallel
 
 from .. import distributed
-from ..checkpoint import Checkpoint, fingerprint, keyed_path, load_checkpoint, other_checkpoints, save_checkpoint
 from ..fitting import to_dict
 from ..normalizer import Normalizer, Rows
-from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from ..running import (
+    CancelFn,
+    Cancelled,
+    Checkpoint,
+    Progress,
+    ProgressFn,
+    fingerprint,
+    keyed_path,
+    load_checkpoint,
+    never,
+    other_checkpoints,
+    save_checkpoint,
+)
 from .lstm_config import PredictorConfig, TrainConfig
 from .lstm_losses import masked_mse, predictor_loss
 from .lstm_models import Predictor

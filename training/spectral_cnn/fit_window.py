@@ -28,12 +28,9 @@ from functools import partial
 import numpy as np
 import torch
 
-from ..blocking import blocked_folds, log_folds
-from ..estimates import terrain_estimate
-from ..fit_threads import INIT_LOCK, fit_workers, run_fits
+from ..figures import blocked_folds, classification_metrics, log_folds, terrain_estimate
 from ..fitting import ClassifierFit, Segment
-from ..metrics import classification_metrics
-from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from ..running import INIT_LOCK, CancelFn, Cancelled, Progress, ProgressFn, fit_workers, never, run_fits
 from .class_balance import BalancedLoss, class_shares, epoch_order
 from .row_draws import RowDraws
 from .spectra import SpectralConfig, SpectralSteps, frame_moments
@@ -304,20 +301,20 @@ def fit_window_classifier(
             every log is its own (a session's logs are runs; a protocol that cuts runs into pieces passes the runs).
         progress: Called after each fit, on the calling thread.
         cancel: Polled between epochs.
-        workers: Fits run side by side (:mod:`training.fit_threads`); default: one per torch thread. The result
+        workers: Fits run side by side (:mod:`training.running.fit_threads`); default: one per torch thread. The result
             does not depend on it.
 
     Returns:
-        The ensemble (one model per blocked fold, :mod:`training.blocking`) and its out-of-fold metrics: each
+        The ensemble (one model per blocked fold, :mod:`training.figures.blocking`) and its out-of-fold metrics: each
         labelled step predicted by the fold model that did not train on its block, steps of a terrain that model
         never saw left out (same-run figures). ``metrics["pseudo_stretches"]`` is the mean number of stretches a
         fold took as pseudo-labels. ``metrics["held_out_logs"]`` (when a terrain is labelled in two logs or more):
         its steps predicted by a model fitted without any label or stretch of their log, from folds over logs
-        (extra fits, not ensemble members). ``metrics["estimate"]`` (:func:`training.estimates.terrain_estimate`)
-        says per terrain which of the two exists. ``folds`` index ``pieces``: the segments cut into blocks.
-        The members' logits are divided by one temperature (folded into their heads) fitted on held-out-log
-        predictions where they exist, else on the blocked out-of-fold ones (``metrics["calibration"]``); ``drift``
-        is the ensemble's :class:`.window_drift.DriftReference`.
+        (extra fits, not ensemble members). ``metrics["estimate"]``
+        (:func:`training.figures.estimates.terrain_estimate`) says per terrain which of the two exists. ``folds``
+        index ``pieces``: the segments cut into blocks. The members' logits are divided by one temperature (folded
+        into their heads) fitted on held-out-log predictions where they exist, else on the blocked out-of-fold ones
+        (``metrics["calibration"]``); ``drift`` is the ensemble's :class:`.window_drift.DriftReference`.
     """
     if not segments:
         raise ValueError("no labelled segments to train the classifier on")

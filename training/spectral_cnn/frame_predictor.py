@@ -22,7 +22,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from ..running import CancelFn, Cancelled, Progress, ProgressFn, never
 from .spectra import drop_pages, frame_moments
 
 FRAME_PREDICTOR_KIND = "next-frame"  # the ``kind`` a bundle's predictor config carries for this module

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ..drift_accuracy import accuracy_by_drift
+from ..figures import accuracy_by_drift
 from .spectra import SpectralSteps, stacked_frames
 from .window_classifier import WindowClassifier
 
@@ -202,7 +202,7 @@ def held_out_relation(
     held: Sequence[np.ndarray],
     right: Sequence[np.ndarray],
 ) -> dict | None:
-    """The relation between drift and accuracy (:func:`training.drift_accuracy.accuracy_by_drift`) on each
+    """The relation between drift and accuracy (:func:`training.figures.drift_accuracy.accuracy_by_drift`) on each
     member's held-out rows ``held[m] (N_m, W·F)``, whether member ``m`` predicted each right ``right[m] (N_m,)``,
     each row's drift scored by that member alone: the one that never trained on it."""
     drift = [member_drift(reference, m, model, rows) for m, (model, rows) in enumerate(zip(models, held, strict=True))]

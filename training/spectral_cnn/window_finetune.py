@@ -21,9 +21,9 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..figures import classification_metrics
 from ..fitting import ClassifierFit, Segment
-from ..metrics import classification_metrics
-from ..progress import CancelFn, Cancelled, Progress, ProgressFn, never
+from ..running import CancelFn, Cancelled, Progress, ProgressFn, never
 from .class_balance import class_shares
 from .fit_window import HELD_ROWS, every_row, predict_steps, row_logits, train_rows
 from .spectra import SpectralSteps

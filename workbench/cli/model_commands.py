@@ -305,7 +305,7 @@ def _report_classifier(s: Session, v: ModelVersion) -> None:
 
 
 def _print_estimate(version: int, model: str, m: dict, estimate: dict) -> None:
-    """The estimate that exists per terrain, saying which it is (``training.estimates``)."""
+    """The estimate that exists per terrain, saying which it is (``training.figures.estimates``)."""
     from training import estimate_headline, majority_words
 
     words = estimate_headline(estimate) or "accuracy not measurable"

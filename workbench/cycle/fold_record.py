@@ -1,8 +1,9 @@
 """What a classifier version records of the labels it trained on, and how a quick fine-tune reads it back.
 
-A from-scratch fit of the default family holds out blocks of labelled time (``training.blocking``): a long segment
-is cut into pieces that may sit in different folds. The version keeps every piece and its fold (``labels.pieces``) so
-that a fine-tune keeps fold model ``m`` off fold ``m``'s pieces, old and new, and its figures stay out-of-fold.
+A from-scratch fit of the default family holds out blocks of labelled time (``training.figures.blocking``): a long
+segment is cut into pieces that may sit in different folds. The version keeps every piece and its fold
+(``labels.pieces``) so that a fine-tune keeps fold model ``m`` off fold ``m``'s pieces, old and new, and its figures
+stay out-of-fold.
 """
 
 from __future__ import annotations

@@ -20,7 +20,8 @@ from ..expectations import SHORTEST_STRETCH_S, card_accuracy
 
 
 def _estimate_section(m: dict) -> list[str]:
-    """Per terrain the figure that exists for the labels the session has, and which it is (``training.estimates``)."""
+    """Per terrain the figure that exists for the labels the session has, and which it is
+    (``training.figures.estimates``)."""
     estimate = m.get("estimate")
     if not estimate:
         return _held_out_section(m)

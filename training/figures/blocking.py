@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fitting import Segment
+from ..fitting import Segment
 
 
 @dataclass(frozen=True)
