@@ -139,9 +139,14 @@ def test_a_predicted_stretch_is_accepted_with_one_key_and_undone(screen: Screen)
     page.keyboard.press("Shift+Y")
     added = wait_until(lambda: set(rows(session_path)) - set(before), what="the stretch labelled as chosen")
     assert {(r[3], r[4]) for r in added} == {(second, "manual")}, added
-    with sqlite3.connect(session_path / "session.sqlite") as conn:
-        kind, terrain = conn.execute("SELECT kind, terrain FROM checks ORDER BY id DESC LIMIT 1").fetchone()
-    assert (kind, terrain) == ("manual", second)
+
+    def last_check() -> tuple:
+        with sqlite3.connect(session_path / "session.sqlite") as conn:
+            return conn.execute("SELECT kind, terrain FROM checks ORDER BY id DESC LIMIT 1").fetchone()
+
+    # the label is saved first and its check right after (a check that cannot be kept never costs the label): wait
+    # for the check, as the segment was waited for
+    wait_until(lambda: last_check() == ("manual", second), what=f"a manual check of {second}")
     assert not rows(session_path, "s.source = 'accepted'")  # the plain Y binding did not fire beside it
     close_notifications(page)
     blur(page)
