@@ -34,6 +34,7 @@ from .run_votes import with_run_votes
 from .stage_inputs import stage1_outputs
 from .train_stages import active_bundle, model_logs
 
+TRACK_WINDOW = 25  # samples the highlight tracks are smoothed over (labeling.suggest's default)
 EMBEDDING_MODE = "hidden+surprise"  # the suggestions' embeddings: what the label-efficiency simulation used
 
 
@@ -97,6 +98,7 @@ class SessionScores:
         tracks: Per log, the session-normalised, smoothed tracks in ``[0, 1]`` by kind.
         embeddings: Per log, the stage-1 embedding per step (:func:`stage1_embedding`), computed from the
             memory-mapped cache for the rows sliced: what typical and diverse suggestions cluster.
+        window: The tracks' smoothing, in samples (the suggestions smooth theirs the same and take these).
     """
 
     predictor: int | None = None
@@ -105,6 +107,7 @@ class SessionScores:
     scores: dict[int, labeling.LogScores] = field(default_factory=dict)
     tracks: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
     embeddings: dict[int, LazyFeatures | StepRows] = field(default_factory=dict)
+    window: int = TRACK_WINDOW
 
 
 def stage1_embedding(outputs: Stage1Outputs | FrameOutputs) -> LazyFeatures | StepRows:
@@ -144,7 +147,7 @@ def _score_session_logs(
 
 
 def compute_scores(
-    session: Session, *, window: int = 25, log_ids: Collection[int] | None = None, votes: bool = True
+    session: Session, *, window: int = TRACK_WINDOW, log_ids: Collection[int] | None = None, votes: bool = True
 ) -> SessionScores:
     """What the UI shows: every log scored with the active predictor (and the active classifier when it was trained
     on it), with highlight tracks and suggestion embeddings.
@@ -176,6 +179,7 @@ def compute_scores(
         dict(zip(ids, tracks, strict=True)),
         # rows are computed from the cache only where a suggestion reads them: an hour of them is 1.6 GB
         {x.id: stage1_embedding(outs[x.id]) for x in logs},
+        window,
     )
 
 

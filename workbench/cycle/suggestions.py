@@ -87,5 +87,8 @@ def suggest_for_session(
         unchecked_first=unchecked_first,
         spot_checks=spot_checks,
         wrong=_wrong_checks(session, [x.id for x in logs]) if wrong_first else None,
+        window=scores.window,
+        # the tracks the scores carry, where they were ranked over exactly these logs: taken, not computed again
+        tracks=[scores.tracks[x.id] for x in logs] if set(scores.tracks) == {x.id for x in logs} else None,
     )
     return [(logs[s.log], s) for s in out]

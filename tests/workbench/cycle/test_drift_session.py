@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +65,12 @@ def test_the_shifted_walk_scores_as_drifted_and_the_training_walks_do_not(drifte
     queue = cycle.suggest_for_session(session, scores, points, logs=session.logs())
     first_log, first = queue[0]
     assert first_log.id == new.id and first.reason.startswith("unlike anything labelled")
+    # the queue takes the tracks the scores carry; computing them again gives the same queue
+    again = cycle.suggest_for_session(session, replace(scores, tracks={}), points, logs=session.logs())
+    assert [(g.id, s.start, s.stop, s.reason, s.kind) for g, s in again] == [
+        (g.id, s.start, s.stop, s.reason, s.kind) for g, s in queue
+    ]
+    np.testing.assert_allclose([s.score for _, s in again], [s.score for _, s in queue], rtol=1e-12)
     # the Data tab's column
     html = logs_table_html(session, share)
     assert "unlike labelled" in html and f"{share[new.id]:.0%}" in html
