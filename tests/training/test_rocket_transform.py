@@ -119,6 +119,7 @@ def test_the_sorted_count_and_the_graphs_comparisons_give_the_same_features(monk
     rng = np.random.default_rng(3)
     x = on_grid(np.cumsum(rng.normal(size=(12, 4, 70)), axis=2) * 0.3)  # (N, C, L)
     transform = RocketTransform.from_parameters(fit_rocket(x, features=840, seed=1))
+    x[0, 1, 30] = np.nan  # a NaN sample (a stream's input) is above no bias either way
     with torch.no_grad():
         sorted_ = transform(torch.as_tensor(x)).numpy()
         monkeypatch.setattr("training.minirocket.rocket_transform._traced", lambda: True)

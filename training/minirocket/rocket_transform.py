@@ -88,6 +88,7 @@ def _count_compared(conv: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
 
 def _count_sorted(conv: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
     """As :func:`_count_compared` (the same whole numbers): each row sorted once, each bias searched in it."""
+    conv = torch.where(torch.isnan(conv), -torch.inf, conv)  # a NaN is above no bias, as a comparison says; sorted last
     if conv.device.type == "cpu":
         ordered = torch.from_numpy(np.sort(conv.detach().numpy(), axis=-1))  # (B, 84, L)
     else:
