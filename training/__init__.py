@@ -22,6 +22,7 @@ module alone, so a command that needs only settings (``workbench --help``, ``ing
 PyTorch.
 """
 
+from . import figures, running  # their __init__s load no module until a name is asked for
 from .lazy_names import lazy_exports
 
 __all__, __getattr__, __dir__ = lazy_exports(
@@ -41,29 +42,12 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "run_onnx",
             "save_bundle",
         ),
-        "running.checkpoint": ("Checkpoint", "load_checkpoint", "save_checkpoint"),
-        "running.cpu_threads": ("free_cpus", "threads_for", "use_free_cpus", "usable_cpus"),
         "fitting": ("ClassifierFit", "Segment", "fold_indices", "to_dict"),
-        "figures.blocking": ("Block", "BlockedFolds", "blocked_folds", "cut_blocks", "log_folds"),
-        "figures.estimates": (
-            "HELD_OUT",
-            "MISSED_RECALL",
-            "MIXED",
-            "NOT_MEASURED",
-            "SAME_RUN",
-            "estimate_headline",
-            "estimate_table",
-            "majority_words",
-            "missed_terrains",
-            "missed_words",
-            "terrain_estimate",
-            "terrain_recalls",
-        ),
-        "figures.drift_accuracy": ("accuracy_by_drift", "expected_accuracy"),
+        # the shared rooms' names, as each room's __init__ lists them (training.distributed is a module of its own)
+        "figures": tuple(figures.__all__),
+        "running": tuple(n for n in running.__all__ if n != "distributed"),
         "normalizer": ("Normalizer", "Rows"),
         "passes": ("ensemble_pass", "padded_groups", "run_classifiers"),
-        "figures.metrics": ("classification_metrics", "expected_calibration_error"),
-        "running.progress": ("CancelFn", "Cancelled", "Progress", "ProgressFn", "never"),
         "training_errors": ("BundleError", "TrainingError"),
         # the paper family's room
         "paper_lstm": (
