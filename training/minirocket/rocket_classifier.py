@@ -82,7 +82,12 @@ class RocketClassifier(nn.Module):
 
     def logits(self, windows: torch.Tensor) -> torch.Tensor:
         """``windows (N, L·C)`` -> calibrated logits ``(N, K)``: the ridge scores over the temperature."""
-        return self.head(self.features(windows)) / self.temperature
+        return self.head_logits(self.transformed(windows))
+
+    def head_logits(self, transformed: torch.Tensor) -> torch.Tensor:
+        """Calibrated logits ``(N, K)`` of features ``(N, F)`` already transformed (:meth:`transformed`): what
+        members sharing one transform each compute from it."""
+        return self.head(transformed * self.scale) / self.temperature
 
     def forward(self, features: torch.Tensor, state: None = None) -> tuple[torch.Tensor, None]:
         """``features (B, T, L·C)`` -> ``logits (B, T, K)``; no state is carried (the window is the input).
@@ -105,7 +110,7 @@ class RocketClassifier(nn.Module):
 
         def heads(windows: torch.Tensor) -> torch.Tensor:  # (N, L·C) -> (N, M·K)
             feats = rockets[0].transformed(windows)  # (N, F) once
-            return torch.cat([m.head(feats * m.scale) / m.temperature for m in rockets], 1)
+            return torch.cat([m.head_logits(feats) for m in rockets], 1)
 
         def forward(features: torch.Tensor) -> torch.Tensor:
             b, t, _ = features.shape

@@ -40,7 +40,7 @@ def ensemble_probs(members: list[RocketClassifier], windows: torch.Tensor, *, sh
     if not shared:
         return torch.stack([torch.softmax(m.logits(windows), -1) for m in members]).mean(0)
     feats = members[0].transformed(windows)  # (B, F) the shared transform's, once
-    return torch.stack([torch.softmax(m.head(feats * m.scale) / m.temperature, -1) for m in members]).mean(0)
+    return torch.stack([torch.softmax(m.head_logits(feats), -1) for m in members]).mean(0)
 
 
 class RocketStep:
