@@ -17,7 +17,7 @@ from typing import Literal
 import numpy as np
 
 from .changepoints import spans
-from .tracks import DRIFT_TRACK_AT_1, Kind, LogScores, intervals, normalised_tracks
+from .tracks import DRIFT_TRACK_AT_1, Kind, LogScores, intervals, normalised_tracks, smooth
 
 Strategy = Literal["random", "entropy", "margin", "disagreement", "surprise", "combined"]
 STRATEGIES: tuple[Strategy, ...] = ("random", "entropy", "margin", "disagreement", "surprise", "combined")
@@ -53,9 +53,10 @@ class Suggestion:
         reason: Why, in words a person reads in the UI.
         guess: The model's most probable class over the segment, or ``None`` before a classifier exists.
         rank: 0 for the first suggestion.
-        kind: ``"suggestion"`` (ranked: where the model is unsure, drifted, or a log nobody checked) or
-            ``"spot check"`` (drawn uniformly over the unlabelled time: the person's check of it is a fair sample of
-            how the model does there).
+        kind: ``"suggestion"`` (ranked: where the model is unsure, drifted, or a log nobody checked), ``"spot
+            check"`` (drawn uniformly over the unlabelled time: the person's check of it is a fair sample of how the
+            model does there) or ``"main answer"`` (the middle of the model's longest stretch of one terrain in a log
+            nobody checked: whether the bulk of that run is what the model says).
     """
 
     log: int
@@ -147,6 +148,8 @@ def suggest(
     spot_checks: int = 0,
     wrong: Sequence[tuple[int, int]] | None = None,
     tracks: Sequence[Mapping[Kind, np.ndarray]] | None = None,
+    main_answer: bool = False,
+    answered: Sequence[Span] = (),
 ) -> list[Suggestion]:
     """The next ``n`` segments to label.
 
@@ -183,6 +186,13 @@ def suggest(
         tracks: Per log, the tracks :func:`normalised_tracks` gives for these ``scores`` and ``window`` (every kind
             or more), where the caller has them already: the kinds the strategy reads are taken from them instead
             of computed again (at 10 hours of logs, 69 MB).
+        main_answer: ``combined`` (with ``unchecked_first``): each log nobody checked is first asked about its main
+            answer, the middle of the model's longest stretch of one terrain (kind ``"main answer"``), before the
+            tier's picks where the model is unsure: a run the model reads confidently as the wrong terrain has no
+            doubt to draw a pick to its bulk.
+        answered: The pieces of ``labelled`` that were checks of a log's main answer: they do not count as checking
+            the log (it keeps its place in the tier for the picks where the model is unsure), and a log with one is
+            not asked its main answer again.
 
     Returns:
         At most ``n`` suggestions, best first, overlapping neither labelled time nor each other.
@@ -236,7 +246,8 @@ def suggest(
     chosen: list[int] = []
     alive = np.ones(len(cands), bool)
     factor = np.ones(len(cands))
-    checked = {g for g, a, b in labelled if b > a}
+    asked = set(answered)
+    checked = {g for g, a, b in labelled if b > a and (g, a, b) not in asked}
     priority = None
     if strategy == "combined" and unchecked_first:
         tier = 1.0 + float(base.max(initial=0.0))  # above any candidate's own score
@@ -245,25 +256,36 @@ def suggest(
             per_log[g] = tier * bad / (n_checks + 1)
         per_log[[g for g in range(len(scores)) if g not in checked]] = tier
         priority = per_log[logs]  # (N,) each candidate's log's
-    while len(chosen) < n and alive.any():
+    firsts: list[Suggestion] = []
+    if main_answer and priority is not None:
+        firsts = _main_answers(scores, checked | {g for g, _, _ in asked}, classes, window=max_len)[:n]
+
+    def taken(log: int, start: int, stop: int, cls: int | None) -> None:
+        """A pick's effect on the rest: no overlap with it; its log, its neighbours and its class count less."""
+        nonlocal alive, factor
+        alive &= (stops <= start) | (starts >= stop) | (logs != log)
+        if strategy == "combined":
+            same_log = logs == log
+            factor = factor * np.where(same_log, LOG_DECAY, 1.0)
+            near = same_log & (np.minimum(np.abs(starts - stop), np.abs(stops - start)) < max_len)
+            factor = factor * np.where(near, NEIGHBOUR_DECAY, 1.0)
+            if guess is not None and cls is not None:
+                factor = factor * np.where(guess == cls, CLASS_DECAY, 1.0)
+
+    for x in firsts:
+        taken(x.log, x.start, x.stop, x.guess)
+    while len(chosen) + len(firsts) < n and alive.any():
         adjusted = np.where(alive, base * factor, -np.inf)
         if priority is not None:  # the logs nobody labelled first, then those where checks found the model wrong
             adjusted = adjusted + priority
         # lexsort's last key is the primary: score (descending), then log, then start, for a deterministic order
         best = int(np.lexsort((starts, logs, -adjusted))[0])
         chosen.append(best)
-        alive &= (stops <= starts[best]) | (starts >= stops[best]) | (logs != logs[best])
-        if strategy == "combined":
-            same_log = logs == logs[best]
-            factor = factor * np.where(same_log, LOG_DECAY, 1.0)
-            near = same_log & (np.minimum(np.abs(starts - stops[best]), np.abs(stops - starts[best])) < max_len)
-            factor = factor * np.where(near, NEIGHBOUR_DECAY, 1.0)
-            if guess is not None:
-                factor = factor * np.where(guess == guess[best], CLASS_DECAY, 1.0)
-            if cluster[best] >= 0:  # one pick per cluster before a second
-                factor = factor * np.where(cluster == cluster[best], CLUSTER_DECAY, 1.0)
-    out = []
-    for rank, i in enumerate(chosen):
+        taken(int(logs[best]), int(starts[best]), int(stops[best]), None if guess is None else int(guess[best]))
+        if strategy == "combined" and cluster[best] >= 0:  # one pick per cluster before a second
+            factor = factor * np.where(cluster == cluster[best], CLUSTER_DECAY, 1.0)
+    out = [replace(x, rank=rank) for rank, x in enumerate(firsts)]
+    for rank, i in enumerate(chosen, start=len(firsts)):
         g = None if guess is None else int(guess[i])
         reason = _reason(why[i], mean_probs[i] if mean_probs is not None else None, classes, rare[i])
         if why[i] == "drift" and drift is not None:
@@ -276,6 +298,30 @@ def suggest(
     taken = [(x.log, x.start, x.stop) for x in out]
     spots = _spot_checks(lengths, labelled, taken, spot_checks, max_len=max_len, min_len=min_len, seed=seed)
     return out + [replace(x, guess=_guess(scores, x), rank=len(out) + j) for j, x in enumerate(spots)]
+
+
+def _main_answers(
+    scores: Sequence[LogScores], skip: set[int], classes: Sequence[str], *, window: int
+) -> list[Suggestion]:
+    """Per log not in ``skip``, a piece of ``window`` samples at the middle of the model's longest run of one terrain
+    (the probabilities smoothed over ``window``), the longest runs first (ties by log)."""
+    out = []
+    for g, s in enumerate(scores):
+        if g in skip or s.probs is None or len(s.probs) < window:
+            continue
+        probs = np.asarray(s.probs, np.float64)
+        label = np.stack([smooth(probs[:, j], window) for j in range(probs.shape[1])], axis=1).argmax(axis=1)  # (T,)
+        edges = np.flatnonzero(np.diff(label)) + 1
+        begin, end = np.r_[0, edges], np.r_[edges, len(label)]
+        i = int(np.argmax(end - begin))
+        start = int(np.clip((begin[i] + end[i]) // 2 - window // 2, 0, len(label) - window))
+        k = int(label[begin[i]])
+        share = (end[i] - begin[i]) / len(label)
+        name = classes[k] if k < len(classes) else f"class {k}"
+        reason = f"the model's main answer in this log: {name} over {100 * share:.0f} % of it in one stretch"
+        guess = int(probs[start : start + window].mean(axis=0).argmax())
+        out.append(Suggestion(g, start, start + window, float(share), reason, guess, 0, "main answer"))
+    return sorted(out, key=lambda x: (-x.score, x.log))
 
 
 SPOT_REASON = "spot check: a piece drawn at random from the unlabelled time, so the estimate from your checks is fair"

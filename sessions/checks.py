@@ -6,7 +6,9 @@ person's own held-out evidence, and the only one that covers the runs nobody lab
 piece labelled, the person's terrain, what the model said there (its terrain over most of the piece, and the share
 of the piece it predicted as the person's), which classifier version said it, and how the piece was chosen: a
 ``suggestion`` (ranked where the model is unsure: a biased sample), a ``spot check`` (drawn uniformly over the
-unlabelled time: a fair one), or ``manual``. Checks are kept when labels are undone or changed: the test happened.
+unlabelled time: a fair one), a ``main answer`` (the middle of the model's longest stretch in a run nobody checked:
+biased the other way, to where the model is sure) or ``manual``. Checks are kept when labels are undone or changed:
+the test happened.
 """
 
 from __future__ import annotations
@@ -19,9 +21,9 @@ from pathlib import Path
 from .errors import LabelError
 from .labels import now
 
-CHECK_KINDS = ("suggestion", "spot check", "manual", "stretch")
+CHECK_KINDS = ("suggestion", "spot check", "manual", "stretch", "main answer")
 # the kinds an estimate counts: a "stretch" check (the model's own stretch accepted) agrees with it by construction
-COUNTED_KINDS = ("suggestion", "spot check", "manual")
+COUNTED_KINDS = ("suggestion", "spot check", "manual", "main answer")
 
 
 @dataclass(frozen=True)

@@ -275,3 +275,36 @@ def test_novelty_is_the_nearest_labelled_distance_found_a_block_at_a_time(monkey
     np.testing.assert_allclose(got, a, atol=1e-9)
     np.testing.assert_allclose(novelty, np.minimum(nearest / np.median(nearest), 1.0), atol=1e-6)
     assert 0.0 < novelty.mean() < 1.0
+
+
+def test_each_new_log_is_first_asked_its_main_answer_and_stays_in_the_tier_after() -> None:
+    """Issue 65: a run the model reads confidently as one terrain is asked about its bulk (the middle of the longest
+    predicted stretch) before the unsure places; that check does not take the run out of the new runs' tier."""
+    rng = np.random.default_rng(8)
+    scores = make_scores([3000, 3000, 3000], 3, 8)
+    sure = np.full((3000, 3), 0.05)
+    sure[:, 1] = 0.9
+    sure[:1000] = rng.dirichlet(np.ones(3) * 0.5, 1000)  # unsure for the first third, sure of b after it
+    scores[2] = LogScores(scores[2].surprise, sure, scores[2].disagreement)
+    labelled = [(0, 100, 200), (1, 100, 200)]  # log 2 is the new one
+    kwargs = dict(classes=["a", "b", "c"], n=4, max_len=200, min_len=50)
+    picks = suggest(scores, labelled=labelled, main_answer=True, **kwargs)
+    first = picks[0]
+    assert (first.kind, first.log, first.guess) == ("main answer", 2, 1), first
+    assert first.start >= 1000 and first.stop <= 3000 and first.stop - first.start == 200
+    assert abs((first.start + first.stop) / 2 - 2000) < 200  # the middle of the sure stretch
+    assert "main answer" in first.reason and " b over " in first.reason
+    assert all(p.kind == "suggestion" and p.log == 2 for p in picks[1:])  # the tier's unsure picks follow
+    assert all(not (p.start < first.stop and first.start < p.stop) for p in picks[1:])
+    assert "main answer" not in [p.kind for p in suggest(scores, labelled=labelled, **kwargs)]  # off by default
+    # once answered: asked no more, and the log keeps the tier (its only label is that check)
+    again = suggest(
+        scores,
+        labelled=[*labelled, (2, first.start, first.stop)],
+        answered=[(2, first.start, first.stop)],
+        main_answer=True,
+        **kwargs,
+    )
+    assert [p.kind for p in again] == ["suggestion"] * 4 and [p.log for p in again] == [2] * 4
+    plain = suggest(scores, labelled=[*labelled, (2, first.start, first.stop)], main_answer=True, **kwargs)
+    assert [p.log for p in plain].count(2) < 4  # a label that was not a main answer checks the log

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 import labeling
-from sessions import COUNTED_KINDS, LogInfo, Session
+from sessions import COUNTED_KINDS, Check, LogInfo, Session
 from training import terrain_recalls
 
 from .scores import SessionScores
@@ -17,6 +17,9 @@ SUGGESTION_S = 1.0
 # Of a queue of 4 or more, this many are spot checks, drawn uniformly from the unlabelled time: what the person's
 # checks of them say of the model is a fair sample (issue 65), which the ranked suggestions' is not
 SPOT_CHECKS = 1
+# Whether a log nobody checked is first asked about the model's main answer there (issue 65; screened with
+# `evaluate loop`'s `combined-main-answer`)
+MAIN_ANSWER = False
 
 
 def suggestion_lengths(rate_hz: float, *, seconds: float = SUGGESTION_S) -> tuple[int, int]:
@@ -25,11 +28,12 @@ def suggestion_lengths(rate_hz: float, *, seconds: float = SUGGESTION_S) -> tupl
     return longest, max(1, longest // 2)
 
 
-def _wrong_checks(session: Session, log_ids: list[int]) -> list[tuple[int, int]]:
-    """Per log, ``(wrong, checks)`` of the person's counted checks there."""
+def _wrong_checks(checks: list[Check], log_ids: list[int]) -> list[tuple[int, int]]:
+    """Per log, ``(wrong, checks)`` of the person's counted checks there; a main answer found right is neither (it
+    says the run's bulk is right, nothing of the places where the model is unsure)."""
     tally = {i: [0, 0] for i in log_ids}
-    for c in session.checks():
-        if c.kind in COUNTED_KINDS and c.log_id in tally:
+    for c in checks:
+        if c.kind in COUNTED_KINDS and c.log_id in tally and not (c.kind == "main answer" and c.right):
             tally[c.log_id][0] += not c.right
             tally[c.log_id][1] += 1
     return [(tally[i][0], tally[i][1]) for i in log_ids]
@@ -47,18 +51,22 @@ def suggest_for_session(
     unchecked_first: bool = True,
     spot_checks: int | None = None,
     wrong_first: bool = True,
+    main_answer: bool = MAIN_ANSWER,
 ) -> list[tuple[LogInfo, labeling.Suggestion]]:
     """The session's suggestion queue: ``n`` segments of ``SUGGESTION_S / 2`` to ``SUGGESTION_S`` to label next,
     with the log each lies in. ``seed``: of the ``random`` strategy and the clustering; ``unchecked_first``: see
     ``labeling.suggest`` (off only to measure what it is worth); ``spot_checks``: how many of the ``n`` are spot
     checks (default ``SPOT_CHECKS`` in a ranked queue of 4 or more once a classifier has scored the logs, else
     none); ``wrong_first``: a checked log where the person's checks found the model wrong stays ahead
-    (``labeling.suggest``'s ``wrong``; off only to measure what it is worth)."""
+    (``labeling.suggest``'s ``wrong``; off only to measure what it is worth); ``main_answer``: each log nobody
+    checked is first asked about the model's main answer there (``labeling.suggest``'s)."""
     logs = [x for x in logs if x.id in scores.scores]
     if not logs:
         return []
     index = {x.id: i for i, x in enumerate(logs)}
     labelled = [(index[s.log_id], s.start, s.stop) for s in session.segments() if s.log_id in index]
+    checks = session.checks()
+    answered = [(index[c.log_id], c.start, c.stop) for c in checks if c.kind == "main answer" and c.log_id in index]
     terrains = [t.name for t in session.terrains()]
     classes = list(scores.classes) or terrains
     counts = np.zeros(len(classes))
@@ -86,7 +94,9 @@ def suggest_for_session(
         seed=seed,
         unchecked_first=unchecked_first,
         spot_checks=spot_checks,
-        wrong=_wrong_checks(session, [x.id for x in logs]) if wrong_first else None,
+        wrong=_wrong_checks(checks, [x.id for x in logs]) if wrong_first else None,
+        main_answer=main_answer,
+        answered=answered,
         window=scores.window,
         # the tracks the scores carry, where they were ranked over exactly these logs: taken, not computed again
         tracks=[scores.tracks[x.id] for x in logs] if set(scores.tracks) == {x.id for x in logs} else None,
