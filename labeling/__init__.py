@@ -5,6 +5,7 @@ NumPy in, NumPy out: no torch, no UI, no session (``workbench`` wires it to the 
 
 from .changepoints import Snap, block_summary, change_points, coarser_points, snap_range, spans, stretch_agreement
 from .check_estimates import CheckEstimate, check_estimate, wilson
+from .placed_picks import Suggestion, coverage
 from .propagate import RunVotes, blend_votes, run_trust, run_votes
 from .simulate import (
     CurvePoint,
@@ -21,7 +22,7 @@ from .simulate import (
     time_to_reach,
 )
 from .stretches import PredictedStretch, predicted_stretches, uncovered
-from .suggest import STRATEGIES, Strategy, Suggestion, candidates, class_weights, coverage, suggest
+from .suggest import STRATEGIES, Strategy, candidates, class_weights, suggest
 from .tracks import (
     DRIFT_TRACK_AT_1,
     KINDS,

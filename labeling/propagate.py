@@ -13,7 +13,7 @@ untrusted on that run: ``(1 - w) p + w q`` with ``w = exp(-(near / NEAR_S)^2) * 
 model's accuracy on the run by the person's checks made there (``run_trust``, shrunk towards its estimate for new
 runs). A model confident and right keeps its answer; near the labels, where it hesitates or where the person's
 checks found it wrong, the run's own labels decide. Screened in
-``benchmarks/propagate_screen.py`` (the choice, and the variants it beat, are in ``docs/design-notes.md``).
+``benchmarks/studies/propagate_screen.py`` (the choice, and the variants it beat, are in ``docs/design-notes.md``).
 Arrays in, arrays out.
 """
 

@@ -11,17 +11,18 @@ first, and spreads picks over logs and over guessed classes.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Literal
 
 import numpy as np
 
 from .changepoints import spans
-from .tracks import DRIFT_TRACK_AT_1, Kind, LogScores, intervals, normalised_tracks, smooth
+from .placed_picks import Span, Suggestion, coverage, main_answers, spot_guess, unlabelled_runs
+from .placed_picks import spot_checks as place_spot_checks
+from .tracks import DRIFT_TRACK_AT_1, Kind, LogScores, intervals, normalised_tracks
 
 Strategy = Literal["random", "entropy", "margin", "disagreement", "surprise", "combined"]
 STRATEGIES: tuple[Strategy, ...] = ("random", "entropy", "margin", "disagreement", "surprise", "combined")
-Span = tuple[int, int, int]  # (log, start, stop) in samples
 
 # weights of the combined score; renormalised over the kinds the model can give
 WEIGHTS: dict[str, float] = {"unsure": 0.45, "disagreement": 0.3, "surprise": 0.25}
@@ -39,51 +40,6 @@ MISSED_RECALL = 0.5  # a terrain measured under this recall is one the model mis
 MISSED_BOOST = 6.0  # a candidate with all its probability on a fully missed terrain counts (1 + this) times
 NEAREST_MIB = 64  # scikit-learn's working memory for the candidates' nearest labelled segment, a block at a time
 MISSED_SAY = 0.1  # the pull (missed share x probability) from which the reason names the missed terrain
-
-
-@dataclass(frozen=True)
-class Suggestion:
-    """A segment to label next.
-
-    Attributes:
-        log: Log index.
-        start: First sample.
-        stop: One past the last sample.
-        score: The strategy's score after diversity (higher first).
-        reason: Why, in words a person reads in the UI.
-        guess: The model's most probable class over the segment, or ``None`` before a classifier exists.
-        rank: 0 for the first suggestion.
-        kind: ``"suggestion"`` (ranked: where the model is unsure, drifted, or a log nobody checked), ``"spot
-            check"`` (drawn uniformly over the unlabelled time: the person's check of it is a fair sample of how the
-            model does there) or ``"main answer"`` (the middle of the model's longest stretch of one terrain in a log
-            nobody checked: whether the bulk of that run is what the model says).
-    """
-
-    log: int
-    start: int
-    stop: int
-    score: float
-    reason: str
-    guess: int | None
-    rank: int
-    kind: str = "suggestion"
-
-
-def unlabelled_runs(start: int, stop: int, covered: np.ndarray, *, min_len: int) -> list[tuple[int, int]]:
-    """The parts of ``[start, stop)`` where ``covered`` (``(T,)`` bool) is false, at least ``min_len`` long."""
-    free = ~covered[start:stop]
-    if not free.any():
-        return []
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], free.astype(np.int8), [0]])))
-    return [(start + int(a), start + int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= min_len]
-
-
-def coverage(lengths: Sequence[int], labelled: Sequence[Span]) -> list[np.ndarray]:
-    """Per log, ``(T,)`` bool: true where labelled."""
-    cov = [np.zeros(n, bool) for n in lengths]
-    for log, a, b in labelled:
-        cov[log][max(a, 0) : max(b, 0)] = True
-    return cov
 
 
 def _kinds_for(strategy: Strategy) -> tuple[Kind, ...]:
@@ -207,7 +163,7 @@ def suggest(
         tracks = [{k: t[k] for k in kinds if k in t} for t in tracks]
     cands = candidates(lengths, labelled, change_points, tracks, max_len=max_len, min_len=min_len)
     if not cands or n == 0:
-        return _spot_checks(lengths, labelled, [], spot_checks, max_len=max_len, min_len=min_len, seed=seed)
+        return place_spot_checks(lengths, labelled, [], spot_checks, max_len=max_len, min_len=min_len, seed=seed)
     logs = np.array([c[0] for c in cands])
     starts = np.array([c[1] for c in cands])
     stops = np.array([c[2] for c in cands])
@@ -258,7 +214,7 @@ def suggest(
         priority = per_log[logs]  # (N,) each candidate's log's
     firsts: list[Suggestion] = []
     if main_answer and priority is not None:
-        firsts = _main_answers(scores, checked | {g for g, _, _ in asked}, classes, window=max_len)[:n]
+        firsts = main_answers(scores, checked | {g for g, _, _ in asked}, classes, window=max_len)[:n]
 
     def taken(log: int, start: int, stop: int, cls: int | None) -> None:
         """A pick's effect on the rest: no overlap with it; its log, its neighbours and its class count less."""
@@ -296,76 +252,8 @@ def suggest(
             reason += f"; may be {missed}, which the model misses ({100 * recall[k]:.0f} % recall)"
         out.append(Suggestion(int(logs[i]), int(starts[i]), int(stops[i]), float(base[i] * factor[i]), reason, g, rank))
     taken = [(x.log, x.start, x.stop) for x in out]
-    spots = _spot_checks(lengths, labelled, taken, spot_checks, max_len=max_len, min_len=min_len, seed=seed)
-    return out + [replace(x, guess=_guess(scores, x), rank=len(out) + j) for j, x in enumerate(spots)]
-
-
-def _main_answers(
-    scores: Sequence[LogScores], skip: set[int], classes: Sequence[str], *, window: int
-) -> list[Suggestion]:
-    """Per log not in ``skip``, a piece of ``window`` samples at the middle of the model's longest run of one terrain
-    (the probabilities smoothed over ``window``), the longest runs first (ties by log)."""
-    out = []
-    for g, s in enumerate(scores):
-        if g in skip or s.probs is None or len(s.probs) < window:
-            continue
-        probs = np.asarray(s.probs, np.float64)
-        label = np.stack([smooth(probs[:, j], window) for j in range(probs.shape[1])], axis=1).argmax(axis=1)  # (T,)
-        edges = np.flatnonzero(np.diff(label)) + 1
-        begin, end = np.r_[0, edges], np.r_[edges, len(label)]
-        i = int(np.argmax(end - begin))
-        start = int(np.clip((begin[i] + end[i]) // 2 - window // 2, 0, len(label) - window))
-        k = int(label[begin[i]])
-        share = (end[i] - begin[i]) / len(label)
-        name = classes[k] if k < len(classes) else f"class {k}"
-        reason = f"the model's main answer in this log: {name} over {100 * share:.0f} % of it in one stretch"
-        guess = int(probs[start : start + window].mean(axis=0).argmax())
-        out.append(Suggestion(g, start, start + window, float(share), reason, guess, 0, "main answer"))
-    return sorted(out, key=lambda x: (-x.score, x.log))
-
-
-SPOT_REASON = "spot check: a piece drawn at random from the unlabelled time, so the estimate from your checks is fair"
-
-
-def _guess(scores: Sequence[LogScores], spot: Suggestion) -> int | None:
-    probs = scores[spot.log].probs
-    return None if probs is None else int(np.asarray(probs[spot.start : spot.stop]).mean(axis=0).argmax())
-
-
-def _spot_checks(
-    lengths: Sequence[int],
-    labelled: Sequence[Span],
-    taken: Sequence[Span],
-    count: int,
-    *,
-    max_len: int,
-    min_len: int,
-    seed: int,
-) -> list[Suggestion]:
-    """``count`` pieces of up to ``max_len`` around steps drawn uniformly from the time neither labelled nor taken
-    (a piece that would be shorter than ``min_len`` there is drawn again, at most 50 times each)."""
-    if count <= 0:
-        return []
-    cov = coverage(lengths, [*labelled, *taken])
-    rng = np.random.default_rng([seed, 65])
-    offsets = np.concatenate([[0], np.cumsum(lengths)])
-    out: list[Suggestion] = []
-    free = np.flatnonzero(np.concatenate([~c for c in cov]))  # every unlabelled step of every log, in one index
-    for _ in range(50 * count):
-        if len(out) == count or not len(free):
-            break
-        at = int(free[rng.integers(len(free))])
-        log = int(np.searchsorted(offsets, at, side="right") - 1)
-        step = at - int(offsets[log])
-        a, b = max(0, step - max_len // 2), min(lengths[log], step - max_len // 2 + max_len)
-        pieces = [(x, y) for x, y in unlabelled_runs(a, b, cov[log], min_len=min_len) if x <= step < y]
-        if not pieces:
-            continue
-        x, y = pieces[0]
-        cov[log][x:y] = True
-        free = free[(free < offsets[log] + x) | (free >= offsets[log] + y)]
-        out.append(Suggestion(log, x, y, 0.0, SPOT_REASON, None, len(out), "spot check"))
-    return out
+    spots = place_spot_checks(lengths, labelled, taken, spot_checks, max_len=max_len, min_len=min_len, seed=seed)
+    return out + [replace(x, guess=spot_guess(scores, x), rank=len(out) + j) for j, x in enumerate(spots)]
 
 
 def _novelty(

@@ -246,6 +246,30 @@ def test_each_family_lives_in_its_room_and_the_registry_finds_it_there() -> None
     assert not strays, f"models at the top of training/, outside a family's room: {strays}"
 
 
+def test_the_cycle_never_asks_which_family_it_runs() -> None:
+    """Issue 67: ``workbench/cycle/`` calls a family through the registry (what it reads, how it fits, its stage 1)
+    and never names one: no string in its code is a family's name, so a fourth family is a room and a registry
+    line, with no edit here. Docstrings may name them."""
+    from training import family_names
+
+    names = set(family_names()) | set(FAMILY_ROOMS)
+    found = []
+    for path in sorted((REPO / "workbench" / "cycle").rglob("*.py")):
+        tree = ast.parse(path.read_text())
+        docs = {
+            id(node.body[0].value)
+            for node in ast.walk(tree)
+            if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+            and node.body
+            and isinstance(node.body[0], ast.Expr)
+            and isinstance(node.body[0].value, ast.Constant)
+        }
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Constant) and id(node) not in docs and node.value in names:
+                found.append(f"{path.relative_to(REPO)}:{node.lineno}: {node.value!r}")
+    assert not found, f"the cycle names a family: {found}"
+
+
 def test_nothing_outside_a_family_room_imports_its_private_modules() -> None:
     """A room is used through its ``__init__`` (``training.spectral_cnn``), as a package is. Its own tests
     (``tests/training/``) may reach into it, as tests of a package may."""

@@ -29,7 +29,16 @@ __all__, __getattr__, __dir__ = lazy_exports(
     __name__,
     {
         # the shared machinery
-        "registry": ("DEFAULT_FAMILY", "FAMILY_ROOMS", "Family", "device_refusal", "family", "family_names"),
+        "registry": (
+            "DEFAULT_FAMILY",
+            "FAMILY_ROOMS",
+            "Family",
+            "UNNAMED_FAMILY",
+            "device_refusal",
+            "family",
+            "family_names",
+            "recorded_family",
+        ),
         "runtime": (
             "MAX_DWELL_S",
             "ModelBundle",

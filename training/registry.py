@@ -29,6 +29,8 @@ FAMILY_ROOMS: dict[str, str] = {
     "minirocket": "minirocket",  # MiniRocket: fixed convolutions of the samples, a ridge head; the default stage 1
 }
 DEFAULT_FAMILY = "default"
+# a classifier version saved before versions named their family was the paper family's (the only one then)
+UNNAMED_FAMILY = "paper"
 
 
 @dataclass(frozen=True)
@@ -55,15 +57,20 @@ class Family:
         after_first: State inputs with no output that are set to ones after a stream's first step.
         describe: ``bundle`` -> the model card's sentences on what the bundle's models are.
         onnx_usage: ``bundle`` -> the model card's sentence on the exported step's inputs and outputs.
-        fit: A ``"frames"`` or ``"windows"`` family's stage 2 from scratch: ``(features, segments, classes, *,
-            config, stretches, units, progress, cancel)`` -> ``ClassifierFit``, where ``features`` are
-            ``SpectralSteps`` (``RawSteps``), ``config`` a ``WindowFitConfig``, ``stretches`` unlabelled ``(log,
-            start, stop)`` for self-training and, only when ``config.unit_agree`` is set, ``units``: per stretch the
-            span it is a piece of. ``None`` for the paper family, whose fit (``fit_classifier``: warm start, replayed
-            labels, consistency pairs) the cycle calls itself.
+        fit: Its stage 2 from scratch, called by the workbench with the inputs ``stage2_inputs`` names: ``(features,
+            segments, classes, *, config, progress, cancel, ...)`` -> ``ClassifierFit``. A ``"frames"`` or
+            ``"windows"`` family takes ``SpectralSteps`` (``RawSteps``), a ``WindowFitConfig``, ``stretches``
+            (unlabelled ``(log, start, stop)``, for ``self_training``) and, only when ``config.unit_agree`` is set,
+            ``units``. A ``"stage1"`` family takes stage 1's features per log, a ``TrainConfig``, ``hidden``, and
+            ``init`` (the active classifier's modules to start from, with ``warm_start``), ``new`` (the labels added
+            since, trained on first) and ``pairs`` (consistency pairs, when ``config.consistency`` is set).
         fine_tune: The quick Retrain: ``(features, segments, classes, models, *, folds, new, steps, lr_scale,
             config, progress, cancel)`` -> ``ClassifierFit`` of the fold models fine-tuned on new labels; ``None``
-            where the family has none (the paper family warm-starts inside ``fit``).
+            where the family has none (a ``warm_start`` family warm-starts inside ``fit``).
+        self_training: A ``"frames"`` family whose ``fit`` also learns from the unlabelled stretches of every log
+            (the workbench then finds them and passes ``stretches``).
+        warm_start: A ``"stage1"`` family whose ``fit`` starts from the active classifier's modules when they fit
+            (same predictor, terrains and features): the workbench passes them as ``init``.
         retired_kinds: Kinds an older workbench saved for this family that no longer load, and what to do.
         stage1: Its stage 1: ``"lstm"`` (the paper's predictor of the next raw sample, whose outputs the paper's
             stage 2 reads) or ``"next-frame"`` (the default family's predictor of the next spectral frame, which
@@ -87,8 +94,10 @@ class Family:
     zero_state: Callable[[Bundle, int], dict[str, np.ndarray]]
     describe: Callable[[Bundle], str]
     onnx_usage: Callable[[Bundle], str]
-    fit: Callable[..., Any] | None = None
+    fit: Callable[..., Any]
     fine_tune: Callable[..., Any] | None = None
+    self_training: bool = False
+    warm_start: bool = False
     after_first: tuple[str, ...] = ()
     retired_kinds: Mapping[str, str] = field(default_factory=dict)
     stage1: Literal["lstm", "next-frame"] = "lstm"
@@ -99,6 +108,12 @@ class Family:
 def family_names() -> tuple[str, ...]:
     """Every family's ``--model`` name, the default first."""
     return (DEFAULT_FAMILY, *sorted(n for n in FAMILY_ROOMS if n != DEFAULT_FAMILY))
+
+
+def recorded_family(config: Mapping[str, Any] | None) -> str:
+    """The family a classifier version's config names (``model``): ``DEFAULT_FAMILY`` with no version, the paper
+    family's for a version saved before versions named theirs."""
+    return DEFAULT_FAMILY if config is None else str(config.get("model", UNNAMED_FAMILY))
 
 
 def family(name: str) -> Family:

@@ -9,7 +9,7 @@ Two figures, each from what the model does on the file, with no label read:
   equal to it where the stretch's most predicted terrain is right. It cannot see a stretch the model gets wholly
   wrong, so it is printed as a bound.
 
-Either figure 10 points or more under the card warns. The figures measured (``benchmarks/expected_borealtc.py``,
+Either figure 10 points or more under the card warns. The figures measured (``benchmarks/studies/expected_borealtc.py``,
 ``benchmarks/results/issue-54.md``) are in ``docs/model.md``.
 """
 
@@ -27,7 +27,7 @@ from training import expected_accuracy
 # runs, one terrain each: median 5.4 s between them), and a short stretch agrees with itself whatever the model says.
 # Chosen on inner folds (BorealTC, runs within 10 points: 64/72 % at 0 s, 76/76 % at 10 s, 80/78 % at 20 s) and on
 # new demo walks whose terrain changes every 5-36 s (within 10 points on 38 % of them at 0 s, 75 % at 10 s, 62 % at
-# 20 s, where merging joins real changes: 38 % fell 10 points under the truth; benchmarks/expected_walks.py).
+# 20 s, where merging joins real changes: 38 % fell 10 points under the truth; benchmarks/studies/expected_walks.py).
 SHORTEST_STRETCH_S = 10.0
 BELOW_CARD = 0.10  # an expected accuracy this far under the card's figure gets a warning line
 MOSTLY_DRIFTED = 0.5  # a file with more drifted time than this gets a warning line even without a relation

@@ -20,7 +20,7 @@ class RetrainSettings:
             moved it by 11 (docs/design-notes.md).
         warm_epochs: The quick phase fine-tunes the active classifier for this many epochs on the labels added or
             changed since (``None``: every retrain trains as long as a fresh one). The old models fit all the older
-            labels already, and a person waits for this one (``benchmarks/bench_retrain.py``).
+            labels already, and a person waits for this one (``benchmarks/speed/bench_retrain.py``).
         warm_lr_scale: The fine-tune's learning rate, as a share of ``classifier.lr``: at the full rate two epochs of
             new labels and replayed old ones pulled the warm models off what they knew (QCAT-scale bench: 75.9 % on
             unlabelled trials at 0.005, 81.2 % at 0.001).
@@ -28,7 +28,8 @@ class RetrainSettings:
         window: The default family's stage 2 from scratch (the refine phase, a new terrain, a new predictor).
         window_steps: The default family's quick phase: AdamW steps per fold model on the labels added or changed
             since, with as many older rows replayed (``training.fine_tune_window_classifier``). Its from-scratch fit
-            is minutes on a big session (QCAT scale: 269 s), the quick phase seconds (``benchmarks/bench_retrain.py``).
+            is minutes on a big session (QCAT scale: 269 s), the quick phase seconds
+            (``benchmarks/speed/bench_retrain.py``).
         window_lr_scale: The quick phase's learning rate as a share of ``window.lr``. Neither it nor
             ``window_steps`` was tuned on a benchmark: a fine-tune is a smaller step than a fit.
     """

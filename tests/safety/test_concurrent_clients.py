@@ -1,7 +1,7 @@
 """Promise 4: several people at once. N clients speaking viser's protocol label, relabel and delete concurrently
 while a retrain runs: no label lost or duplicated, every client ends up showing the same label set, and saves keep
 being answered. The summary line carries the server's click -> committed times under that load (target: p99 <= 50 ms)
-beside what the clients saw; ``benchmarks/bench_labels.py`` measures the same save without the load."""
+beside what the clients saw; ``benchmarks/speed/bench_labels.py`` measures the same save without the load."""
 
 from __future__ import annotations
 

@@ -147,6 +147,7 @@ FAMILY = Family(
     describe=lambda bundle: f"Logreg family: a logistic regression over {bundle.spectral.window} spectral frames.",
     onnx_usage=lambda bundle: "`classifier_stream.onnx` is the same step as the default family's.",
     fit=fit_logreg,
+    stage1="next-frame",  # the default family's stage 1, whose frames it reads
 )
 
 

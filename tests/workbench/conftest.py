@@ -16,6 +16,6 @@ def fast_window_fits():
     Modules ask for it with ``pytestmark = pytest.mark.usefixtures("fast_window_fits")``."""
     with pytest.MonkeyPatch.context() as mp:
         fast = replace(RETRAIN, window=replace(RETRAIN.window, epochs=8, refit_epochs=4))
-        mp.setattr("workbench.cycle.train_stages.RETRAIN", fast)
+        mp.setattr("workbench.cycle.stage2_fit.RETRAIN", fast)
         mp.setattr("workbench.evaluation.session_eval.RETRAIN", fast)
         yield

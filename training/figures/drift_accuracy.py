@@ -8,7 +8,7 @@ unlike the member's own labelled rows it is, :mod:`.spectral_cnn.window_drift`) 
 file's steps.
 
 Chosen on BorealTC's inner folds by run (outer fold 1's 55 training runs, 5 inner folds, 10 % labelled; the outer
-test runs unread; ``benchmarks/expected_borealtc.py --inner 1``), against what each held-out run scored: the
+test runs unread; ``benchmarks/studies/expected_borealtc.py --inner 1``), against what each held-out run scored: the
 relation was within 10 points on 40 % of runs (mean error +0.5 points, mean absolute 18.8); the card's figure for
 every run 15 % (27.5), the relation capped at the card 18 % (25.6), the mean top probability 31 % (21.1). Runs
 score either near the same-run level or far under it, so one figure for all of them is rarely near any. On the

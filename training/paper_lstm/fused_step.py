@@ -1,7 +1,7 @@
 """Both stages one sample at a time in NumPy, with the weights fused so a step is a handful of BLAS calls.
 
 The streaming runtime's hot loop. A per-sample step of PyTorch modules spends most of its time dispatching small
-operators (measured in ``benchmarks/bench_streaming.py``); here every step is two matrix products per stage into
+operators (measured in ``benchmarks/speed/bench_streaming.py``); here every step is two matrix products per stage into
 preallocated buffers and a few in-place ufuncs, with no allocation. The numbers are :class:`StepModel`'s (the ONNX
 export) to float32 rounding.
 
@@ -229,7 +229,7 @@ class Bf16Step:
     per step, and 64 × 500 Hz needs ~115 GFLOP/s, above one core's float32 peak on the CPUs here. bfloat16 products
     (AVX-512 BF16 through oneDNN) measured 1.7× float32's throughput for 64 streams; the cell's state and
     nonlinearities stay float32. Probabilities moved by up to ~1e-4 in the tests and the benchmark (reported beside
-    the timing in ``benchmarks/bench_streaming.py``).
+    the timing in ``benchmarks/speed/bench_streaming.py``).
     """
 
     def __init__(self, bundle: ModelBundle, *, streams: int = 1) -> None:

@@ -75,8 +75,9 @@ class TrainConfig:
             classifier, which counts most when labels are few: on BorealTC, 40 partitions chosen by ``combined`` went
             from 78.7 to 83.7 % with weight 3 (fold 2; benchmarks/results/label-efficiency.md). Ignored without pairs.
             Off (0) by default: on 40 minutes of demo walks it made the UI's stage-2 refit from scratch 15× slower
-            (1356 s against 90 s) for no accuracy (71.2 against 72.6 %; benchmarks/paper_consistency_cost.py), and on
-            BorealTC's simulation it moved the label-efficiency ratio from about 0.73× to 0.68× only (8 seeds).
+            (1356 s against 90 s) for no accuracy (71.2 against 72.6 %; benchmarks/paper_consistency_cost.py at
+            38a27ac), and on BorealTC's simulation it moved the label-efficiency ratio from about 0.73× to 0.68×
+            only (8 seeds).
         elastic: The elastic-net penalty.
         seed: Seed of every random choice.
         device: "cpu" or "cuda".

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..registry import Family
 from .fused_step import Bf16Step, FusedStep
@@ -11,7 +11,14 @@ from .lstm_models import Classifier
 from .lstm_step import INPUTS, OUTPUTS, STREAM_AXES, StepModel, zero_state
 
 if TYPE_CHECKING:
+    from ..fitting import ClassifierFit
     from ..runtime import ModelBundle
+
+
+def _fit(*args: Any, **kwargs: Any) -> ClassifierFit:
+    from .classifier_fit import fit_classifier  # on first use: a bundle is loaded without the fit
+
+    return fit_classifier(*args, **kwargs)
 
 
 def _classifier(cfg: dict) -> Classifier:
@@ -57,4 +64,6 @@ FAMILY = Family(
     devices=("cpu", "cuda"),
     describe=_describe,
     onnx_usage=_onnx_usage,
+    fit=_fit,
+    warm_start=True,
 )

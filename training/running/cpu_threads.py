@@ -5,7 +5,7 @@ With one of two cores taken (a browser, a second ``train``, a test run), the thr
 while its partner spins at the next barrier, waiting for it: measured, the frame predictor on a 14-minute session
 took 8 s alone, 30 s beside one single-threaded busy loop (3.75x) and 216 s beside two CPU-heavy processes (27x).
 Counting the free CPUs (``/proc/stat`` over a fifth of a second) and leaving the rest alone makes a fit slow in
-proportion to the CPU it gets (``benchmarks/bench_under_load.py``: 1.48x beside one busy loop, 4.16x with torch's
+proportion to the CPU it gets (``benchmarks/speed/bench_under_load.py``: 1.48x beside one busy loop, 4.16x with torch's
 own count). OpenMP's passive wait was the other lever; it costs small steps a futex wake each (17x for an LSTM's
 steps, ``workbench/ui/torch_lane.py``), and one thread per free CPU leaves no partner to wait for.
 """

@@ -46,7 +46,8 @@ class StreamingClassifier:
                 1.7× the throughput for 64 streams at once on CPUs with AVX-512 BF16 (measured), probabilities within
                 ~1e-4.
             members: Run only the first this many of the k fold models (all when ``None``). A step reads every
-                member's weights, so one member is about 2.5× faster per sample (``benchmarks/bench_streaming.py``).
+                member's weights, so one member is about 2.5× faster per sample
+                (``benchmarks/speed/bench_streaming.py``).
                 The bundle's out-of-fold accuracy is single fold models' accuracy on data they did not see, so it
                 is what one member is expected to reach; the ensemble's mean is usually a little better.
             smooth_s: The causal HMM filter (:class:`.terrain_filter.TerrainFilter`) over each stream's

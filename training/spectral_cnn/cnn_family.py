@@ -85,6 +85,7 @@ FAMILY = Family(
     onnx_usage=_onnx_usage,
     fit=_fit,
     fine_tune=_fine_tune,
+    self_training=True,
     stage1="next-frame",
     cpu_only_why="its fits are small networks run side by side, one per core; no CUDA path is built or tested yet",
     retired_kinds={

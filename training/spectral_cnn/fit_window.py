@@ -4,18 +4,18 @@ unlabelled stretches too; a k-fold ensemble with out-of-fold metrics, as the pap
 Each fold is a small network (:class:`.window_classifier.WindowClassifier`) trained with AdamW on the frame
 rows of its segments: a step's input changes only when a frame completes, so one row per frame is the whole training
 set, with no repeats. Weight decay, dropout and input noise regularise it; the settings were chosen on BorealTC's
-inner folds (``benchmarks/default_family_cnn.py``), never on its test folds.
+inner folds (``benchmarks/studies/default_family_cnn.py``), never on its test folds.
 
 Self-training, a fixed rule measured on BorealTC at 10 % of labels (+1.6 points on the authors' folds and +0.5 on
-unseen runs for the network; ``benchmarks/default_family_ablation.py``): each fold model labels every unlabelled
+unseen runs for the network; ``benchmarks/studies/default_family_ablation.py``): each fold model labels every unlabelled
 stretch (a span with no change point and no label); a stretch whose frames agree on one terrain (``agree`` of them)
 lends it to all of its frames, and the fold's network goes on training on its labels and these pseudo-labels
 (``refit_epochs``). Its out-of-fold figures stay honest: stretches never hold a labelled step.
 
 The refit goes on from the network that labelled the stretches, for 10 passes, rather than training a new one for
-30 (issue 53): a first model on 11 quadruped-shaped logs of 50 Hz IMU (``benchmarks/bench_first_model.py``) trained
-its stage 2 in 36 s instead of 70, and BorealTC's folds by run at 10 % of labels (two seeds, checked once, not
-screened) scored 81.8 % against 81.3 %.
+30 (issue 53): a first model on 11 quadruped-shaped logs of 50 Hz IMU
+(``benchmarks/speed/bench_first_model.py``) trained its stage 2 in 36 s instead of 70, and BorealTC's folds by run
+at 10 % of labels (two seeds, checked once, not screened) scored 81.8 % against 81.3 %.
 """
 
 from __future__ import annotations

@@ -76,7 +76,7 @@ class SpectralConfig:
         """Sizes for a log at ``rate_hz`` (0.4 s frames every 0.2 s, 1.6 s windows) and its fast and slow channels.
 
         ``detrend`` is off by default: on BorealTC's inner folds the level kept in the lowest bin was chosen on most
-        folds (``benchmarks/spectral_baseline.py``).
+        folds (``benchmarks/studies/spectral_baseline.py``).
         """
         fast, slow = split_channels(x)
         frame = max(4, round(0.4 * rate_hz))

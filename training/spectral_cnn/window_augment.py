@@ -4,7 +4,8 @@ A run differs from another of the same terrain by its sensors' gains and offsets
 vibration in frequency) and which channels carry the terrain. Each field of :class:`.window_config.RowAugment` draws
 one such change per training row, on the raw frame features (log power spectra of the fast channels, level
 statistics of the slow ones, the layout of :class:`.spectra.SpectralConfig`), before the network standardises them.
-All are off by default: none earned its place on BorealTC's inner folds by run (``benchmarks/runs_screen.py``).
+All are off by default: none earned its place on BorealTC's inner folds by run (``benchmarks/runs_screen.py`` at
+38a27ac).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ Each step's input is the last ``window`` short-time frames (``spectral.SpectralS
 standardised and mixed by a 1x1 convolution (which bins of which channels matter), a 3-frame convolution follows,
 and the mean and spread of its outputs over the window feed a linear head: BorealTC's CNN reads spectrograms the
 same way. On BorealTC's inner folds it beat a linear model (and a one-layer MLP) on the frames' mean and spread by
-4 to 6 points at 10 % of labels (``benchmarks/default_family_cnn.py``).
+4 to 6 points at 10 % of labels (``benchmarks/studies/default_family_cnn.py``).
 
 The model keeps no state: a step's probabilities depend on its input alone. It has the paper classifier's call
 signature (features and a state in, logits and a state out; the state is always ``None``), so the offline passes run

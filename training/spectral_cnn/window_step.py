@@ -44,7 +44,8 @@ class WindowStep:
     few per member. Each frame is mixed (the 1x1 convolution) and multiplied by the 3-frame convolution's three
     taps once, when it arrives; those products are kept while the frame stays in the window. When the window moves
     by a frame, the convolution's outputs inside it keep their inputs, so only the first position (its left
-    neighbour is now padding) and the last two (the new frame) are summed again (``benchmarks/bench_streaming.py``).
+    neighbour is now padding) and the last two (the new frame) are summed again
+    (``benchmarks/speed/bench_streaming.py``).
     """
 
     def __init__(self, bundle: ModelBundle, *, streams: int = 1) -> None:

@@ -12,7 +12,7 @@ from typing import Literal
 import tyro
 
 from sessions import IngestOptions, ModelVersion, Session, WorkbenchError
-from training import FeatureMode, TrainConfig, family_names
+from training import FeatureMode, TrainConfig, family_names, recorded_family
 
 from .terminal import shown
 
@@ -192,7 +192,7 @@ def train(
 def _on_free_cpus(fn) -> None:
     """Stage 1 on as many threads as CPUs are free when it starts (``training.use_free_cpus``): on a busy machine
     torch's thread per core waits on the one that is descheduled (the frame predictor beside one busy loop: 4.1x
-    its time alone, 1.6x on the free CPUs; ``benchmarks/bench_under_load.py``). Stage 2 keeps torch's count: its
+    its time alone, 1.6x on the free CPUs; ``benchmarks/speed/bench_under_load.py``). Stage 2 keeps torch's count: its
     fits already run one thread each, side by side, and share the cores through the scheduler."""
     import torch
 
@@ -285,7 +285,7 @@ def _report_classifier(s: Session, v: ModelVersion) -> None:
     m = v.metrics
     estimate = m.get("estimate")
     if estimate:
-        _print_estimate(v.id, str(v.config.get("model", "paper")), m, estimate)
+        _print_estimate(v.id, recorded_family(v.config), m, estimate)
         checked = cycle.checks_summary(s)
         if checked.all is not None:  # the person's own held-out evidence: each label first tested the model
             spot = f"; spot checks: {checked.spot.words('spot checks')}" if checked.spot else ""
@@ -298,7 +298,7 @@ def _report_classifier(s: Session, v: ModelVersion) -> None:
             f"({held['folds']} folds over {held['logs']} labelled logs)"
         )
     print(
-        f"classifier v{v.id} ({v.config.get('model', 'paper')} family): out-of-fold accuracy (same logs) "
+        f"classifier v{v.id} ({recorded_family(v.config)} family): out-of-fold accuracy (same logs) "
         f"{m['accuracy']:.1%}, macro-F1 {m['macro_f1']:.3f} on {m['n_segments']} segments "
         f"({m['labelled_seconds']:.0f} s labelled)"
     )

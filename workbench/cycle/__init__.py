@@ -29,6 +29,7 @@ from .front_end import (
 )
 from .score_store import StoredScores, queue_key, store_queue, store_scores, stored_queue, stored_scores
 from .scores import EMBEDDING_MODE, SessionScores, compute_scores, score_logs, score_session, stage1_embedding
+from .stage2_fit import STAGE1_FEATURES, train_classifier
 from .stage_inputs import (
     consistency_pairs,
     log_change_points,
@@ -40,23 +41,21 @@ from .stage_inputs import (
 from .suggestions import SUGGESTION_S, suggest_for_session, suggestion_lengths
 from .train_stages import (
     MODEL_FAMILIES,
-    PAPER_FEATURES,
     active_bundle,
     active_predictor,
     classifier_family,
     follow_predictor_training,
     front_end_of,
     model_logs,
-    require_lstm,
+    require_stage1,
     stage1_family,
-    train_classifier,
     train_predictor,
 )
 
 __all__ = [
     "EMBEDDING_MODE",
     "MODEL_FAMILIES",
-    "PAPER_FEATURES",
+    "STAGE1_FEATURES",
     "STRETCH_S",
     "SUGGESTION_S",
     "ChecksSummary",
@@ -81,7 +80,7 @@ __all__ = [
     "model_logs",
     "queue_key",
     "record_check",
-    "require_lstm",
+    "require_stage1",
     "score_logs",
     "score_session",
     "signal_change_points",

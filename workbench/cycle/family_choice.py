@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import training
 from sessions import ModelVersion, Session
 
-from .train_stages import train_classifier
+from .stage2_fit import train_classifier
 
 MARGIN = 0.01  # balanced accuracy another family must lead the first by to be kept
 

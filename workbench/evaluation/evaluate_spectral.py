@@ -222,8 +222,8 @@ def borealtc_window_protocol(
         seed: Seed of the folds, the labelled subset and the fit.
         log: Where progress lines go.
         train_filter: ``(fold, training partition indices, every partition's class) -> the indices kept``: a
-            protocol that trains on less of some terrain (the minority row, ``benchmarks/minority_borealtc.py``);
-            the test folds are unchanged.
+            protocol that trains on less of some terrain (the minority row,
+            ``benchmarks/studies/minority_borealtc.py``); the test folds are unchanged.
         member: A second model fitted on the same fold (:class:`.protocol_members.FoldData`) that returns its
             probabilities of the same test windows: scored alone (``metrics["member"]``) and averaged with the
             default family's (``metrics["ensemble"]``).

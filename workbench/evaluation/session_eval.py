@@ -18,15 +18,15 @@ import numpy as np
 from sklearn.model_selection import KFold
 
 from sessions import Session, WorkbenchError
-from training import Family, TrainConfig, classification_metrics, family, fit_classifier
+from training import Family, TrainConfig, classification_metrics, family
 
 from ..cycle import (
-    PAPER_FEATURES,
+    STAGE1_FEATURES,
     active_predictor,
     classifier_family,
     front_end_of,
     model_logs,
-    require_lstm,
+    require_stage1,
     score_logs,
     signal_change_points,
     spectral_features,
@@ -76,7 +76,7 @@ def evaluate_session(
     recipe = active.config if active is not None else {}
     fam = family(classifier_family(session))
     hidden = int(recipe.get("hidden", RETRAIN.hidden))
-    feature_mode = recipe.get("feature_mode", PAPER_FEATURES)
+    feature_mode = recipe.get("feature_mode", STAGE1_FEATURES)
     config = replace(config or RETRAIN.classifier, seed=seed)
     window = replace(RETRAIN.window, seed=seed)
     front = front_end_of(session, bundle, logs) if fam.stage2_inputs in ("frames", "windows") else None
@@ -85,7 +85,7 @@ def evaluate_session(
     elif front is not None:
         features = spectral_features(session, bundle, logs, front)
     else:
-        require_lstm(session, p_version, bundle)
+        require_stage1(session, fam, p_version, bundle)
         features = stage2_features(session, p_version, bundle, logs, feature_mode)
     outs = stage1_outputs(session, p_version, bundle, logs)
     index = {x.id: i for i, x in enumerate(logs)}
@@ -111,14 +111,18 @@ def evaluate_session(
             )
             continue
         if front is not None:
-            # self-training reads the training logs' unlabelled stretches only: a held-out log stays unseen
-            kept = [x for i, x in enumerate(logs) if i not in held_logs]
-            pieces = unlabelled_stretches(kept, labels, lambda x: signal_change_points(session, x), shortest=front.span)
-            stretches = [(index[kept[j].id], a, b) for j, a, b in pieces]
-            spans = {"units": stretch_units(stretches, points_at)} if window.unit_agree else {}
+            stretches, spans = [], {}
+            if fam.self_training and window.self_training:
+                # self-training reads the training logs' unlabelled stretches only: a held-out log stays unseen
+                kept = [x for i, x in enumerate(logs) if i not in held_logs]
+                pieces = unlabelled_stretches(
+                    kept, labels, lambda x: signal_change_points(session, x), shortest=front.span
+                )
+                stretches = [(index[kept[j].id], a, b) for j, a, b in pieces]
+                spans = {"units": stretch_units(stretches, points_at)} if window.unit_agree else {}
             fit = fam.fit(features, train, learned, config=window, stretches=stretches, **spans)
         else:
-            fit = fit_classifier(features, train, learned, config=config, hidden=hidden)
+            fit = fam.fit(features, train, learned, config=config, hidden=hidden)
         order = sorted(held_logs)
         scored = score_logs(fit.models, [features[i] for i in order], [outs[logs[i].id].surprise() for i in order])
         fold_true, fold_pred = [], []

@@ -30,6 +30,7 @@ from sessions import LogInfo, Session, WorkbenchError
 from ..cycle import (
     SessionScores,
     checks_summary,
+    classifier_family,
     compute_scores,
     record_check,
     signal_change_points,
@@ -379,7 +380,7 @@ def evaluate_loop(
                 train_stage1(s)
             log(f"start: stage 2 from scratch on the session's {len(s.segments())} label segment(s)")
             _fit(s)
-            family = str(s.active_model("classifier").config.get("model", "paper"))
+            family = classifier_family(s)
             total_new = sum(x.duration_s for x in new)
         arms = {
             strategy: run_arm(start, Path(tmp) / strategy, strategy, {x.id for x in new}, settings, log=log)

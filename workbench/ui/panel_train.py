@@ -10,7 +10,7 @@ import numpy as np
 
 import labeling
 from sessions import COUNTED_KINDS, WorkbenchError
-from training import estimate_headline, majority_words
+from training import estimate_headline, majority_words, recorded_family
 
 from .plots import confusion_image, learning_curve_image
 
@@ -136,7 +136,7 @@ class TrainPanel:
                     )
                 tested = labeling.check_estimate([c.right for c in checks if c.classifier == v.id])
                 what = (
-                    f"{v.config.get('model', 'paper')}: {figure}"
+                    f"{recorded_family(v.config)}: {figure}"
                     f"F1 {m.get('macro_f1', float('nan')):.2f}, "
                     f"{m.get('labelled_seconds', 0):.0f} s labelled"
                     + (", quick fine-tune" if v.config.get("new_labels") is not None else "")

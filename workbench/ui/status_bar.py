@@ -7,7 +7,7 @@ import html
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from training import HELD_OUT, estimate_headline, missed_terrains, missed_words
+from training import HELD_OUT, estimate_headline, missed_terrains, missed_words, recorded_family
 
 from ..cycle import ChecksSummary, checks_summary, estimate_disagrees
 from ..expectations import card_accuracy
@@ -28,7 +28,7 @@ def status_html(host: PanelHost) -> str:
     predictor = session.active_model("predictor")
     if classifier is not None:
         model = (
-            f"<b>{html.escape(str(classifier.config.get('model', 'paper')))} v{classifier.id}</b>"
+            f"<b>{html.escape(recorded_family(classifier.config))} v{classifier.id}</b>"
             + figure_html(classifier.metrics)
             + checks_html(checks_summary(session), classifier.metrics)
         )

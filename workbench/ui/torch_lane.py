@@ -4,9 +4,9 @@ PyTorch on this CPU build parallelises through libgomp, which gives every thread
 own team of worker threads. Once two such threads are alive the process manages more OpenMP threads than there are
 cores, and libgomp then stops spinning between parallel regions and sleeps on a futex instead; an LSTM runs a few
 small parallel regions per time step, so every step pays for waking the team. Measured on 2 cores (a 2-layer LSTM
-over 20,000 steps, ``benchmarks/bench_torch_lane.py``): 0.07 s on the thread that ran torch first, 1.2 s on a second
-thread while the first is alive. The UI ran its Retrain, its scoring and viser's callbacks on different threads, so
-it paid that on every pass.
+over 20,000 steps, ``benchmarks/speed/bench_torch_lane.py``): 0.07 s on the thread that ran torch first, 1.2 s on a
+second thread while the first is alive. The UI ran its Retrain, its scoring and viser's callbacks on different
+threads, so it paid that on every pass.
 
 The cause is several threads running torch, so the fix is one: ``workbench serve`` gives its main thread to
 :data:`LANE` (it only slept before), and the job thread, the scoring worker and the page's callbacks hand their

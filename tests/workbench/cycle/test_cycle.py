@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import shutil
 from dataclasses import replace
@@ -12,12 +13,13 @@ import pandas as pd
 import pytest
 import torch
 
+import training
 from sessions import LabelError, Session, WorkbenchError
 from tests.conftest import TEST_TERRAINS, new_session
 from training import TrainConfig, load_bundle
+from workbench import cycle
 from workbench.cli import main
 from workbench.cycle import score_session, stage_inputs
-from workbench.cycle import train_stages as cycle
 from workbench.demo import seed_labels
 
 TINY = TrainConfig(max_epochs=2, patience=1, chunk=32, piece=256, batch_size=16, label_piece=64, context=32, k_folds=3)
@@ -324,13 +326,14 @@ def test_a_warm_retrain_learns_the_new_and_changed_labels_and_keeps_folds_with_n
 
 def test_a_retrain_pairs_unlabelled_neighbours_within_the_logs_change_points(trained: Session, monkeypatch) -> None:
     seen = {}
-    real = cycle.fit_classifier
+    paper = training.family("paper")
 
     def spy(*args, **kwargs):
         seen["pairs"] = kwargs["pairs"]
-        return real(*args, **kwargs)
+        return paper.fit(*args, **kwargs)
 
-    monkeypatch.setattr(cycle, "fit_classifier", spy)
+    # the family's fit, as the registry hands it to the cycle
+    monkeypatch.setattr(importlib.import_module("training.paper_lstm"), "FAMILY", replace(paper, fit=spy))
     cycle.train_classifier(trained, config=replace(TINY, consistency=3.0), hidden=8)
     logs = cycle.model_logs(trained)
     assert seen["pairs"], "the demo logs hold neighbour pairs"

@@ -1,5 +1,5 @@
 """The lane that runs the server's torch work on one thread: where calls run, what they return and raise, and what
-happens to calls left when it stops. (Its speed is a benchmark: ``benchmarks/bench_torch_lane.py``.)"""
+happens to calls left when it stops. (Its speed is a benchmark: ``benchmarks/speed/bench_torch_lane.py``.)"""
 
 from __future__ import annotations
 
