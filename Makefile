@@ -50,12 +50,12 @@ stress: install browser
 # every figure beside a reference measured in the same run; the table goes to benchmarks/results/bench-$(DEVICE).md
 DEVICE ?= cpu
 bench: install
-	for f in benchmarks/bench_*.py; do $(PY) $$f --device $(DEVICE) || exit 1; done
-	$(PY) benchmarks/report.py $(DEVICE)
+	for f in benchmarks/speed/bench_*.py; do $(PY) $$f --device $(DEVICE) || exit 1; done
+	$(PY) benchmarks/speed/report.py $(DEVICE)
 
-# paper-scale evaluation runs (about an hour each on 2 cores); reports in benchmarks/results/
+# the studies: paper-scale evaluation runs (about an hour each on 2 cores); reports in benchmarks/results/
 paper: install
-	$(PY) benchmarks/paper_borealtc.py all
+	$(PY) benchmarks/studies/paper_borealtc.py all
 
 # the README's picture (docs/workbench.png), taken by the first-screen browser test
 screenshot: install browser

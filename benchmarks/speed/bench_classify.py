@@ -16,7 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from common import Row, fmt_s, parse_args, record
+from speed_common import Row, fmt_s, parse_args, record
 
 from sessions import Session
 from training import TrainConfig

@@ -31,7 +31,7 @@ import time
 import urllib.request
 from pathlib import Path
 
-from common import Row, parse_args, record
+from speed_common import Row, parse_args, record
 
 LABELLED = 0.05
 IMU_LABELLED = 0.10  # the quadruped-shaped session's labels: 10 % of the time, in 5 s pieces
@@ -67,7 +67,7 @@ def run_child(step: str, args: list[str]) -> None:
                 "labelled": sum(g.stop - g.start for g in added) / steps,
             }
     elif step == "setup-imu":  # 11 IMU CSVs at 50 Hz, ingested, the reference imported, 10 % labelled in 5 s pieces
-        from imu_logs import write_imu_logs
+        from speed_common import write_imu_logs
 
         from sessions import Session
         from workbench.demo import seed_labels

@@ -3,7 +3,7 @@ the first screen after a restart (scores and the suggestion queue), a Retrain's 
 --predictions`, on ``--hours`` (100; ``--quick``: 2) of 22-channel 100 Hz logs: demo walks of 30 minutes as ROS 2
 MCAP, 5 % of the time labelled.
 
-    python benchmarks/bench_fleet.py [--hours 100] [--quick]
+    python benchmarks/speed/bench_fleet.py [--hours 100] [--quick]
 
 Each step runs in a fresh interpreter, as a person runs the command (the first screen and the Retrain as
 `workbench serve` hosts them), and reports its wall time and peak resident set (``ru_maxrss``: mapped file pages
@@ -121,7 +121,7 @@ def _stored_scores(folder: Path) -> dict:
 def _first_screen(folder: Path) -> dict:
     """As `workbench serve` starts on the session: its shared state until the logs are scored and the suggestion
     queue is ranked (what the first screen shows)."""
-    from common import hosted_like_the_server
+    from speed_common import hosted_like_the_server
 
     from sessions import Session
     from workbench.ui import SharedState
@@ -145,8 +145,7 @@ def _first_screen(folder: Path) -> dict:
 def _retrain(folder: Path) -> dict:
     """A person adds a few labels and presses Retrain: seconds to the quick phase's model on the log in view, and to
     every log showing it; the refining phase (stage 2 from scratch) is cancelled there, as new labels would."""
-    from common import hosted_like_the_server
-    from walk_session import label_stretches
+    from speed_common import hosted_like_the_server, label_stretches
 
     from sessions import Session
     from workbench.ui import SharedState, TrainJob
@@ -240,7 +239,7 @@ def main() -> None:
         sys.path.insert(0, str(Path(__file__).parent))
         run_child(sys.argv[i + 1], Path(sys.argv[i + 2]), sys.argv[i + 3 :])
         return
-    from common import Row, record
+    from speed_common import Row, record
 
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--device", default="cpu", choices=("cpu", "cuda"))

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 import torch
-from common import Row, fmt_s, parse_args, qcat_like, record
+from speed_common import Row, fmt_s, parse_args, qcat_like, record
 
 from training import (
     Classifier,

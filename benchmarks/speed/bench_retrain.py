@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import torch
-from common import Row, fmt_s, hosted_like_the_server, parse_args, record
+from speed_common import Row, fmt_s, hosted_like_the_server, parse_args, record
 
 from sessions import Session
 from training import TrainConfig

@@ -22,8 +22,17 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from common import Row, fmt_s, hosted_like_the_server, parse_args, record
-from walk_session import HIDDEN, labelled_after_training, unlabelled_accuracy, walk_session
+from speed_common import (
+    HIDDEN,
+    Row,
+    fmt_s,
+    hosted_like_the_server,
+    labelled_after_training,
+    parse_args,
+    record,
+    unlabelled_accuracy,
+    walk_session,
+)
 
 from sessions import Session
 from workbench.ui import SharedState, TrainJob

@@ -21,9 +21,9 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from common import ROOT, Row, parse_args, qcat_like, record
+from speed_common import ROOT, Row, parse_args, qcat_like, record
 
-WORKER = str(ROOT / "benchmarks" / "scaling_worker.py")
+WORKER = str(ROOT / "benchmarks" / "speed" / "scaling_worker.py")
 MEM_BATCH = 64
 
 

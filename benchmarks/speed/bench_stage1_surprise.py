@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 from sklearn.metrics import roc_auc_score
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from common import Row, parse_args, record
+from speed_common import Row, parse_args, record
 
 from training import (
     Normalizer,
@@ -36,7 +36,7 @@ from training import (
     run_predictor,
 )
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "borealtc"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "borealtc"
 RATE = 100.0
 NEAR_S = 1.0
 

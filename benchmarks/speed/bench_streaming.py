@@ -13,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 import torch
-from common import Row, fmt_s, parse_args, record, timed
+from speed_common import Row, fmt_s, parse_args, record, timed
 from threadpoolctl import threadpool_limits
 
 from training import (

@@ -22,7 +22,7 @@ import threading
 import time
 from pathlib import Path
 
-from common import Row, fmt_s, parse_args, record
+from speed_common import Row, fmt_s, parse_args, record
 
 STEPS = 20_000
 

@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 import torch
-from common import Row, parse_args, qcat_like, record
+from speed_common import Row, parse_args, qcat_like, record
 
 from training import Normalizer, TrainConfig, cut_pieces, fit_predictor, split_pieces, stage1_batch
 

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from common import Row, fmt_s, parse_args, record
+from speed_common import Row, fmt_s, parse_args, record
 
 from sessions import Session
 from workbench.demo import generate_walk, write_walk

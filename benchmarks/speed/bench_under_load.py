@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from common import Row, parse_args, record
+from speed_common import Row, parse_args, record
 
 BUSY = "while True: pass"
 

@@ -6,7 +6,7 @@ import json
 import sys
 import time
 
-from common import RESULTS, Row, table
+from speed_common import RESULTS, Row, table
 
 
 def main(device: str = "cpu") -> int:

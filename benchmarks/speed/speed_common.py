@@ -1,7 +1,9 @@
-"""What every benchmark shares: timing, the row a figure is reported in, and the Markdown table ``make bench`` writes.
+"""What the speed rows share: timing, the row a figure is reported in, the Markdown table ``make bench`` writes, the
+logs they are measured on (QCAT-shaped sequences, quadruped-IMU CSVs) and the demo-walk sessions of the Retrain rows.
 
 Every figure is measured beside a reference run in the same process on the same data, because these machines are
-shared and noisy: the ratio holds where absolute times do not.
+shared and noisy: the ratio holds where absolute times do not. Nothing here loads PyTorch when imported: a row that
+times a command's start-up runs it in a child process.
 """
 
 from __future__ import annotations
@@ -19,10 +21,14 @@ from typing import TypeVar
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "benchmarks" / "results"
 T = TypeVar("T")
 sys.path.insert(0, str(ROOT))
+
+from sessions import LogInfo, ModelVersion, Session  # noqa: E402
+from training import TrainConfig  # noqa: E402
+from workbench.demo import generate_demo_logs, generate_walk  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -59,8 +65,6 @@ def parse_args(doc: str | None) -> argparse.Namespace:
 def qcat_like(n_seq: int, seed: int = 0) -> list[np.ndarray]:
     """The issues' reference workload: ``n_seq`` sequences of 100–660 samples × 22 channels (forces, gyro, accel,
     quaternion), sliced from one demo walk (2,880 of them ≈ 1 M timesteps, QCAT's scale)."""
-    from workbench.demo import generate_walk
-
     rng = np.random.default_rng(seed)
     lengths = rng.integers(100, 661, n_seq)
     walk = generate_walk(seed, float(lengths.sum()) / 100.0 + 10.0)
@@ -133,3 +137,111 @@ def hosted_like_the_server(fn: Callable[[], T]) -> T:
     if errors:
         raise errors[0]
     return out[0]
+
+
+# --- logs shaped as a quadruped's body IMU as users bring them: CSV files of 6 channels (accelerometer and gyro) at
+# 50 Hz, runs of 6 to 10 minutes, the terrains' reference in a label file beside them (for evaluation and the seeded
+# labels, never as labels by themselves); the demo walks' IMU, every other sample kept, as a 50 Hz IMU driver does
+
+IMU_RATE_HZ = 50.0
+COLUMNS = ("time", "ax", "ay", "az", "wx", "wy", "wz")
+
+
+def write_imu_logs(
+    folder: Path, *, n_logs: int = 11, minutes: tuple[float, float] = (6.0, 10.0), seed: int = 0
+) -> tuple[list[Path], Path]:
+    """Write ``n_logs`` IMU CSVs of a length drawn in ``minutes`` to ``folder`` and ``reference.csv`` beside them
+    (``log, terrain, start_s, end_s``); return the logs and the reference file."""
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    reference = ["log,terrain,start_s,end_s"]
+    files = []
+    for i in range(n_logs):
+        walk = generate_walk(seed * 1000 + i, float(rng.uniform(*minutes)) * 60.0)
+        keep = slice(None, None, 2)  # 100 Hz -> 50 Hz
+        t = walk.times[keep]
+        path = folder / f"quad_{i:02d}.csv"
+        data = np.column_stack([t, walk.accel[keep], walk.gyro[keep]])
+        np.savetxt(path, data, delimiter=",", header=",".join(COLUMNS), comments="", fmt="%.5f")
+        files.append(path)
+        end = float(t[-1])
+        reference += [f"{path.stem},{ter},{a:.3f},{min(b, end):.3f}" for a, b, ter in walk.truth if a < end]
+    ref = folder / "reference.csv"
+    ref.write_text("\n".join(reference) + "\n")
+    return files, ref
+
+
+# --- sessions of demo walks for the Retrain benches: labels placed as a person answering suggestions would, and the
+# accuracy on every sample nobody labelled
+
+HIDDEN = 200  # both stages: the paper's width
+STAGE1 = TrainConfig(max_epochs=1, patience=1)  # stage 1 of the setup: one epoch, as in bench_retrain
+SETUP_LABELS, NEW_LABELS = 40, 10  # one-second stretches: labelled before the setup's training, then after it
+
+
+def walk_session(folder: Path, *, n_logs: int, minutes: float) -> tuple[Session, list[LogInfo]]:
+    """A session in ``folder`` of ``n_logs`` demo walks of ``minutes`` each, their reference terrains known."""
+    t = time.perf_counter()
+    files = generate_demo_logs(folder / "logs", n_logs=n_logs, minutes=minutes, seed=0)
+    session = Session.create(folder / "session")
+    logs = session.ingest(files)
+    for name in {t for x in logs for _, _, t in session.reference(x.id)} - {t.name for t in session.terrains()}:
+        session.add_terrain(name)
+    total = sum(x.n_samples for x in logs)
+    print(
+        f"{len(logs)} walks, {total:,} steps ({total / logs[0].rate_hz / 60:.0f} min), setup "
+        f"{time.perf_counter() - t:.0f} s",
+        flush=True,
+    )
+    return session, logs
+
+
+def label_stretches(session: Session, rng: np.random.Generator, n: int) -> None:
+    """Label ``n`` one-second stretches at random places inside reference patches, as a person answering
+    suggestions does; the terrains take turns so every one is labelled."""
+    patches = [(x.id, a, b, t) for x in session.logs() for a, b, t in session.reference(x.id) if b - a >= 200]
+    terrains = sorted({p[3] for p in patches})
+    taken = {(s.log_id, s.start) for s in session.segments()}
+    for i in range(n):
+        mine = [p for p in patches if p[3] == terrains[i % len(terrains)]]
+        while True:
+            log_id, a, b, terrain = mine[rng.integers(len(mine))]
+            start = int(rng.integers(a, b - 100)) // 100 * 100
+            if (log_id, start) not in taken and start + 100 <= b:
+                break
+        taken.add((log_id, start))
+        session.add_segment(log_id, start, start + 100, terrain, author="bench", source="manual")
+
+
+def unlabelled_accuracy(session: Session, scores) -> float:
+    """Per-timestep accuracy of the argmax on every sample nobody labelled, against the reference terrain."""
+    hits = total = 0
+    segments = session.segments()  # read once, not once per log
+    for x in session.logs():
+        truth = np.full(x.n_samples, "", dtype=object)
+        for a, b, t in session.reference(x.id):
+            truth[a:b] = t
+        for s in segments:
+            if s.log_id == x.id:
+                truth[s.start : s.stop] = ""
+        pred = np.asarray(scores.classes, dtype=object)[scores.scores[x.id].probs.argmax(axis=1)]
+        keep = truth != ""
+        hits += int((pred[keep] == truth[keep]).sum())
+        total += int(keep.sum())
+    return hits / max(total, 1)
+
+
+def labelled_after_training(
+    session: Session, rng: np.random.Generator, *, model: str, config: TrainConfig | None = None
+) -> ModelVersion:
+    """What a person did before pressing Retrain: ``SETUP_LABELS`` labels, both stages trained (stage 2 of family
+    ``model``), then ``NEW_LABELS`` more labels. Returns the setup's classifier version."""
+    from workbench import cycle  # loads PyTorch: only where a row trains
+
+    label_stretches(session, rng, SETUP_LABELS)
+    t = time.perf_counter()
+    cycle.train_predictor(session, config=STAGE1, hidden=HIDDEN)
+    setup = cycle.train_classifier(session, model=model, config=config, hidden=HIDDEN)
+    print(f"setup models {time.perf_counter() - t:.0f} s", flush=True)
+    label_stretches(session, rng, NEW_LABELS)
+    return setup

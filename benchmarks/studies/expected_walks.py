@@ -1,9 +1,12 @@
-"""The per-stretch figure on files whose terrain changes: a model of four demo walks (35 % of their time labelled)
+"""Kept: the per-stretch figure on files whose terrain changes (stretches under 10 s merged; 20 s merged real changes,
+and 38 % of walks fell 10 points under the truth) (benchmarks/results/issue-54-expected-walks.txt).
+
+The per-stretch figure on files whose terrain changes: a model of four demo walks (35 % of their time labelled)
 classifies new demo walks (a terrain patch every 5-36 s), and each walk's figure by stretches, at each shortest
 stretch, is set against the accuracy it scored on its truth file. The other side of ``expected_borealtc.py``, where
 each run is one terrain and a coarser cut can only help.
 
-    python benchmarks/expected_walks.py [--walks N] [--screen-stretch S ...]
+    python benchmarks/studies/expected_walks.py [--walks N] [--screen-stretch S ...]
 
 About 2 minutes on 2 cores. Needs no dataset.
 """
@@ -15,7 +18,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from walk_session import classified_walks
+from study_common import classified_walks
 
 import labeling
 from sessions import IngestOptions, Session

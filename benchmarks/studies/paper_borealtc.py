@@ -1,7 +1,13 @@
-"""Paper-scale runs on BorealTC: both model families on both protocols, and the label-efficiency simulation.
+"""The studies, as ``make paper`` runs them: both model families on BorealTC's protocols, the label-efficiency
+simulation, the studies behind the default family's kept choices, and issues 54 and 65's studies. Each study is one
+script of this room whose first line says what it decided and the figure that did.
 
-    python benchmarks/paper_borealtc.py [protocol|simulate|issue54|issue65|all]
-    python benchmarks/paper_borealtc.py issue54 PART...   # some of its parts: labels, card-runs, ...
+    python benchmarks/studies/paper_borealtc.py [protocol|simulate|decisions|issue54|issue65|all]
+    python benchmarks/studies/paper_borealtc.py issue54 PART...   # some of its parts: labels, card-runs, ...
+
+``decisions``: the default family's kept choices, each its study (the spectral front end under a plain learner, the
+network over the frames against the linear model, self-training left out, ``classify --smooth``); each output goes
+to ``benchmarks/results/decisions-NAME.txt``. Their durations on 2 cores were not measured as one command.
 
 ``protocol``: the default family (about 2 minutes on 2 CPU cores) and the paper family (about an hour per split) on
 the authors' partition folds and on folds holding out whole runs, 10 % of the training partitions labelled.
@@ -33,10 +39,10 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT.parent / "shared" / "data" / "borealtc"
 RESULTS = ROOT / "benchmarks" / "results"
-BENCH = str(ROOT / "benchmarks")
+BENCH = str(ROOT / "benchmarks" / "studies")
 SIMULATE_RUNS = (
     "--simulate",
     "--split",
@@ -75,7 +81,14 @@ ISSUE65 = (
     ("loop-spliced", [f"{BENCH}/loop_borealtc.py", "spliced", "--seed", "1", *LOOP_ARMS]),
     ("propagate-demo-s2", [f"{BENCH}/propagate_screen.py", "demo", "--seed", "2"]),
 )
-ISSUES = {"issue54": ISSUE54, "issue65": ISSUE65}
+DECISIONS = (
+    ("front-end", [f"{BENCH}/spectral_baseline.py", str(DATA), "--labelled", "0.05", "0.1", "1.0"]),
+    ("network", [f"{BENCH}/default_family_cnn.py", "--outer", "3", "--variants", "lr", "cnn_st"]),
+    ("self-training", [f"{BENCH}/default_family_ablation.py", "--labelled", "0.1"]),
+    ("smooth", [f"{BENCH}/smooth_demo.py"]),
+)
+ISSUES = {"decisions": DECISIONS, "issue54": ISSUE54, "issue65": ISSUE65}
+PREFIX = {"decisions": "decisions", "issue54": "issue-54", "issue65": "issue-65"}  # of each part's results file
 
 
 def main(which: str = "all", *, parts: list[str] | None = None) -> int:
@@ -122,8 +135,9 @@ def main(which: str = "all", *, parts: list[str] | None = None) -> int:
 
 
 def run_parts(issue: str, table: tuple, parts: list[str]) -> int:
-    """Run the named parts of an issue's ``table`` in its order; each output goes to ``issue-NN-NAME.txt`` headed by
-    the commit it ran at and ending with its seconds, so parts run at different times say which code gave them."""
+    """Run the named parts of a ``table`` in its order; each output goes to ``PREFIX-NAME.txt`` (``issue-NN-NAME.txt``,
+    ``decisions-NAME.txt``) headed by the commit it ran at and ending with its seconds, so parts run at different
+    times say which code gave them."""
     known = [name for name, _ in table]
     unknown = sorted(set(parts) - set(known))
     if unknown:
@@ -140,12 +154,12 @@ def run_parts(issue: str, table: tuple, parts: list[str]) -> int:
         took = f"{time.monotonic() - t:.0f} s" + (f", exit {out.returncode}" if out.returncode else "")
         command = " ".join(a.replace(f"{ROOT}/", "") for a in args)
         text = f"commit {commit.stdout.strip() or 'unknown'}: python {command}\n\n{out.stdout}{out.stderr}\n{took}\n"
-        (RESULTS / f"issue-{issue[5:]}-{name}.txt").write_text(text)
+        (RESULTS / f"{PREFIX[issue]}-{name}.txt").write_text(text)
         print(f"\n{text}", flush=True)
         if out.returncode:
             failed.append(name)
     if failed:
-        where = f"benchmarks/results/issue-{issue[5:]}-*.txt"
+        where = f"benchmarks/results/{PREFIX[issue]}-*.txt"
         print(f"paper_borealtc.py: {', '.join(failed)} failed; see {where}", file=sys.stderr)
     return 1 if failed else 0
 
