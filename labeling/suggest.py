@@ -22,6 +22,7 @@ from .placed_picks import spot_checks as place_spot_checks
 from .tracks import DRIFT_TRACK_AT_1, Kind, LogScores, intervals, normalised_tracks
 
 Strategy = Literal["random", "entropy", "margin", "disagreement", "surprise", "combined"]
+MainAnswer = Literal["off", "new", "checked-right"]  # which logs are asked the model's main answer there
 STRATEGIES: tuple[Strategy, ...] = ("random", "entropy", "margin", "disagreement", "surprise", "combined")
 
 # weights of the combined score; renormalised over the kinds the model can give
@@ -104,7 +105,8 @@ def suggest(
     spot_checks: int = 0,
     wrong: Sequence[tuple[int, int]] | None = None,
     tracks: Sequence[Mapping[Kind, np.ndarray]] | None = None,
-    main_answer: bool = False,
+    wrong_first: bool = True,
+    main_answer: MainAnswer = "off",
     answered: Sequence[Span] = (),
 ) -> list[Suggestion]:
     """The next ``n`` segments to label.
@@ -135,6 +137,8 @@ def suggest(
             (with ``unchecked_first``) then lifts a checked log's candidates by ``wrong / (checks + 1)`` of
             the new logs' tier: where checks found the model wrong, more checks follow, behind the logs nobody has
             checked yet.
+        wrong_first: Whether ``wrong`` lifts the logs (off only to measure what that is worth; ``main_answer``
+            still reads it).
         spot_checks: How many of the ``n`` are spot checks, placed last: each a piece around a step drawn uniformly
             from the unlabelled time (``seed``), overlapping neither labels nor the other picks. A check the person
             makes of one is an unbiased sample of the model's accuracy on unlabelled time, which a ranked
@@ -142,10 +146,13 @@ def suggest(
         tracks: Per log, the tracks :func:`normalised_tracks` gives for these ``scores`` and ``window`` (every kind
             or more), where the caller has them already: the kinds the strategy reads are taken from them instead
             of computed again (at 10 hours of logs, 69 MB).
-        main_answer: ``combined`` (with ``unchecked_first``): each log nobody checked is first asked about its main
-            answer, the middle of the model's longest stretch of one terrain (kind ``"main answer"``), before the
-            tier's picks where the model is unsure: a run the model reads confidently as the wrong terrain has no
-            doubt to draw a pick to its bulk.
+        main_answer: ``combined`` (with ``unchecked_first``): where a log is asked about its main answer, the middle
+            of the model's longest stretch of one terrain (kind ``"main answer"``, placed first): a run the model
+            reads confidently as the wrong terrain has no doubt to draw a pick to its bulk. ``"new"``: every log
+            nobody checked, before the tier's picks where the model is unsure. ``"checked-right"``: a log once the
+            person's checks there (``wrong``) found the model right at least as often as wrong: where the model is
+            right where it doubts, whether its sure bulk is right is the question left; where it is wrong there, the
+            tier goes on asking where it doubts. ``"off"``: never.
         answered: The pieces of ``labelled`` that were checks of a log's main answer: they do not count as checking
             the log (it keeps its place in the tier for the picks where the model is unsure), and a log with one is
             not asked its main answer again.
@@ -208,13 +215,23 @@ def suggest(
     if strategy == "combined" and unchecked_first:
         tier = 1.0 + float(base.max(initial=0.0))  # above any candidate's own score
         per_log = np.zeros(len(scores))
-        for g, (bad, n_checks) in enumerate(wrong or ()):
+        for g, (bad, n_checks) in enumerate((wrong or ()) if wrong_first else ()):
             per_log[g] = tier * bad / (n_checks + 1)
         per_log[[g for g in range(len(scores)) if g not in checked]] = tier
         priority = per_log[logs]  # (N,) each candidate's log's
     firsts: list[Suggestion] = []
-    if main_answer and priority is not None:
-        firsts = main_answers(scores, checked | {g for g, _, _ in asked}, classes, window=max_len)[:n]
+    if main_answer != "off" and priority is not None:
+        done = {g for g, _, _ in asked}
+        if main_answer == "new":
+            skip = checked | done
+        else:  # "checked-right": checked logs whose checks found the model right at least half the time
+            tally = list(wrong or ())
+            skip = done | {
+                g
+                for g in range(len(scores))
+                if g >= len(tally) or not (tally[g][1] > 0 and 2 * tally[g][0] <= tally[g][1])
+            }
+        firsts = main_answers(scores, skip, classes, window=max_len)[:n]
 
     def taken(log: int, start: int, stop: int, cls: int | None) -> None:
         """A pick's effect on the rest: no overlap with it; its log, its neighbours and its class count less."""

@@ -288,7 +288,7 @@ def test_each_new_log_is_first_asked_its_main_answer_and_stays_in_the_tier_after
     scores[2] = LogScores(scores[2].surprise, sure, scores[2].disagreement)
     labelled = [(0, 100, 200), (1, 100, 200)]  # log 2 is the new one
     kwargs = dict(classes=["a", "b", "c"], n=4, max_len=200, min_len=50)
-    picks = suggest(scores, labelled=labelled, main_answer=True, **kwargs)
+    picks = suggest(scores, labelled=labelled, main_answer="new", **kwargs)
     first = picks[0]
     assert (first.kind, first.log, first.guess) == ("main answer", 2, 1), first
     assert first.start >= 1000 and first.stop <= 3000 and first.stop - first.start == 200
@@ -302,9 +302,23 @@ def test_each_new_log_is_first_asked_its_main_answer_and_stays_in_the_tier_after
         scores,
         labelled=[*labelled, (2, first.start, first.stop)],
         answered=[(2, first.start, first.stop)],
-        main_answer=True,
+        main_answer="new",
         **kwargs,
     )
     assert [p.kind for p in again] == ["suggestion"] * 4 and [p.log for p in again] == [2] * 4
-    plain = suggest(scores, labelled=[*labelled, (2, first.start, first.stop)], main_answer=True, **kwargs)
+    plain = suggest(scores, labelled=[*labelled, (2, first.start, first.stop)], main_answer="new", **kwargs)
     assert [p.log for p in plain].count(2) < 4  # a label that was not a main answer checks the log
+
+
+def test_a_checked_log_is_asked_its_main_answer_once_its_checks_found_the_model_mostly_right() -> None:
+    """``checked-right``: where the model was right where it doubted, its sure bulk is the question left; where it
+    was wrong there, the queue goes on asking where it doubts."""
+    scores = make_scores([3000, 3000, 3000], 3, 9)
+    labelled = [(0, 100, 200), (1, 100, 200), (2, 100, 200)]
+    kwargs = dict(labelled=labelled, classes=["a", "b", "c"], n=4, max_len=200, min_len=50, main_answer="checked-right")
+    picks = suggest(scores, wrong=[(0, 0), (1, 3), (2, 3)], **kwargs)  # log 0 unchecked, 1 mostly right, 2 wrong
+    mains = [p for p in picks if p.kind == "main answer"]
+    assert [p.log for p in mains] == [1] and picks[0] is mains[0]
+    answered = suggest(scores, wrong=[(0, 0), (1, 3), (2, 3)], answered=[(1, mains[0].start, mains[0].stop)], **kwargs)
+    assert "main answer" not in [p.kind for p in answered]  # asked once
+    assert all(p.kind == "suggestion" for p in suggest(scores, wrong=[(0, 0), (2, 3), (3, 3)], **kwargs))

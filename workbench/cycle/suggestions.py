@@ -19,7 +19,7 @@ SUGGESTION_S = 1.0
 SPOT_CHECKS = 1
 # Whether a log nobody checked is first asked about the model's main answer there (issue 65; screened with
 # `evaluate loop`'s `combined-main-answer`)
-MAIN_ANSWER = False
+MAIN_ANSWER: labeling.MainAnswer = "off"
 
 
 def suggestion_lengths(rate_hz: float, *, seconds: float = SUGGESTION_S) -> tuple[int, int]:
@@ -51,7 +51,7 @@ def suggest_for_session(
     unchecked_first: bool = True,
     spot_checks: int | None = None,
     wrong_first: bool = True,
-    main_answer: bool = MAIN_ANSWER,
+    main_answer: labeling.MainAnswer = MAIN_ANSWER,
 ) -> list[tuple[LogInfo, labeling.Suggestion]]:
     """The session's suggestion queue: ``n`` segments of ``SUGGESTION_S / 2`` to ``SUGGESTION_S`` to label next,
     with the log each lies in. ``seed``: of the ``random`` strategy and the clustering; ``unchecked_first``: see
@@ -93,8 +93,9 @@ def suggest_for_session(
         recall=recall,
         seed=seed,
         unchecked_first=unchecked_first,
+        wrong_first=wrong_first,
         spot_checks=spot_checks,
-        wrong=_wrong_checks(checks, [x.id for x in logs]) if wrong_first else None,
+        wrong=_wrong_checks(checks, [x.id for x in logs]),
         main_answer=main_answer,
         answered=answered,
         window=scores.window,
