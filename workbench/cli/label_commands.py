@@ -103,8 +103,8 @@ def suggest(
     Args:
         session: The session folder (trained: stage 1 at least; the guesses need a classifier).
         out: The file to write: .csv, .parquet or .json, with columns log, start_s, end_s (seconds from the log's
-            start, as label files give them), terrain (empty), reason, guess, kind (suggestion or spot check) and
-            classifier (the version that guessed).
+            start, as label files give them), terrain (empty), reason, guess, kind (suggestion, main answer or spot
+            check) and classifier (the version that guessed).
         n: How many segments.
         strategy: How they are ranked (combined: the page's).
     """

@@ -47,9 +47,8 @@ ABLATIONS: dict[str, tuple[str, dict, dict]] = {
     "combined-no-unchecked": ("combined", {"unchecked_first": False}, {}),  # new runs not checked first (item 2)
     "combined-no-votes": ("combined", {}, {"votes": False}),  # a run's labels not carried over its frames (item 3)
     "combined-no-wrong-first": ("combined", {"wrong_first": False}, {}),  # runs checks found wrong not asked again
-    "combined-main-answer": ("combined", {"main_answer": "new"}, {}),  # each new run's main answer asked first
-    # a run's main answer asked once the person's checks there found the model mostly right
-    "combined-main-answer-checked": ("combined", {"main_answer": "checked-right"}, {}),
+    "combined-no-main-answer": ("combined", {"main_answer": "off"}, {}),  # a run's main answer never asked (item 3)
+    "combined-main-answer-new": ("combined", {"main_answer": "new"}, {}),  # every new run's main answer asked first
 }
 AUTHOR = "evaluate loop"
 STRETCH_WINDOW_S, STRETCH_MIN_S = 1.0, 2.0  # the model's stretches as the page draws them (ui.state)
