@@ -233,7 +233,7 @@ def suggest(
             }
         firsts = main_answers(scores, skip, classes, window=max_len)[:n]
 
-    def taken(log: int, start: int, stop: int, cls: int | None) -> None:
+    def after_pick(log: int, start: int, stop: int, cls: int | None) -> None:
         """A pick's effect on the rest: no overlap with it; its log, its neighbours and its class count less."""
         nonlocal alive, factor
         alive &= (stops <= start) | (starts >= stop) | (logs != log)
@@ -246,7 +246,7 @@ def suggest(
                 factor = factor * np.where(guess == cls, CLASS_DECAY, 1.0)
 
     for x in firsts:
-        taken(x.log, x.start, x.stop, x.guess)
+        after_pick(x.log, x.start, x.stop, x.guess)
     while len(chosen) + len(firsts) < n and alive.any():
         adjusted = np.where(alive, base * factor, -np.inf)
         if priority is not None:  # the logs nobody labelled first, then those where checks found the model wrong
@@ -254,7 +254,7 @@ def suggest(
         # lexsort's last key is the primary: score (descending), then log, then start, for a deterministic order
         best = int(np.lexsort((starts, logs, -adjusted))[0])
         chosen.append(best)
-        taken(int(logs[best]), int(starts[best]), int(stops[best]), None if guess is None else int(guess[best]))
+        after_pick(int(logs[best]), int(starts[best]), int(stops[best]), None if guess is None else int(guess[best]))
         if strategy == "combined" and cluster[best] >= 0:  # one pick per cluster before a second
             factor = factor * np.where(cluster == cluster[best], CLUSTER_DECAY, 1.0)
     out = [replace(x, rank=rank) for rank, x in enumerate(firsts)]

@@ -61,8 +61,9 @@ def suggest_for_session(
     ``labeling.suggest`` (off only to measure what it is worth); ``spot_checks``: how many of the ``n`` are spot
     checks (default ``SPOT_CHECKS`` in a ranked queue of 4 or more once a classifier has scored the logs, else
     none); ``wrong_first``: a checked log where the person's checks found the model wrong stays ahead
-    (``labeling.suggest``'s ``wrong``; off only to measure what it is worth); ``main_answer``: each log nobody
-    checked is first asked about the model's main answer there (``labeling.suggest``'s)."""
+    (``labeling.suggest``'s ``wrong``; off only to measure what it is worth); ``main_answer``: which logs are
+    first asked the model's main answer there (``labeling.suggest``'s; ``MAIN_ANSWER``: once the person's checks
+    there found the model mostly right)."""
     logs = [x for x in logs if x.id in scores.scores]
     if not logs:
         return []
