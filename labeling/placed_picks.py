@@ -60,10 +60,18 @@ def coverage(lengths: Sequence[int], labelled: Sequence[Span]) -> list[np.ndarra
 
 
 def main_answers(
-    scores: Sequence[LogScores], skip: set[int], classes: Sequence[str], *, window: int
+    scores: Sequence[LogScores],
+    skip: set[int],
+    classes: Sequence[str],
+    covered: Sequence[np.ndarray],
+    *,
+    window: int,
+    min_len: int,
 ) -> list[Suggestion]:
-    """Per log not in ``skip``, a piece of ``window`` samples at the middle of the model's longest run of one terrain
-    (the probabilities smoothed over ``window``), the longest runs first (ties by log)."""
+    """Per log not in ``skip``, a piece of up to ``window`` samples at the middle of the model's longest run of one
+    terrain (the probabilities smoothed over ``window``), or in that run's unlabelled part nearest its middle
+    (``covered``: per log, ``(T,)`` true where labelled; none at least ``min_len`` long: no piece); the longest runs
+    first (ties by log)."""
     out = []
     for g, s in enumerate(scores):
         if g in skip or s.probs is None or len(s.probs) < window:
@@ -73,13 +81,19 @@ def main_answers(
         edges = np.flatnonzero(np.diff(label)) + 1
         begin, end = np.r_[0, edges], np.r_[edges, len(label)]
         i = int(np.argmax(end - begin))
-        start = int(np.clip((begin[i] + end[i]) // 2 - window // 2, 0, len(label) - window))
+        middle = (int(begin[i]) + int(end[i])) // 2
+        free = unlabelled_runs(int(begin[i]), int(end[i]), covered[g], min_len=min_len)
+        if not free:
+            continue
+        a, b = min(free, key=lambda r: 0 if r[0] <= middle < r[1] else min(abs(r[0] - middle), abs(r[1] - 1 - middle)))
+        start = int(np.clip(min(max(middle, a), b - 1) - window // 2, a, max(a, b - window)))
+        stop = min(b, start + window)
         k = int(label[begin[i]])
         share = (end[i] - begin[i]) / len(label)
         name = classes[k] if k < len(classes) else f"class {k}"
         reason = f"the model's main answer in this log: {name} over {100 * share:.0f} % of it in one stretch"
-        guess = int(probs[start : start + window].mean(axis=0).argmax())
-        out.append(Suggestion(g, start, start + window, float(share), reason, guess, 0, "main answer"))
+        guess = int(probs[start:stop].mean(axis=0).argmax())
+        out.append(Suggestion(g, start, stop, float(share), reason, guess, 0, "main answer"))
     return sorted(out, key=lambda x: (-x.score, x.log))
 
 

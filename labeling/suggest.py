@@ -231,7 +231,8 @@ def suggest(
                 for g in range(len(scores))
                 if g >= len(tally) or not (tally[g][1] > 0 and 2 * tally[g][0] <= tally[g][1])
             }
-        firsts = main_answers(scores, skip, classes, window=max_len)[:n]
+        covered = coverage(lengths, labelled)
+        firsts = main_answers(scores, skip, classes, covered, window=max_len, min_len=min_len)[:n]
 
     def after_pick(log: int, start: int, stop: int, cls: int | None) -> None:
         """A pick's effect on the rest: no overlap with it; its log, its neighbours and its class count less."""

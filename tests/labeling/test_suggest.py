@@ -322,3 +322,19 @@ def test_a_checked_log_is_asked_its_main_answer_once_its_checks_found_the_model_
     answered = suggest(scores, wrong=[(0, 0), (1, 3), (2, 3)], answered=[(1, mains[0].start, mains[0].stop)], **kwargs)
     assert "main answer" not in [p.kind for p in answered]  # asked once
     assert all(p.kind == "suggestion" for p in suggest(scores, wrong=[(0, 0), (2, 3), (3, 3)], **kwargs))
+
+
+def test_a_main_answer_never_lies_on_labelled_time() -> None:
+    """A checked log's labels may sit at the middle of the model's longest stretch: the main answer is then the
+    unlabelled piece of that stretch nearest its middle, and a stretch labelled whole gives none."""
+    sure = np.full((3000, 3), 0.05)
+    sure[:, 1] = 0.9  # one stretch of b over the whole log: its middle is 1500
+    scores = [LogScores(np.ones(3000), sure, np.zeros(3000))]
+    kwargs = dict(classes=["a", "b", "c"], n=3, max_len=200, min_len=50, main_answer="checked-right", wrong=[(0, 2)])
+    picks = suggest(scores, labelled=[(0, 1400, 1700)], **kwargs)
+    (main,) = [p for p in picks if p.kind == "main answer"]
+    assert main.stop <= 1400 or main.start >= 1700, main
+    assert min(abs(main.stop - 1400), abs(main.start - 1700)) == 0  # beside the labels, nearest the middle
+    assert main.stop - main.start == 200
+    whole = suggest(scores, labelled=[(0, 0, 3000)], **kwargs)
+    assert whole == []  # nothing unlabelled: no main answer, no pick
