@@ -32,19 +32,20 @@ class BalancedLoss:
     Args:
         balance: The fit's setting.
         prior: Each class's share of the training rows (:func:`class_shares`).
+        device: Where the logits it is called with are.
     """
 
-    def __init__(self, balance: Balance, prior: np.ndarray) -> None:
+    def __init__(self, balance: Balance, prior: np.ndarray, *, device: torch.device | str = "cpu") -> None:
         self.balance = balance
         present = prior > 0
         self.weight = None
         self.offset = None
         if balance == "weights":
             w = np.where(present, 1.0 / (present.sum() * np.where(present, prior, 1.0)), 0.0)
-            self.weight = torch.as_tensor(w, dtype=torch.float32)  # (K,)
+            self.weight = torch.as_tensor(w, dtype=torch.float32, device=device)  # (K,)
         elif balance == "logits":
             log_prior = np.where(present, np.log(np.where(present, prior, 1.0)), 0.0)
-            self.offset = torch.as_tensor(log_prior, dtype=torch.float32)  # (K,)
+            self.offset = torch.as_tensor(log_prior, dtype=torch.float32, device=device)  # (K,)
         elif balance not in ("none", "sampling"):
             raise ValueError(f"unknown balance {balance!r}: none, weights, sampling or logits")
 

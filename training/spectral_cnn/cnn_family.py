@@ -87,7 +87,7 @@ FAMILY = Family(
     fine_tune=_fine_tune,
     self_training=True,
     stage1="next-frame",
-    cpu_only_why="its fits are small networks run side by side, one per core; no CUDA path is built or tested yet",
+    devices=("cpu", "cuda"),
     retired_kinds={
         k: "a default-family classifier from an older workbench (a linear model on window summaries); train it "
         "again (workbench train SESSION): labels are kept"

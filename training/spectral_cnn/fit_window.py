@@ -136,7 +136,9 @@ def train_rows(
     (at most ``config.max_steps``); ``config.augment``'s draws need the frames' layout, ``front``. ``more``: rows
     ``pool[index]`` after ``x`` (``y`` covers both), read where they are: the batches of ``x`` and ``pool[index]``
     concatenated, without the copy.
-    ``prior``: the classes' shares ``config.balance`` evens out (default: their shares of ``y``)."""
+    ``prior``: the classes' shares ``config.balance`` evens out (default: their shares of ``y``). The batches are
+    gathered and drawn on the CPU and trained where ``model`` is."""
+    dev = model.in_mean.device
     gen = torch.Generator().manual_seed(seed)
     draws = RowDraws(seed, dropout=model.config.dropout)
     augment = config.augment if front is not None and config.augment.active else None
@@ -147,7 +149,8 @@ def train_rows(
     rows = _Rows(x if isinstance(x, WindowRows) else torch.from_numpy(np.ascontiguousarray(x, np.float32)), more)
     yt = torch.from_numpy(np.asarray(y, np.int64))
     k = model.config.n_classes
-    loss_of = BalancedLoss(config.balance, class_shares(y, k) if prior is None else np.asarray(prior))
+    loss_of = BalancedLoss(config.balance, class_shares(y, k) if prior is None else np.asarray(prior), device=dev)
+    mean = model.in_mean.cpu()  # the augmentation's draws fill dropped channels with it, on the CPU
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay, fused=True)
     per_epoch = -(-len(rows) // config.batch)
     epochs = max(1, min(epochs, config.max_steps // max(per_epoch, 1)))
@@ -160,11 +163,11 @@ def train_rows(
             left -= 1
             xb, idx = rows.take(idx)
             if augment is not None:
-                xb = augment_rows(xb, yt[idx], (rows.x, yt), front, model.in_mean, augment, gen)
-            frames = model.standardise(xb)  # (B, W, F)
+                xb = augment_rows(xb, yt[idx], (rows.x, yt), front, mean, augment, gen)
+            frames = model.standardise(xb.to(dev, non_blocking=True))  # (B, W, F)
             noise, keep = draws(frames.shape)  # (B, W, F) each
-            frames = frames.add_(noise, alpha=config.noise)  # in standardised units
-            loss = loss_of(model.frame_logits(frames, keep=keep), yt[idx])
+            frames = frames.add_(noise.to(dev, non_blocking=True), alpha=config.noise)  # in standardised units
+            loss = loss_of(model.frame_logits(frames, keep=keep.to(dev, non_blocking=True)), yt[idx].to(dev))
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -208,10 +211,10 @@ class _Rows:
 @torch.inference_mode()
 def predict_steps(model: WindowClassifier, features: SpectralSteps, start: int, stop: int) -> np.ndarray:
     """Classes of steps ``[start, stop)`` of one log, as the offline passes score them (a chunk at a time)."""
-    out = []
+    out, dev = [], model.in_mean.device
     for c in range(start, stop, PREDICT_CHUNK):
-        chunk = torch.from_numpy(features[c : min(c + PREDICT_CHUNK, stop)])[None]  # (1, L, D)
-        out.append(model(chunk)[0][0].argmax(1).numpy())
+        chunk = torch.from_numpy(features[c : min(c + PREDICT_CHUNK, stop)])[None].to(dev)  # (1, L, D)
+        out.append(model(chunk)[0][0].argmax(1).cpu().numpy())
     return np.concatenate(out) if out else np.zeros(0, np.int64)
 
 
@@ -223,7 +226,8 @@ def row_logits(model: WindowClassifier, x: np.ndarray | WindowRows) -> np.ndarra
     n, big = divmod(len(x), -(-len(x) // PREDICT_CHUNK))  # np.array_split's chunks: ``big`` one row longer
     cuts = np.concatenate([[0], np.cumsum([n + 1] * big + [n] * (-(-len(x) // PREDICT_CHUNK) - big))])
     chunks = (np.asarray(x[a:b], np.float32) for a, b in itertools.pairwise(cuts))
-    return torch.cat([model.logits(torch.from_numpy(c)) for c in chunks]).numpy()
+    dev = model.in_mean.device
+    return torch.cat([model.logits(torch.from_numpy(c).to(dev)).cpu() for c in chunks]).numpy()
 
 
 def _predict_rows(model: WindowClassifier, x: np.ndarray) -> np.ndarray:
@@ -286,6 +290,7 @@ def fit_window_classifier(
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
     workers: int | None = None,
+    device: str = "cpu",
 ) -> ClassifierFit:
     """Fit the k fold models on labelled segments (and unlabelled stretches, with self-training).
 
@@ -303,6 +308,8 @@ def fit_window_classifier(
         cancel: Polled between epochs.
         workers: Fits run side by side (:mod:`training.running.fit_threads`); default: one per torch thread. The result
             does not depend on it.
+        device: Where the networks train and score their held-out rows (``"cuda"``: on the GPU, their batches still
+            gathered on the CPU); the models come back on the CPU either way.
 
     Returns:
         The ensemble (one model per blocked fold, :mod:`training.figures.blocking`) and its out-of-fold metrics: each
@@ -344,7 +351,7 @@ def fit_window_classifier(
                 torch.manual_seed(seed)
                 model = WindowClassifier(model_config)
             model.set_standardisation(mean, std)
-            return model
+            return model.to(device)
 
         x, ends = window_rows(features, [s[:3] for s in train], every_row)  # each segment's frames held once
         if len(x) == 0:
@@ -427,7 +434,7 @@ def fit_window_classifier(
     right = []  # per member: whether it named each row of its drift sample right
     for model, taken, seen, labelled, logits, rows_y, some, rows, true, pred in results[: blocked.k]:
         pseudo.append(taken)
-        models.append(model)
+        models.append(model.cpu())  # the calibration, the drift and every caller read them on the CPU
         trained_rows.append(labelled)
         oof_rows.append(rows)
         oof_logits.append(logits)

@@ -116,6 +116,7 @@ def fit_frame_predictor(
     fit: FramePredictorFit | None = None,
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
+    device: str = "cpu",
 ) -> tuple[FramePredictor, list[float]]:
     """Train the predictor on every log's frames, no labels.
 
@@ -126,6 +127,8 @@ def fit_frame_predictor(
         fit: Training settings.
         progress: Called every 50 steps.
         cancel: Polled every 50 steps.
+        device: Where it trains (``"cuda"``: the crops are cut on the CPU, each step runs on the GPU); it comes back
+            on the CPU either way.
 
     Returns:
         The frozen predictor and its loss (mean squared error, standardised units) every 50 steps.
@@ -138,6 +141,7 @@ def fit_frame_predictor(
     torch.manual_seed(fit.seed)
     model = FramePredictor(config)
     model.set_standardisation(*frame_moments(usable))
+    model.to(device)
     rng = np.random.default_rng(fit.seed)
     lengths = np.asarray([len(x) for x in usable], np.float64)
     opt = torch.optim.AdamW(model.parameters(), lr=fit.lr, weight_decay=0.0)  # the elastic net is the penalty
@@ -154,12 +158,12 @@ def fit_frame_predictor(
             start = int(rng.integers(0, len(usable[i]) - n + 1))
             batch[b, :n] = usable[i][start : start + n]
             mask[b, : n - 1] = 1.0
-        x = torch.from_numpy(batch)  # (B, L, F)
+        x = torch.from_numpy(batch).to(device)  # (B, L, F)
         estimate, _ = model(x)
         target = model.standardise(x[:, 1:])  # (B, L - 1, F)
         err = (estimate[:, :-1] - target).pow(2).mean(dim=2)  # (B, L - 1)
-        m = torch.from_numpy(mask)
-        m[:, : FramePredictor.context - 1] = 0.0  # a crop's first frames lack their context: zero-padded
+        mask[:, : FramePredictor.context - 1] = 0.0  # a crop's first frames lack their context: zero-padded
+        m = torch.from_numpy(mask).to(device)
         mse = (err * m).sum() / m.sum().clamp_min(1.0)
         params = model.penalised()
         penalty = fit.lam * (
@@ -195,7 +199,7 @@ def fit_frame_predictor(
                 )
             if cancel():
                 raise Cancelled("frame predictor training cancelled")
-    model.eval()
+    model.cpu().eval()  # the residuals below, the passes and the bundle read it on the CPU
     residual = np.zeros(config.n_features, np.float64)
     count = 0
     for x in usable:  # each log's first RESIDUAL_FRAMES frames: every log counts, a fleet's cost stays bounded

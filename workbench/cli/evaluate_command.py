@@ -93,8 +93,9 @@ def evaluate(
         members: With --simulate: stage-2 ensemble members per retrain (the UI's Retrain trains 5).
         stage1: With --simulate, default family: the stage 1 drawing the surprise and the suggestions' embeddings,
             its own next-frame predictor or the paper's LSTM (as sessions trained before it), to compare the two.
-        device: Where both stages train and run: "cuda" for the paper family (the default family and the loop and
-            session protocols, which run on the CPU, refuse it in one line).
+        device: Where both stages train and run: "cuda" for either family's protocol and the paper family's
+            simulation (the default family's simulation and the loop and session protocols, which fit as the
+            Retrain does on the CPU, refuse it in one line).
         reference: With session or loop: a label file (the columns of `workbench labels export`) stored as the
             reference labels of the logs it names before scoring (loop: in its copy of the session only).
     """
@@ -107,6 +108,11 @@ def evaluate(
         )
     if simulate or dataset == "borealtc":
         refuse_family_device(("default", "paper") if model == "both" else (model,), device)
+    if simulate and model in ("default", "both") and device != "cpu":  # its rounds fit and score as a Retrain does
+        raise WorkbenchError(
+            f"--device {device}: evaluate --simulate runs the default family's rounds on the CPU, as the Retrain "
+            "does; leave --device out (or --model paper)"
+        )
     if dataset == "loop":
         from sessions import Session
 

@@ -128,8 +128,9 @@ def train(
             held-out evidence favours (balanced accuracy; another family must lead the default by a point) made
             active, and the figures and the rule printed. Unset: the active classifier's family, "default" for
             the first.
-        device: Where to train: "cuda" trains the paper family there; a family without a CUDA path (default,
-            minirocket) refuses it in one line rather than train on the CPU unsaid.
+        device: Where to train: "cuda" trains the default family's fits and the paper family's LSTMs there; a
+            family without a CUDA path (minirocket, auto's choice among families) refuses it in one line rather
+            than train on the CPU unsaid.
         max_epochs: Upper bound on epochs (early stopping on validation loss usually ends sooner).
         patience: Epochs without improvement before stopping.
         feature_mode: Paper family: what stage 1 hands stage 2.
@@ -212,7 +213,7 @@ def _train_predictor(s: Session, config: TrainConfig, hidden: int, model: str | 
     if cycle.stage1_family(s, model).stage1 == "next-frame":
         bar = _Bar("predictor")
         try:
-            v = cycle.train_frame_predictor(s, progress=bar)
+            v = cycle.train_frame_predictor(s, progress=bar, device=config.device)
         finally:
             bar.close()
         m = v.metrics

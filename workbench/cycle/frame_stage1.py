@@ -41,6 +41,7 @@ def train_frame_predictor(
     hidden: int = FramePredictorConfig.hidden,
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
+    device: str = "cpu",
 ) -> ModelVersion:
     """The default family's stage 1 on every log of the session's main channel set: the next spectral frame from
     the ones before (``training.FramePredictor``); saved as a new, active predictor version.
@@ -55,6 +56,7 @@ def train_frame_predictor(
         hidden: Channels of its convolutions: the width of the suggestions' embedding.
         progress: Called after each log's frames (epoch 1 of 2) and every 50 steps of the fit (epoch 2 of 2).
         cancel: Polled between logs and every 50 steps.
+        device: Where the fit's steps run (the frames are computed on the CPU).
     """
     fit = fit or FramePredictorFit()
     logs = model_logs(session)
@@ -83,6 +85,7 @@ def train_frame_predictor(
             fit=fit,
             progress=lambda p: report(2, p.step, p.steps, p.train_loss),
             cancel=cancel,
+            device=device,
         )
         own, copy = _frame_errors(model, frames)
         bundle = ModelBundle(
@@ -133,9 +136,10 @@ def train_stage1(
 ) -> ModelVersion:
     """Stage 1 of a family (``model``; ``None``: the active classifier's, ``"default"`` before any): the next-frame
     predictor (:func:`train_frame_predictor`) or the paper's LSTM (:func:`train_predictor`, with ``config``,
-    ``hidden``, ``on_resume`` and ``on_other``)."""
+    ``hidden``, ``on_resume`` and ``on_other``); either on ``config.device``."""
     if stage1_family(session, model).stage1 == FRAME_PREDICTOR_KIND:
-        return train_frame_predictor(session, fit=frame_fit, progress=progress, cancel=cancel)
+        device = (config or TrainConfig()).device
+        return train_frame_predictor(session, fit=frame_fit, progress=progress, cancel=cancel, device=device)
     return train_predictor(
         session,
         config=config,

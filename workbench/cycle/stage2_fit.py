@@ -81,7 +81,8 @@ def train_classifier(
     Args:
         session: The session.
         model: A family's name (``training.family_names``); ``None``: the active classifier's family.
-        config: A family reading stage 1's outputs: training settings of a fresh start.
+        config: A family reading stage 1's outputs: training settings of a fresh start. Any family: its ``device``
+            (a frames family's fit from scratch runs there; the quick Retrain stays on the CPU).
         window: A frames or windows family: fit settings (``RETRAIN.window`` when ``None``).
         feature_mode: A family reading stage 1's outputs: what stage 1 hands stage 2.
         hidden: LSTM width.
@@ -113,7 +114,8 @@ def train_classifier(
         quick = _fine_tune_window(session, fam, settings, progress=progress, cancel=cancel)
         if quick is not None:
             return quick
-    return _train_window(session, fam, settings, progress=progress, cancel=cancel)
+    device = (config or TrainConfig()).device
+    return _train_window(session, fam, settings, progress=progress, cancel=cancel, device=device)
 
 
 def _train_on_stage1(
@@ -193,7 +195,13 @@ def _train_on_stage1(
 
 
 def _train_window(
-    session: Session, fam: Family, settings: WindowFitConfig, *, progress: ProgressFn | None, cancel: CancelFn
+    session: Session,
+    fam: Family,
+    settings: WindowFitConfig,
+    *,
+    progress: ProgressFn | None,
+    cancel: CancelFn,
+    device: str = "cpu",
 ) -> ModelVersion:
     """Stage 2 of a family on the front end's frames or on the samples a window per frame (the default family's
     window network, MiniRocket), with self-training over the unlabelled stretches of every log where the family
@@ -223,6 +231,7 @@ def _train_window(
             progress=progress,
             cancel=cancel,
             **spans,
+            **({} if device == "cpu" else {"device": device}),  # a family without a CUDA path is refused before
         )
         version = _save_classifier(
             session,

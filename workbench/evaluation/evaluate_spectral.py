@@ -207,6 +207,7 @@ def borealtc_window_protocol(
     train_filter: Callable[[int, np.ndarray, np.ndarray], np.ndarray] | None = None,
     member: Member | None = None,
     screen_stretch_s: Sequence[float] = (),
+    device: str = "cpu",
 ) -> list[FoldResult]:
     """Run the protocol for the default family; one result per outer fold.
 
@@ -229,6 +230,7 @@ def borealtc_window_protocol(
             default family's (``metrics["ensemble"]``).
         screen_stretch_s: Shortest stretches (seconds) to screen the per-stretch figure at, each held-out run's
             shorter stretches merged (``labeling.coarser_points``): ``stretches_at`` in ``metrics["runs"]``.
+        device: Where the fits train and the test windows are scored.
     """
     protocol = protocol or WindowProtocol()
     size, win, stride = (round(s * rate_hz) for s in (protocol.partition_s, protocol.window_s, protocol.stride_s))
@@ -263,10 +265,13 @@ def borealtc_window_protocol(
             units = _stretch_units(runs, run_of, free, size, rate_hz, change_points)
             log(f"fold {fold}: {len(stretches)} unlabelled partitions in {len(set(units))} units")
         cfit = fit_window_classifier(
-            features, segments, classes, config=fit, stretches=stretches, units=units, groups=groups
+            features, segments, classes, config=fit, stretches=stretches, units=units, groups=groups, device=device
         )
         x, owner = window_inputs([parts[i] for i in test_idx], win, stride, config, normalizer)
-        probs = run_classifiers(cfit.models, [x])[0].mean(0)  # (N, K): the windows as steps, the model is per step
+        # (N, K): the windows as steps, the model is per step
+        probs = run_classifiers(cfit.models, [x], device=device)[0].mean(0)
+        for model in cfit.models:  # the pass moved them; the drift and the member below read them on the CPU
+            model.cpu()
         y_true = y[test_idx][owner]
         m = classification_metrics(y_true, probs.argmax(1), classes)
         m["calibration_error"] = expected_calibration_error(probs, y_true)

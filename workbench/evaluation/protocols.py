@@ -110,7 +110,7 @@ def evaluate_borealtc(
         stage1_epochs: Paper family: most epochs of stage 1.
         stage2_epochs: Paper family: most epochs of stage 2.
         out: Also write per-fold details as JSON here.
-        device: Paper family: where the LSTMs train.
+        device: Where both families train and score.
     """
     from training import WindowFitConfig
 
@@ -131,7 +131,15 @@ def evaluate_borealtc(
         if family == "default":
             print(f"--- default family, {where[sp]}")
             res = borealtc_window_protocol(
-                runs, labels, classes, rate_hz=100.0, labelled=labelled, split=sp, fit=WindowFitConfig(), seed=seed
+                runs,
+                labels,
+                classes,
+                rate_hz=100.0,
+                labelled=labelled,
+                split=sp,
+                fit=WindowFitConfig(),
+                seed=seed,
+                device=device,
             )
             rows.append((f"default family, {where[sp]}", res))
             detail[f"default/{sp}"] = [vars(r) for r in res]

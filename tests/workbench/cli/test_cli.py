@@ -130,7 +130,8 @@ def test_bad_arguments_exit_2(argv: list[str]) -> None:
 
 def test_device_cuda_is_refused_for_a_family_without_a_cuda_path(tmp_path: Path, monkeypatch, capsys) -> None:
     """Issue 66: a family with no CUDA path refuses ``--device cuda`` in one line, before any work, instead of
-    training on the CPU unsaid; the paper family, which has one, is not refused. Run as if CUDA were present."""
+    training on the CPU unsaid; the default and paper families, which have one, are not refused. Run as if CUDA
+    were present."""
     import torch
 
     from training import device_refusal
@@ -138,23 +139,24 @@ def test_device_cuda_is_refused_for_a_family_without_a_cuda_path(tmp_path: Path,
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
     with Session.create(tmp_path / "s"):
         pass
-    for argv, family in [
-        (["train", tmp_path / "s", "--device", "cuda"], "default"),  # a new session: the default family
-        (["train", tmp_path / "s", "--device", "cuda", "--model", "minirocket"], "minirocket"),
-        (["train", tmp_path / "s", "--device", "cuda", "--model", "auto"], "default"),
-        (["evaluate", "borealtc", tmp_path, "--device", "cuda"], "default"),
-        (["evaluate", "borealtc", tmp_path, "--device", "cuda", "--model", "both"], "default"),
+    for argv in [
+        ["train", tmp_path / "s", "--device", "cuda", "--model", "minirocket"],
+        ["train", tmp_path / "s", "--device", "cuda", "--model", "auto"],  # auto fits minirocket too
     ]:
         assert run(*argv) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "Traceback" not in err
-        assert err.startswith(f"error: --device cuda: the {family} family trains and scores on the CPU only")
-        assert "--model paper trains on cuda" in err
+        assert err.startswith("error: --device cuda: the minirocket family trains and scores on the CPU only")
+        assert "--model default or --model paper trains on cuda" in err
     assert run("evaluate", "loop", tmp_path / "s", "--device", "cuda") == 2
     assert "fits as the Retrain does, on the CPU" in capsys.readouterr().err
+    assert run("evaluate", "demo", tmp_path, "--simulate", "--device", "cuda") == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --device cuda: evaluate --simulate runs the default family's rounds on the CPU")
     with Session.open(tmp_path / "s") as s:
         assert s.model_versions() == []  # refused before any work
-    assert device_refusal("paper", "cuda") is None and device_refusal("default", "cpu") is None
+    assert device_refusal("paper", "cuda") is None and device_refusal("default", "cuda") is None
+    assert device_refusal("default", "cpu") is None
 
 
 def test_device_cuda_without_a_gpu_is_one_clear_line(tmp_path: Path, capsys) -> None:

@@ -1,0 +1,178 @@
+"""A first model on 2 cores, on every core and on the GPU (issue 66): `workbench train SESSION` (both stages, the
+default family) on ``--hours`` of 22-channel 100 Hz demo walks with 5 % of the time labelled, three ways in the same
+run, each on its own copy of the session (the frames are computed anew by each) and in a fresh interpreter:
+
+- limited to 2 CPUs (the process's affinity and ``OMP_NUM_THREADS=2``, as ``taskset -c 0,1`` gives): the reference;
+- on every CPU of the machine;
+- with ``--device cuda`` on every CPU, where a CUDA device is present (else the row says "not run").
+
+Then the paper family's stage 1 (``--model paper --stage predictor``, ``--paper-epochs`` epochs, no early stop) on
+every CPU and with ``--device cuda``: its throughput in timesteps per second.
+
+Usage::
+
+    python benchmarks/speed/bench_devices.py [--hours 4] [--paper-epochs 2] [--quick] [--out FILE.json]
+
+Writing, ingesting and labelling the logs are set-up (``bench_first_model.py``'s), timed but not part of a figure.
+On a 2-CPU machine the first two rows are the same machine twice: the ratio says so rather than hides it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from speed_common import ROOT, Row, record
+
+FIRST_MODEL = ROOT / "benchmarks" / "speed" / "bench_first_model.py"
+LOG_MINUTES = 30.0
+
+
+def _cuda() -> bool:
+    code = "import torch; print(torch.cuda.is_available())"
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.strip() == "True"
+
+
+def _setup(folder: Path, hours: float) -> dict:
+    n_logs = max(1, round(hours * 60 / LOG_MINUTES))
+    args = [str(folder), str(n_logs), str(hours * 60 / n_logs)]
+    out = subprocess.run([sys.executable, str(FIRST_MODEL), "--child", "setup", *args], capture_output=True, text=True)
+    if out.returncode != 0:
+        raise SystemExit(f"set-up failed:\n{out.stdout[-2000:]}\n{out.stderr[-3000:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _train(session: Path, extra: list[str], *, cpus: int | None) -> dict:
+    """``workbench train SESSION *extra`` in a fresh interpreter on ``cpus`` CPUs (``None``: all); its seconds and
+    the new classifier's out-of-fold accuracy."""
+    env = dict(os.environ)
+    pin = None
+    if cpus is not None:
+        chosen = sorted(os.sched_getaffinity(0))[:cpus]
+        env["OMP_NUM_THREADS"] = str(cpus)
+
+        def pin() -> None:
+            os.sched_setaffinity(0, chosen)
+
+    t = time.perf_counter()
+    cmd = [sys.executable, "-m", "workbench.cli", "train", str(session), *extra]
+    out = subprocess.run(cmd, capture_output=True, text=True, env=env, preexec_fn=pin, cwd=ROOT)
+    seconds = time.perf_counter() - t
+    if out.returncode != 0:
+        return {"seconds": seconds, "error": (out.stderr or out.stdout).strip().splitlines()[-1:]}
+    code = (
+        "import json, sys; from sessions import Session\n"
+        "with Session.open(sys.argv[1]) as s:\n"
+        "    c, p = s.active_model('classifier'), s.active_model('predictor')\n"
+        "    print(json.dumps({'accuracy': c.metrics.get('accuracy') if c else None, 'predictor': p.metrics}))"
+    )
+    info = subprocess.run([sys.executable, "-c", code, str(session)], capture_output=True, text=True, cwd=ROOT)
+    return {"seconds": seconds, **json.loads(info.stdout.strip().splitlines()[-1])}
+
+
+def _copy(src: Path, dst: Path) -> Path:
+    shutil.copytree(src, dst)
+    return dst
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--hours", type=float, default=4.0)
+    p.add_argument("--paper-epochs", type=int, default=2)
+    p.add_argument("--quick", action="store_true", help="half an hour, one paper epoch: checks the script runs")
+    p.add_argument("--out", type=Path, default=None, help="also write every measurement here (JSON)")
+    args = p.parse_args()
+    hours, epochs = (0.5, 1) if args.quick else (args.hours, args.paper_epochs)
+    cpus = len(os.sched_getaffinity(0))
+    cuda = _cuda()
+    runs: dict = {"cpus": cpus, "cuda": cuda}
+    with tempfile.TemporaryDirectory() as tmp:
+        base = Path(tmp)
+        runs["setup"] = _setup(base, hours)
+        session = base / "session"
+        print(f"set-up: {runs['setup']}", flush=True)
+        arms = {"2 cpus": ([], 2), f"{cpus} cpus": ([], None)}
+        if cuda:
+            arms[f"{cpus} cpus + cuda"] = (["--device", "cuda"], None)
+        for name, (extra, n) in arms.items():
+            runs[name] = _train(_copy(session, base / name.replace(" ", "-")), extra, cpus=n)
+            print(f"default family, {name}: {runs[name]}", flush=True)
+        paper = ["--model", "paper", "--stage", "predictor", "--max-epochs", str(epochs), "--patience", str(epochs + 1)]
+        paper_arms = {f"paper {cpus} cpus": (paper, None)}
+        if cuda:
+            paper_arms[f"paper {cpus} cpus + cuda"] = ([*paper, "--device", "cuda"], None)
+        for name, (extra, n) in paper_arms.items():
+            runs[name] = _train(_copy(session, base / name.replace(" ", "-")), extra, cpus=n)
+            print(f"{name}: {runs[name]}", flush=True)
+    if args.out:
+        args.out.write_text(json.dumps(runs, indent=1, default=str))
+    record("devices", _rows(runs, hours, epochs), device="cuda" if cuda else "cpu")
+
+
+def _rows(runs: dict, hours: float, epochs: int) -> list[Row]:
+    cpus, setup = runs["cpus"], runs["setup"]
+    shape = f"{setup['hours']:.1f} h of {setup['channels']}-channel 100 Hz logs, {setup['labelled']:.1%} labelled"
+
+    def fig(name: str) -> str:
+        r = runs.get(name)
+        if r is None:
+            return "not run (no CUDA device)"
+        if "error" in r:
+            return f"failed: {r['error']}"
+        acc = f", out-of-fold accuracy {r['accuracy']:.1%}" if r.get("accuracy") is not None else ""
+        return f"{r['seconds']:.0f} s{acc}"
+
+    def ratio(a: str, b: str) -> tuple[str, float | None]:
+        ra, rb = runs.get(a), runs.get(b)
+        if not ra or not rb or "error" in ra or "error" in rb:
+            return "–", None
+        x = rb["seconds"] / ra["seconds"]
+        return f"{x:.2f}× faster", x
+
+    many, gpu = f"{cpus} cpus", f"{cpus} cpus + cuda"
+    r_cores, x_cores = ratio(many, "2 cpus") if cpus > 2 else ("– (this machine has 2 CPUs: one arm)", None)
+    r_gpu, x_gpu = ratio(gpu, many)
+    r_paper, _ = ratio(f"paper {gpu}", f"paper {many}")
+    steps = setup["hours"] * 3600 * 100 * epochs
+    paper = {
+        k: f"{steps / runs[k]['seconds'] / 1e3:.0f} k timesteps/s ({runs[k]['seconds']:.0f} s)"
+        for k in (f"paper {many}", f"paper {gpu}")
+        if k in runs and "error" not in runs[k]
+    }
+    return [
+        Row(
+            f"first model (`workbench train`, default family), {shape}: every CPU",
+            f"{fig(many)}",
+            f"2 CPUs: {fig('2 cpus')}",
+            r_cores,
+            "≥ 4× with 16 CPUs",
+            None if x_cores is None or cpus < 16 else x_cores >= 4,
+        ),
+        Row(
+            f"first model, {shape}: `--device cuda`",
+            fig(gpu),
+            f"every CPU ({cpus}): {fig(many)}",
+            r_gpu,
+            "≥ 2× (H100 against 16 CPUs)",
+            None if x_gpu is None else x_gpu >= 2,
+        ),
+        Row(
+            f"paper family's stage 1, {epochs} epoch(s) over {shape}: `--device cuda`",
+            paper.get(f"paper {gpu}", "not run (no CUDA device)"),
+            f"every CPU ({cpus}): {paper.get(f'paper {many}', '–')}",
+            r_paper,
+            "–",
+            None,
+        ),
+    ]
+
+
+if __name__ == "__main__":
+    main()
