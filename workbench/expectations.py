@@ -9,8 +9,9 @@ Two figures, each from what the model does on the file, with no label read:
   equal to it where the stretch's most predicted terrain is right. It cannot see a stretch the model gets wholly
   wrong, so it is printed as a bound.
 
-Either figure 10 points or more under the card warns. The figures measured (``benchmarks/studies/expected_borealtc.py``,
-``benchmarks/results/issue-54.md``) are in ``docs/model.md``.
+Either figure 10 points or more under the card warns, and so does a file's figure that the person's own checks in
+that log contradict (10 points or more away, outside their 95 % interval: issue 65). The figures measured
+(``benchmarks/studies/expected_borealtc.py``, ``benchmarks/results/issue-54.md``) are in ``docs/model.md``.
 """
 
 from __future__ import annotations
@@ -31,6 +32,9 @@ from training import expected_accuracy
 SHORTEST_STRETCH_S = 10.0
 BELOW_CARD = 0.10  # an expected accuracy this far under the card's figure gets a warning line
 MOSTLY_DRIFTED = 0.5  # a file with more drifted time than this gets a warning line even without a relation
+# fewer checks than this never contradict a figure: one wrong check has a Wilson interval of 0-79 %, so it would
+# contradict any figure above 79 % although such a model is wrong on one check in five
+MIN_CHECKS = 2
 
 
 def card_accuracy(metrics: Mapping) -> float | None:
@@ -58,6 +62,7 @@ class FileExpectation:
         card: The card's figure (``None`` when none was measured).
         agreement: The share of its steps predicted as their stretch's most predicted terrain (``None`` when its
             predictions and change points were not given).
+        checks: The person's counted checks in this log (a session's log; ``None`` for a file outside one).
     """
 
     name: str
@@ -66,6 +71,21 @@ class FileExpectation:
     expected: float | None
     card: float | None
     agreement: float | None = None
+    checks: labeling.CheckEstimate | None = None
+
+    @property
+    def figure(self) -> float | None:
+        """What the Data tab shows of the log: the accuracy at its drift, else the bound by its stretches."""
+        return self.expected if self.expected is not None else self.agreement
+
+    @property
+    def checks_disagree(self) -> bool:
+        """Whether the person's checks in the log (``MIN_CHECKS`` or more) contradict its figure: ``BELOW_CARD`` or
+        more away from their share right and outside their 95 % interval."""
+        f, c = self.figure, self.checks
+        if f is None or c is None or c.n < MIN_CHECKS or abs(f - c.accuracy) < BELOW_CARD - 1e-9:
+            return False
+        return not c.low <= f <= c.high
 
     @property
     def below_card(self) -> bool:
@@ -97,8 +117,15 @@ class FileExpectation:
         return head if figures is None else f"{head}; {figures}"
 
     def warning(self) -> str | None:
-        """One line when the file is expected to score well below the card, or (with no relation) is mostly
-        drifted; else ``None``."""
+        """One line when the person's checks in the log contradict its figure, when the file is expected to score
+        well below the card, or (with no relation) is mostly drifted; else ``None``."""
+        if self.checks_disagree:
+            what = "expected accuracy" if self.expected is not None else "its stretches bound its accuracy at"
+            return (
+                f"warning: {self.name}: {what} {self.figure:.0%}, but your checks in it found the model "
+                f"{self.checks.words()} (each before it learned from that label): neither is sure here; "  # type: ignore[union-attr]
+                "spot-check it after the next Retrain"
+            )
         if self.below_card:
             points = _points(self.card, self.expected)  # type: ignore[arg-type]
             return (
@@ -134,6 +161,7 @@ def file_expectation(
     predicted: np.ndarray | None = None,
     change_points: np.ndarray | None = None,
     rate_hz: float | None = None,
+    checks: labeling.CheckEstimate | None = None,
 ) -> FileExpectation | None:
     """A file's expectation; ``None`` without drift.
 
@@ -144,6 +172,7 @@ def file_expectation(
         predicted: Its steps' predicted terrains ``(T,)``; with ``change_points``, the agreement within stretches.
         change_points: Its change points (sample indices), as the session finds them.
         rate_hz: Its sample rate; with ``predicted`` and ``change_points``, the agreement within stretches.
+        checks: The person's checks in it, where it is a session's log (``cycle.checks_summary``'s ``per_log``).
     """
     share = labeling.drifted_share(drift)
     if share is None:
@@ -153,7 +182,7 @@ def file_expectation(
     agreement = None
     if predicted is not None and change_points is not None and rate_hz is not None:
         agreement = stretch_share(predicted, change_points, rate_hz=rate_hz)
-    return FileExpectation(name, float(np.median(drift)), share, expected, card, agreement)
+    return FileExpectation(name, float(np.median(drift)), share, expected, card, agreement, checks)
 
 
 def stretch_share(predicted: np.ndarray, change_points: np.ndarray, *, rate_hz: float) -> float | None:

@@ -78,6 +78,37 @@ def test_without_a_relation_the_drifted_share_decides_and_without_drift_nothing_
     assert card_accuracy({"accuracy": 0.9, "out_of_fold": False}) is None  # a training fit's figure is no card
 
 
+def test_a_logs_own_checks_that_contradict_its_figure_warn_by_name() -> None:
+    """Issue 65: the person's checks in a log are its own evidence; a figure they contradict (10 points or more away,
+    outside their 95 % interval) warns, naming the log; checks that agree, or too few to contradict, do not."""
+    m = metrics()
+    expected = file_expectation("walk3.csv", np.full(500, 0.3), m).expected
+    assert expected > 0.8
+    wrong = labeling.check_estimate([True] * 3 + [False] * 9)  # 25 %, interval about 9-53 %
+    odd = file_expectation("walk3.csv", np.full(500, 0.3), m, checks=wrong)
+    assert odd.checks_disagree and not odd.below_card
+    line = odd.warning()
+    assert line.startswith(f"warning: walk3.csv: expected accuracy {expected:.0%}, but your checks in it found the")
+    assert "right on 3 of 12 checks" in line and "spot-check it after the next Retrain" in line
+    fine = file_expectation("walk3.csv", np.full(500, 0.3), m, checks=labeling.check_estimate([True] * 9 + [False]))
+    assert not fine.checks_disagree and fine.warning() is None
+    few = file_expectation("walk3.csv", np.full(500, 0.3), m, checks=labeling.check_estimate([False]))
+    assert not few.checks_disagree  # one wrong check never contradicts: its interval (0-79 %) is no evidence
+    two = file_expectation("walk3.csv", np.full(500, 0.3), m, checks=labeling.check_estimate([False, False]))
+    assert two.checks_disagree
+    # without a relation, the bound by its stretches is the figure the checks are held against
+    bound = file_expectation(
+        "walk3.csv",
+        np.full(400, 0.3),
+        {"estimate": {"accuracy": 0.82}},
+        predicted=np.zeros(400, int),
+        change_points=np.asarray([]),
+        rate_hz=1.0,
+        checks=wrong,
+    )
+    assert bound.figure == 1.0 and bound.warning().startswith("warning: walk3.csv: its stretches bound its accuracy")
+
+
 def test_the_data_tab_shows_each_logs_expected_accuracy_in_red_when_far_under_the_card(tmp_path) -> None:
     from tests.conftest import new_session
     from workbench.demo import generate_demo_logs

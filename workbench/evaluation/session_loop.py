@@ -39,6 +39,7 @@ from ..cycle import (
     train_stage1,
 )
 from ..retrain import RETRAIN
+from .loop_said import said_of_logs, said_table
 
 Person = Literal["piece", "stretch"]
 # What a lever is worth, measured by leaving it out: a strategy's name for the loop -> the suggestion strategy, the
@@ -96,6 +97,7 @@ class LoopRound:
             round, before the label trained it).
         spot: The same over spot checks only.
         majority: Always answering the most common labelled terrain on the same time: its name and accuracy.
+        said: Per new log, what the workbench says of it (:func:`.loop_said.said_of_logs`).
     """
 
     round: int
@@ -113,6 +115,7 @@ class LoopRound:
     checks: tuple[int, int] = (0, 0)
     spot: tuple[int, int] = (0, 0)
     majority: tuple[str, float] = ("", float("nan"))
+    said: dict[str, dict] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -302,6 +305,7 @@ def run_arm(
                     (checked.all.right, checked.all.n) if checked.all else (0, 0),
                     (checked.spot.right, checked.spot.n) if checked.spot else (0, 0),
                     measured.majority,
+                    said_of_logs(s, scores, new, points),
                 )
             )
             log(
@@ -455,4 +459,5 @@ def loop_report(
     for strategy, rounds in arms.items():
         last = rounds[-1].per_log
         lines.append(f"| {strategy} | " + " | ".join(_pct(last.get(n)) for n in names) + " |")
+    lines += ["", *said_table({k: [(r.per_log, r.said) for r in v] for k, v in arms.items()})]
     return "\n".join(lines) + "\n"

@@ -93,6 +93,7 @@ def logs_table_html(
     if expect_column:
         card = next((e.card for e in expected.values() if e is not None and e.card is not None), None)  # type: ignore[union-attr]
         below = "" if card is None else f"; red: 10 points or more below the card&#39;s {card:.0%}"
+        below += ", or contradicted by your checks in the log"
         head += (
             "<th class='n' title='accuracy expected on the log at its drift, else the share of its steps predicted "
             "as their stretch&#39;s most predicted terrain (stretches between change points; both on hover)"
@@ -120,9 +121,9 @@ def logs_table_html(
 def _expected_cell(e: FileExpectation | None) -> str:
     if e is None or (e.expected is None and e.agreement is None):
         return "<td class='n'>–</td>"
-    text = f"{e.expected if e.expected is not None else e.agreement:.0%}"
-    both = html.escape(e.figures() or "", quote=True)
-    strong = e.below_card or e.disagrees
+    text = f"{e.figure:.0%}"
+    both = html.escape(" ".join(filter(None, [e.figures(), e.warning() if e.checks_disagree else None])), quote=True)
+    strong = e.below_card or e.disagrees or e.checks_disagree
     return f"<td class='n' title='{both}'>{f'<b style=color:{MISSED}>{text}</b>' if strong else text}</td>"
 
 
@@ -156,6 +157,7 @@ class DataPanel:
         logs = session.logs()
         names, rates = {x.id: x.name for x in logs}, {x.id: x.rate_hz for x in logs}
         state = self.host.state
+        checks = checks_summary(session).per_log
         expected = {
             i: file_expectation(
                 names.get(i, str(i)),
@@ -164,10 +166,10 @@ class DataPanel:
                 predicted=None if s.probs is None else s.probs.argmax(1),
                 change_points=state.known_change_points(i),  # the worker's; none computed here, on the UI's thread
                 rate_hz=rates.get(i),
+                checks=checks.get(i),
             )
             for i, s in scores.items()
         }
-        checks = checks_summary(session).per_log
         self.logs.content = logs_table_html(session, drifted, expected, checks)
 
     def _take_upload(self) -> None:

@@ -84,6 +84,14 @@ def test_the_loop_checks_the_unlike_log_first_and_leaves_the_session_as_it_was(
     assert re.search(r"\| combined \| 1 \| \d+ \(\d+\) \| [56] of 6 \|", text), text
     assert combined[-1]["per_log"]["odd"] > 0.5, combined[-1]  # above chance after the loop's labels
     assert combined[-1]["labelled_s"] > 0 and combined[-1]["new_s"] > 0
+    # what the workbench says of each new log, beside its truth: the Data tab's figure, the checks, any warning
+    said = combined[-1]["said"]
+    assert set(said) == set(combined[-1]["per_log"]) and all(
+        set(v) >= {"figure", "checks", "warning"} for v in said.values()
+    )
+    assert sum(v["checks"][1] for v in said.values()) == combined[-1]["checks"][1]
+    assert "| strategy | log | accuracy (%) | the workbench's figure (%) |" in text
+    assert re.search(r"combined: \d of 2 new logs pass", text), text
     with Session.open(session) as s:  # the loop worked on copies
         assert [(g.log_id, g.start, g.stop, g.terrain) for g in s.segments()] == before
         assert len(s.model_versions("classifier")) == versions and not any(s.reference(x.id) for x in s.logs())

@@ -1,0 +1,88 @@
+"""What the workbench says of each new log in ``evaluate loop`` (issue 65's fourth target): the figure its Data tab
+shows (the accuracy expected at the log's drift, else the bound by its stretches), the person's checks in it, and
+whether it warns, beside the truth. A log passes when its figure lies within ``WITHIN`` of the truth or the
+workbench warns about it by name."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from sessions import LogInfo, Session
+
+from ..cycle import SessionScores, checks_summary
+from ..expectations import file_expectation
+
+WITHIN = 0.05  # the target: the estimate within 5 points of the truth, or a warning naming the log
+
+
+def said_of_logs(
+    session: Session, scores: SessionScores, logs: Sequence[LogInfo], points: Mapping[int, np.ndarray]
+) -> dict[str, dict]:
+    """Per log name: ``figure``, ``expected``, ``agreement`` (``None`` where not measured), ``checks`` ``[right,
+    n]`` and ``warning`` (its line or ``None``), as the Data tab and ``classify`` compute them."""
+    version = session.active_model("classifier")
+    metrics = version.metrics if version is not None else {}
+    checks = checks_summary(session).per_log
+    out = {}
+    for x in logs:
+        s = scores.scores.get(x.id)
+        if s is None or s.probs is None:
+            continue
+        e = file_expectation(
+            x.name,
+            s.drift,
+            metrics,
+            predicted=s.probs.argmax(1),
+            change_points=points.get(x.id),
+            rate_hz=x.rate_hz,
+            checks=checks.get(x.id),
+        )
+        c = checks.get(x.id)
+        out[x.name] = {
+            "figure": None if e is None else e.figure,
+            "expected": None if e is None else e.expected,
+            "agreement": None if e is None else e.agreement,
+            "checks": [c.right, c.n] if c is not None else [0, 0],
+            "warning": None if e is None else e.warning(),
+        }
+    return out
+
+
+def _pct(x: float | None) -> str:
+    return "–" if x is None or x != x else f"{100 * x:.1f}"
+
+
+def said_table(arms: Mapping[str, Sequence[tuple[Mapping[str, float], Mapping[str, dict]]]]) -> list[str]:
+    """Markdown lines: per strategy and new log after the last round, the truth beside what the workbench says, and
+    per strategy how many logs pass (figure within ``WITHIN`` of the truth, or warned of by name).
+
+    Args:
+        arms: Per strategy, its rounds as ``(accuracy per log, said per log)``; the last one is reported.
+    """
+    lines = [
+        "What the workbench says of each new log after the last round (the Data tab's figure: expected at its drift,",
+        f"else bounded by its stretches); a log passes when that figure is within {100 * WITHIN:.0f} points of the "
+        "truth or a warning names it:",
+        "",
+        "| strategy | log | accuracy (%) | the workbench's figure (%) | checks in it right | warning | passes |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    summary = []
+    for strategy, rounds in arms.items():
+        truth, said = rounds[-1]
+        passed = 0
+        for name, acc in truth.items():
+            s = said.get(name, {})
+            figure, warned = s.get("figure"), s.get("warning") is not None
+            ok = warned or (figure is not None and abs(figure - acc) <= WITHIN + 1e-9)
+            passed += ok
+            right, n = s.get("checks", [0, 0])
+            checks = f"{right} of {n}" if n else "–"
+            lines.append(
+                f"| {strategy} | {name} | {_pct(acc)} | {_pct(figure)} | {checks} | {'yes' if warned else 'no'} | "
+                f"{'yes' if ok else '**no**'} |"
+            )
+        summary.append(f"{strategy}: {passed} of {len(truth)} new logs pass")
+    return [*lines, "", *summary]
