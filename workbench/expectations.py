@@ -62,7 +62,8 @@ class FileExpectation:
         card: The card's figure (``None`` when none was measured).
         agreement: The share of its steps predicted as their stretch's most predicted terrain (``None`` when its
             predictions and change points were not given).
-        checks: The person's counted checks in this log (a session's log; ``None`` for a file outside one).
+        checks: The person's counted checks in this log of the model whose figure this is (a session's log;
+            ``None`` for a file outside one): a check of an earlier model says little of one that learned from it.
     """
 
     name: str
@@ -122,9 +123,8 @@ class FileExpectation:
         if self.checks_disagree:
             what = "expected accuracy" if self.expected is not None else "its stretches bound its accuracy at"
             return (
-                f"warning: {self.name}: {what} {self.figure:.0%}, but your checks in it found the model "
-                f"{self.checks.words()} (each before it learned from that label): neither is sure here; "  # type: ignore[union-attr]
-                "spot-check it after the next Retrain"
+                f"warning: {self.name}: {what} {self.figure:.0%}, but your checks of this model in it found it "
+                f"{self.checks.words()}: trust the checks; label more of it and retrain"  # type: ignore[union-attr]
             )
         if self.below_card:
             points = _points(self.card, self.expected)  # type: ignore[arg-type]

@@ -88,8 +88,8 @@ def test_a_logs_own_checks_that_contradict_its_figure_warn_by_name() -> None:
     odd = file_expectation("walk3.csv", np.full(500, 0.3), m, checks=wrong)
     assert odd.checks_disagree and not odd.below_card
     line = odd.warning()
-    assert line.startswith(f"warning: walk3.csv: expected accuracy {expected:.0%}, but your checks in it found the")
-    assert "right on 3 of 12 checks" in line and "spot-check it after the next Retrain" in line
+    assert line.startswith(f"warning: walk3.csv: expected accuracy {expected:.0%}, but your checks of this model in it found it")
+    assert "right on 3 of 12 checks" in line and "trust the checks; label more of it and retrain" in line
     fine = file_expectation("walk3.csv", np.full(500, 0.3), m, checks=labeling.check_estimate([True] * 9 + [False]))
     assert not fine.checks_disagree and fine.warning() is None
     few = file_expectation("walk3.csv", np.full(500, 0.3), m, checks=labeling.check_estimate([False]))
@@ -153,3 +153,35 @@ def test_the_card_says_what_the_logs_with_no_label_are_expected_to_score() -> No
     )
     assert "Their predictions agree with the most predicted terrain of their stretch on **70%**" in bounded
     assert "logs with no label" not in model_card(bundle, version=1, session="s", drifted={"a": 0.1})
+
+
+def test_only_the_active_models_own_checks_contradict_a_logs_figure(tmp_path) -> None:
+    """A check is of the model that was active when it was made, and the next Retrain learns from it: the checks a
+    log's figure is held against are the active classifier's (``checks_summary(classifier=)``); older ones still
+    count in the checks column."""
+    from tests.conftest import new_session
+    from workbench.cycle import checks_summary
+    from workbench.demo import generate_demo_logs
+
+    s = new_session(tmp_path / "s")
+    s.ingest(generate_demo_logs(tmp_path / "logs", n_logs=1, minutes=0.2, seed=1))
+    (log,) = s.logs()
+    a, b = [t.name for t in s.terrains()][:2]
+    for i in range(6):  # five wrong of six by version 1, then two right by version 2
+        right = i == 5
+        s.add_check(log.id, 10 * i, 10 * i + 5, a, predicted=a if right else b, agreement=float(right), classifier=1,
+                    kind="suggestion", author="t")  # fmt: skip
+    for i in range(2):
+        s.add_check(log.id, 100 + 10 * i, 105 + 10 * i, a, predicted=a, agreement=1.0, classifier=2,
+                    kind="suggestion", author="t")  # fmt: skip
+    every = checks_summary(s).per_log[log.id]
+    assert (every.right, every.n) == (3, 8)
+    assert checks_summary(s, classifier=1).per_log[log.id].n == 6
+    fresh = checks_summary(s, classifier=2).per_log[log.id]
+    assert (fresh.right, fresh.n) == (2, 2) and checks_summary(s, classifier=3).per_log == {}
+    m = metrics()
+    assert file_expectation(
+        log.name, np.full(50, 0.3), m, checks=checks_summary(s, classifier=1).per_log[log.id]
+    ).checks_disagree
+    assert not file_expectation(log.name, np.full(50, 0.3), m, checks=fresh).checks_disagree
+    s.close()

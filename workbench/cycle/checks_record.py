@@ -70,9 +70,18 @@ class ChecksSummary:
     per_log: dict[int, labeling.CheckEstimate] = field(default_factory=dict)
 
 
-def checks_summary(session: Session, *, log_ids: Collection[int] | None = None) -> ChecksSummary:
-    """The estimates of the session's checks (of ``log_ids`` only, when given)."""
-    checks = [c for c in session.checks() if c.kind in COUNTED_KINDS and (log_ids is None or c.log_id in log_ids)]
+def checks_summary(
+    session: Session, *, log_ids: Collection[int] | None = None, classifier: int | None = None
+) -> ChecksSummary:
+    """The estimates of the session's checks (of ``log_ids`` only, when given; of the checks of classifier version
+    ``classifier`` only, when given: evidence about that model, not the ones before it)."""
+    checks = [
+        c
+        for c in session.checks()
+        if c.kind in COUNTED_KINDS
+        and (log_ids is None or c.log_id in log_ids)
+        and (classifier is None or c.classifier == classifier)
+    ]
     by_log: dict[int, list[bool]] = {}
     for c in checks:
         by_log.setdefault(c.log_id, []).append(c.right)

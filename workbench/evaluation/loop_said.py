@@ -21,10 +21,12 @@ def said_of_logs(
     session: Session, scores: SessionScores, logs: Sequence[LogInfo], points: Mapping[int, np.ndarray]
 ) -> dict[str, dict]:
     """Per log name: ``figure``, ``expected``, ``agreement`` (``None`` where not measured), ``checks`` ``[right,
-    n]`` and ``warning`` (its line or ``None``), as the Data tab and ``classify`` compute them."""
+    n]`` (every counted check in it) and ``warning`` (its line or ``None``), as the Data tab computes them: only
+    the active classifier's own checks can contradict its figure."""
     version = session.active_model("classifier")
     metrics = version.metrics if version is not None else {}
     checks = checks_summary(session).per_log
+    fresh = {} if version is None else checks_summary(session, classifier=version.id).per_log  # as the Data tab
     out = {}
     for x in logs:
         s = scores.scores.get(x.id)
@@ -37,7 +39,7 @@ def said_of_logs(
             predicted=s.probs.argmax(1),
             change_points=points.get(x.id),
             rate_hz=x.rate_hz,
-            checks=checks.get(x.id),
+            checks=fresh.get(x.id),
         )
         c = checks.get(x.id)
         out[x.name] = {

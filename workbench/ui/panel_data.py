@@ -158,6 +158,9 @@ class DataPanel:
         names, rates = {x.id: x.name for x in logs}, {x.id: x.rate_hz for x in logs}
         state = self.host.state
         checks = checks_summary(session).per_log
+        # a figure is the active model's: only the checks of that model can contradict it (each earlier check was
+        # of a model that has since learned from it)
+        fresh = {} if classifier is None else checks_summary(session, classifier=classifier.id).per_log
         expected = {
             i: file_expectation(
                 names.get(i, str(i)),
@@ -166,7 +169,7 @@ class DataPanel:
                 predicted=None if s.probs is None else s.probs.argmax(1),
                 change_points=state.known_change_points(i),  # the worker's; none computed here, on the UI's thread
                 rate_hz=rates.get(i),
-                checks=checks.get(i),
+                checks=fresh.get(i),
             )
             for i, s in scores.items()
         }
