@@ -5,7 +5,7 @@ workbench warns about it by name."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -18,11 +18,17 @@ WITHIN = 0.05  # the target: the estimate within 5 points of the truth, or a war
 
 
 def said_of_logs(
-    session: Session, scores: SessionScores, logs: Sequence[LogInfo], points: Mapping[int, np.ndarray]
+    session: Session,
+    scores: SessionScores,
+    logs: Sequence[LogInfo],
+    points: Mapping[int, np.ndarray],
+    *,
+    covered: Callable[[Session, LogInfo], np.ndarray],
 ) -> dict[str, dict]:
     """Per log name: ``figure``, ``expected``, ``agreement`` (``None`` where not measured), ``checks`` ``[right,
     n]`` (every counted check in it) and ``warning`` (its line or ``None``), as the Data tab computes them: only
-    the active classifier's own checks can contradict its figure."""
+    the active classifier's own checks can contradict its figure; and ``confidence``, the model's mean top
+    probability on the log's time nobody labelled (``covered``: a log's labelled steps), measured beside it."""
     version = session.active_model("classifier")
     metrics = version.metrics if version is not None else {}
     checks = checks_summary(session).per_log
@@ -42,7 +48,10 @@ def said_of_logs(
             checks=fresh.get(x.id),
         )
         c = checks.get(x.id)
+        free = ~covered(session, x)
         out[x.name] = {
+            # the model's own mean confidence on the log's time nobody labelled: a figure beside the Data tab's
+            "confidence": float(s.probs[free].max(axis=1).mean()) if free.any() else None,
             "figure": None if e is None else e.figure,
             "expected": None if e is None else e.expected,
             "agreement": None if e is None else e.agreement,
@@ -68,8 +77,9 @@ def said_table(arms: Mapping[str, Sequence[tuple[Mapping[str, float], Mapping[st
         f"else bounded by its stretches); a log passes when that figure is within {100 * WITHIN:.0f} points of the "
         "truth or a warning names it:",
         "",
-        "| strategy | log | accuracy (%) | the workbench's figure (%) | checks in it right | warning | passes |",
-        "| --- | --- | --- | --- | --- | --- | --- |",
+        "| strategy | log | accuracy (%) | the workbench's figure (%) | its mean confidence (%) | checks in it right | "
+        "warning | passes |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     summary = []
     for strategy, rounds in arms.items():
@@ -83,7 +93,8 @@ def said_table(arms: Mapping[str, Sequence[tuple[Mapping[str, float], Mapping[st
             right, n = s.get("checks", [0, 0])
             checks = f"{right} of {n}" if n else "–"
             lines.append(
-                f"| {strategy} | {name} | {_pct(acc)} | {_pct(figure)} | {checks} | {'yes' if warned else 'no'} | "
+                f"| {strategy} | {name} | {_pct(acc)} | {_pct(figure)} | {_pct(s.get('confidence'))} | {checks} | "
+                f"{'yes' if warned else 'no'} | "
                 f"{'yes' if ok else '**no**'} |"
             )
         summary.append(f"{strategy}: {passed} of {len(truth)} new logs pass")

@@ -305,7 +305,7 @@ def run_arm(
                     (checked.all.right, checked.all.n) if checked.all else (0, 0),
                     (checked.spot.right, checked.spot.n) if checked.spot else (0, 0),
                     measured.majority,
-                    said_of_logs(s, scores, new, points),
+                    said_of_logs(s, scores, new, points, covered=_covered),
                 )
             )
             log(
