@@ -290,7 +290,7 @@ def test_units_lend_a_span_s_terrain_to_its_pieces_that_alone_do_not_agree(logs)
 def test_self_trainings_pool_keeps_to_its_budget_with_a_draw_of_whole_stretches(logs) -> None:
     """Issue 66: past ``pool_mib`` the pool holds a seeded draw of the stretches, each whole (so each still passes
     or fails the agreement rule as before), and never more bytes than the budget; under it, every stretch."""
-    from training.spectral_cnn.fit_window import PSEUDO_STRIDE, pool_draw, stretch_pool
+    from training.spectral_cnn.stretch_pool import PSEUDO_STRIDE, pool_draw, stretch_pool
 
     arrays, terrains = logs
     normalizer = Normalizer.fit(arrays)
@@ -326,7 +326,7 @@ def test_self_trainings_pool_keeps_to_its_budget_with_a_draw_of_whole_stretches(
 def test_window_rows_hold_each_segments_frames_once_and_stack_what_features_at_gives(logs) -> None:
     """Issue 66: the labelled rows a fit draws from are the frames they read, stacked per batch; every row equals
     ``frame_rows`` (``SpectralSteps.at``), the windows at a log's start that repeat its first frame included."""
-    from training.spectral_cnn.fit_window import every_row, frame_rows
+    from training.spectral_cnn.stretch_pool import every_row, frame_rows
     from training.spectral_cnn.window_rows import window_rows
 
     arrays, _ = logs

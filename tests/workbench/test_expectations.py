@@ -88,7 +88,8 @@ def test_a_logs_own_checks_that_contradict_its_figure_warn_by_name() -> None:
     odd = file_expectation("walk3.csv", np.full(500, 0.3), m, checks=wrong)
     assert odd.checks_disagree and not odd.below_card
     line = odd.warning()
-    assert line.startswith(f"warning: walk3.csv: expected accuracy {expected:.0%}, but your checks of this model in it found it")
+    head = f"warning: walk3.csv: expected accuracy {expected:.0%}, but your checks of this model in it found it"
+    assert line.startswith(head)
     assert "right on 3 of 12 checks" in line and "trust the checks; label more of it and retrain" in line
     fine = file_expectation("walk3.csv", np.full(500, 0.3), m, checks=labeling.check_estimate([True] * 9 + [False]))
     assert not fine.checks_disagree and fine.warning() is None

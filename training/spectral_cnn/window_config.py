@@ -67,7 +67,7 @@ class WindowFitConfig:
             on BorealTC's inner folds by run at 10 % of labels (one terrain per run) and lost 0.4 to 3.4 on demo
             walks whose terrain changes every 5-36 s (``benchmarks/units_walks.py`` at 38a27ac).
         pool_mib: Most memory self-training's pool of unlabelled rows holds: past it, a random draw of the stretches
-            that fits (``fit_window.pool_draw``), each read whole. A row is ``window`` frames (12.6 KiB at 22
+            that fits (``stretch_pool.pool_draw``), each read whole. A row is ``window`` frames (12.6 KiB at 22
             channels, every third frame read), so 10 hours of unlabelled logs fill 700 MiB and 100 hours 7 GiB: the
             part of a fit that grew with a fleet's hours (issue 66). 0: no bound.
         pool_share: At most this share of the pool's bytes, drawn as ``pool_mib`` draws: what the budget keeps of a
