@@ -78,8 +78,6 @@ class Family:
         devices: Where its fits and passes run: ``("cpu",)`` or ``("cpu", "cuda")``. ``--device cuda`` with a family
             that has no CUDA path is refused in one line (:func:`device_refusal`), never run on the CPU unsaid.
         cpu_only_why: Why it has no CUDA path, in a clause (the refusal's words).
-        measured_figures: Its ``fit`` takes ``measured`` (per segment, whether it counts in the held-out figures):
-            the workbench then leaves out of them the labels placed where a ranked suggestion doubted the model.
     """
 
     name: str
@@ -105,7 +103,6 @@ class Family:
     stage1: Literal["lstm", "next-frame"] = "lstm"
     devices: tuple[str, ...] = ("cpu",)
     cpu_only_why: str = ""
-    measured_figures: bool = False
 
 
 def family_names() -> tuple[str, ...]:

@@ -88,7 +88,6 @@ FAMILY = Family(
     self_training=True,
     stage1="next-frame",
     devices=("cpu", "cuda"),
-    measured_figures=True,
     retired_kinds={
         k: "a default-family classifier from an older workbench (a linear model on window summaries); train it "
         "again (workbench train SESSION): labels are kept"

@@ -226,7 +226,6 @@ def fit_window_classifier(
     cancel: CancelFn = never,
     workers: int | None = None,
     device: str = "cpu",
-    measured: Sequence[bool] | None = None,
 ) -> ClassifierFit:
     """Fit the k fold models on labelled segments (and unlabelled stretches, with self-training).
 
@@ -246,10 +245,6 @@ def fit_window_classifier(
             does not depend on it.
         device: Where the networks train and score their held-out rows (``"cuda"``: on the GPU, their batches still
             gathered on the CPU); the models come back on the CPU either way.
-        measured: Per segment, whether its held-out steps count in the figures (the metrics, the calibration, the
-            drift's relation); every segment trains. A session leaves out the labels placed where the model was
-            doubted, the hardest time there is, which would pull every figure under the truth. Default (or when it
-            leaves none): every segment counts. ``metrics["measured_segments"]`` says how many did.
 
     Returns:
         The ensemble (one model per blocked fold, :mod:`training.figures.blocking`) and its out-of-fold metrics: each
@@ -314,7 +309,7 @@ def fit_window_classifier(
         """Truth and prediction at every step of ``held``, as the passes score them."""
         true = [np.full(b - a, c) for _, a, b, c in held]
         pred = [predict_steps(model, features[i], a, b) for i, a, b, _ in held]
-        return np.concatenate([np.zeros(0, np.int64), *true]), np.concatenate([np.zeros(0, np.int64), *pred])
+        return np.concatenate(true), np.concatenate(pred)
 
     def held_rows(held: Sequence[Segment], seen: set[int]) -> tuple[WindowRows, np.ndarray]:
         """The frame rows of ``held`` and their classes, terrains outside ``seen`` left out."""
@@ -332,15 +327,13 @@ def fit_window_classifier(
     shared = any(n >= 2 for n in logs_per_class.values())  # a terrain in two logs: held-out logs can measure it
     by_log = log_folds(segments, config.k_folds, group_of) if config.held_out and shared else []
     total = blocked.k + len(by_log)
-    counted = np.ones(len(segments), bool) if measured is None else np.asarray(measured, bool)
-    counted = counted if counted.any() else np.ones(len(segments), bool)
 
     def member(f: int) -> tuple:
         """Blocked fold ``f``'s model, the stretches it took, the classes it saw, the labelled rows the drift
         reference keeps (``REFERENCE_ROWS`` of those it trained on), its held-out block's logits and classes, which
         of those rows the drift's relation to accuracy reads (at most ``HELD_ROWS``) and those rows, and its steps'
         truth and prediction."""
-        held = [pieces[j] for j in blocked.held_out(f) if counted[blocked.pieces[j].segment]]
+        held = [pieces[j] for j in blocked.held_out(f)]
         train = blocked.training(f) if blocked.k > 1 else pieces
         if not any(b > a and b >= front.frame for _, a, b, _ in train):  # a piece has rows once it reaches a frame
             # tiny labels close together: the guards took every other piece; this one fold trains on them whole
@@ -358,11 +351,10 @@ def fit_window_classifier(
         held_groups = {group_of[segments[i][0]] for i in val_idx}
         held_logs = {j for j, g in enumerate(group_of) if g in held_groups}
         model, _, seen, _ = fit_on([segments[i] for i in train_idx], held_logs, config.seed + f_i)
-        val = [segments[i] for i in val_idx if counted[i]]
-        true, pred = predict(val, model)
+        true, pred = predict([segments[i] for i in val_idx], model)
         measurable = {c for c in seen if logs_per_class[c] >= 2}  # a one-log terrain has no other log to learn
         keep = np.isin(true, list(measurable))
-        rows, rows_y = held_rows(val, measurable)
+        rows, rows_y = held_rows([segments[i] for i in val_idx], measurable)
         return true[keep], pred[keep], row_logits(model, rows), rows_y
 
     def reported(done: int) -> None:
@@ -384,13 +376,7 @@ def fit_window_classifier(
         oof_classes.append(rows_y)
         right.append(logits[some].argmax(1) == rows_y[some])
         histories.append(
-            [
-                {
-                    "epoch": config.epochs,
-                    "pseudo_stretches": taken,
-                    "val_accuracy": float((true == pred).mean()) if len(true) else float("nan"),
-                }
-            ]
+            [{"epoch": config.epochs, "pseudo_stretches": taken, "val_accuracy": float((true == pred).mean())}]
         )
         if blocked.k > 1:  # a terrain this fold never trained on cannot be right: its steps are not measured
             keep = np.isin(true, list(seen))
@@ -404,7 +390,6 @@ def fit_window_classifier(
     metrics["n_pieces"] = len(pieces)
     metrics["labelled_samples"] = int(sum(s[2] - s[1] for s in segments))
     metrics["pseudo_stretches"] = float(np.mean(pseudo))
-    metrics["measured_segments"] = int(counted.sum())
     held_out = None
     calibration = (np.concatenate(oof_logits), np.concatenate(oof_classes), "same run")
     if by_log:

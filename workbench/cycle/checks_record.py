@@ -9,13 +9,13 @@ and is kept but never counted.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Sequence
+from collections.abc import Collection
 from dataclasses import dataclass, field
 
 import numpy as np
 
 import labeling
-from sessions import COUNTED_KINDS, Check, Segment, Session
+from sessions import COUNTED_KINDS, Check, Session
 
 from .scores import SessionScores
 
@@ -103,17 +103,3 @@ def estimate_disagrees(estimate: float | None, spot: labeling.CheckEstimate | No
     if estimate is None or spot is None or abs(estimate - spot.accuracy) < DISAGREE:
         return False
     return not spot.low <= estimate <= spot.high
-
-
-def not_doubted(session: Session, segments: Sequence[Segment]) -> list[bool]:
-    """Per segment, whether no ranked suggestion placed it: no ``"suggestion"`` check overlaps it in its log.
-
-    Those suggestions go where the model is unsure, drifted or was found wrong, the hardest time of a run; held out,
-    they measured the loop's models 7 to 17 points under their accuracy on the runs nobody labelled (issue 65), so
-    the fit's figures leave them out and train on them all the same. Seed, manual and spot-check labels, and main
-    answers, count."""
-    doubted: dict[int, list[tuple[int, int]]] = {}
-    for c in session.checks():
-        if c.kind == "suggestion":
-            doubted.setdefault(c.log_id, []).append((c.start, c.stop))
-    return [not any(a < s.stop and s.start < b for a, b in doubted.get(s.log_id, ())) for s in segments]

@@ -31,7 +31,6 @@ from training import (
 )
 
 from ..retrain import RETRAIN
-from .checks_record import not_doubted
 from .fold_record import labels_record, new_labels, recorded_pieces
 from .front_end import spectral_features, stretch_units, unlabelled_stretches, window_features, window_sizes
 from .stage_inputs import consistency_pairs, signal_change_points, stage2_features
@@ -221,8 +220,6 @@ def _train_window(
         stretches = unlabelled_stretches(logs, used, points, shortest=front.span)
         if settings.unit_agree:  # the pieces of a span judged together (off by default: WindowFitConfig)
             spans = {"units": stretch_units(stretches, lambda i: points(logs[i]))}
-    if fam.measured_figures:  # the figures leave out the labels a ranked suggestion placed where it doubted
-        spans["measured"] = not_doubted(session, used)
     params = {"model": fam.name, "window": to_dict(settings), "segments": len(segments)}
     with recorded_run(session, "classifier", params) as result:
         fit = fam.fit(
