@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import importlib
 
 import pytest
 
@@ -348,3 +349,22 @@ def test_the_test_schedule_names_files_that_exist() -> None:
 
     missing = [f for f in LONGEST_FIRST if not (REPO / f).is_file()]
     assert not missing, f"tests/schedule.py names files that are gone: {missing}"
+
+
+@pytest.mark.parametrize(
+    "package",
+    [
+        "training",
+        "training.running",
+        "training.figures",
+        "training.minirocket",
+        "training.paper_lstm",
+        "training.spectral_cnn",
+    ],
+)
+def test_every_lazily_exported_name_resolves_in_the_module_it_is_mapped_to(package: str) -> None:
+    """A package whose names load on first use (``training.lazy_names``) maps each to a module: moving a function
+    to another module without the map breaks only its first caller, at run time (``frame_rows`` did)."""
+    module = importlib.import_module(package)
+    for name in module.__all__:
+        assert getattr(module, name) is not None, f"{package}.{name}"
