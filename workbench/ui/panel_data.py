@@ -92,8 +92,8 @@ def logs_table_html(
     )
     if expect_column:
         card = next((e.card for e in expected.values() if e is not None and e.card is not None), None)  # type: ignore[union-attr]
-        below = "" if card is None else f"; red: 10 points or more below the card&#39;s {card:.0%}"
-        below += ", or contradicted by your checks in the log"
+        red = [] if card is None else [f"10 points or more below the card&#39;s {card:.0%}"]
+        below = "; red: " + ", or ".join([*red, "contradicted by your checks of this model in the log"])
         head += (
             "<th class='n' title='accuracy expected on the log at its drift, else the share of its steps predicted "
             "as their stretch&#39;s most predicted terrain (stretches between change points; both on hover)"
