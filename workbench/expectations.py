@@ -24,6 +24,8 @@ import numpy as np
 import labeling
 from training import expected_accuracy
 
+from .cycle import estimate_disagrees
+
 # A stretch shorter than this joins the one before it. The session's change points cut a file finely (BorealTC's
 # runs, one terrain each: median 5.4 s between them), and a short stretch agrees with itself whatever the model says.
 # Chosen on inner folds (BorealTC, runs within 10 points: 64/72 % at 0 s, 76/76 % at 10 s, 80/78 % at 20 s) and on
@@ -81,12 +83,11 @@ class FileExpectation:
 
     @property
     def checks_disagree(self) -> bool:
-        """Whether the person's checks in the log (``MIN_CHECKS`` or more) contradict its figure: ``BELOW_CARD`` or
-        more away from their share right and outside their 95 % interval."""
-        f, c = self.figure, self.checks
-        if f is None or c is None or c.n < MIN_CHECKS or abs(f - c.accuracy) < BELOW_CARD - 1e-9:
-            return False
-        return not c.low <= f <= c.high
+        """Whether the person's checks in the log (``MIN_CHECKS`` or more) contradict its figure, by the rule the
+        card is held against the spot checks with (``cycle.estimate_disagrees``: 10 points or more away from their
+        share right and outside their 95 % interval)."""
+        c = self.checks
+        return c is not None and c.n >= MIN_CHECKS and estimate_disagrees(self.figure, c)
 
     @property
     def below_card(self) -> bool:

@@ -113,10 +113,10 @@ def main() -> None:
             print(f"{name}: {runs[name]}", flush=True)
     if args.out:
         args.out.write_text(json.dumps(runs, indent=1, default=str))
-    record("devices", _rows(runs, hours, epochs), device="cuda" if cuda else "cpu")
+    record("devices", _rows(runs, epochs), device="cuda" if cuda else "cpu")
 
 
-def _rows(runs: dict, hours: float, epochs: int) -> list[Row]:
+def _rows(runs: dict, epochs: int) -> list[Row]:
     cpus, setup = runs["cpus"], runs["setup"]
     shape = f"{setup['hours']:.1f} h of {setup['channels']}-channel 100 Hz logs, {setup['labelled']:.1%} labelled"
 
