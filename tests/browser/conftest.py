@@ -49,6 +49,7 @@ class Server:
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        self._final: str | None = None
         self.log_path = Path(tempfile.mkstemp(prefix="workbench-serve-", suffix=".log")[1])
         self._log = self.log_path.open("w")
         self.proc = subprocess.Popen(
@@ -69,17 +70,25 @@ class Server:
         raise RuntimeError(f"server did not start (exit {self.proc.returncode}):\n{self.output()}")
 
     def output(self) -> str:
+        """What the server printed (kept once it stopped, when its log file is gone)."""
+        if self._final is not None:
+            return self._final
         return self.log_path.read_text(errors="replace")
 
     def stop(self) -> None:
+        """SIGTERM, then SIGKILL after 10 s; a second call does nothing."""
+        if self._final is not None:
+            return
         self.proc.terminate()
         try:
             self.proc.wait(10)
         except subprocess.TimeoutExpired:
             self.proc.kill()
+            self.proc.wait()
         self._log.close()
-        if "Traceback" in self.output():
-            print(f"--- server output ({self.log_path}) ---\n{self.output()}")
+        self._final = self.output()
+        if "Traceback" in self._final:
+            print(f"--- server output ({self.log_path}) ---\n{self._final}")
         else:
             self.log_path.unlink(missing_ok=True)
 

@@ -79,3 +79,20 @@ def test_a_new_session_asks_for_terrains_and_the_page_follows_a_log_ingested_els
     assert main(["ingest", str(session), str(logs[2])]) == 0
     page.get_by_text("walk_002").first.wait_for(timeout=15_000)
     assert "3 logs" in page.inner_text("body")
+
+
+def test_sigterm_stops_the_server_as_ctrl_c_does_and_leaves_no_socket_folder(
+    tmp_path: Path, serve, monkeypatch
+) -> None:
+    """`kill`, systemd and `docker stop` send SIGTERM: the server stops cleanly (exit 0, no traceback) and removes its
+    private socket's folder from the temp directory, where it used to leave one per server."""
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    monkeypatch.setenv("TMPDIR", str(temp))  # the server's temp directory, to see what it leaves there
+    new_session(tmp_path / "s").close()
+    server = serve(tmp_path / "s")
+    assert [p.name for p in temp.iterdir() if p.name.startswith("workbench-")], "the server made no socket folder"
+    server.stop()  # SIGTERM
+    assert server.proc.returncode == 0, server.output()
+    assert "Traceback" not in server.output()
+    assert not [p for p in temp.iterdir() if p.name.startswith("workbench-")]

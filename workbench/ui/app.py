@@ -3,10 +3,12 @@ changes made by other processes."""
 
 from __future__ import annotations
 
+import signal
 import sqlite3
 import threading
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from sessions import Session
 
@@ -130,10 +132,28 @@ class WorkbenchApp:
         remove_private_socket(self._inner)
 
     def serve_forever(self) -> None:
-        """Serve until Ctrl+C; this thread runs every PyTorch call of the server (``workbench.ui.torch_lane``)."""
+        """Serve until Ctrl+C or SIGTERM; this thread runs every PyTorch call of the server
+        (``workbench.ui.torch_lane``)."""
+        # SIGTERM (systemd, `docker stop`, `kill`, a test harness) stops as Ctrl+C does: without it Python dies
+        # at once and leaves the private socket's folder behind in the temp directory, one per server
+        previous = _stop_on_sigterm()
         try:
             LANE.serve(stop=self._stop.is_set)
         except KeyboardInterrupt:
             pass
         finally:
             self.stop()
+            if previous is not None:
+                signal.signal(signal.SIGTERM, previous)
+
+
+def _stop_on_sigterm() -> Any:
+    """Make SIGTERM raise ``KeyboardInterrupt`` in this (the main) thread; the handler it replaced, or ``None``
+    where signals cannot be set here (not the main thread)."""
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, interrupt)
