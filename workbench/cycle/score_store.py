@@ -24,7 +24,8 @@ from sessions import Session, Terrain
 
 from .scores import SessionScores, stage1_embedding
 
-STORE_VERSION = 1
+# 2: one .npy per array, memory-mapped when read (a fleet's hours of scores: gigabytes a zip would read whole)
+STORE_VERSION = 2
 META_FILE = "meta.json"
 QUEUE_FILE = "queue.json"
 
@@ -71,6 +72,7 @@ def store_scores(session: Session, scores: SessionScores) -> Path | None:
         return None
     folder = session.cache_dir(_folder_name(scores.predictor, scores.classifier))
     logs = {x.id: x.n_samples for x in session.logs()}
+    names: dict[str, list[str]] = {}
     for log_id, s in scores.scores.items():
         arrays = {"surprise": np.asarray(s.surprise)}
         if s.probs is not None and s.disagreement is not None:
@@ -80,17 +82,22 @@ def store_scores(session: Session, scores: SessionScores) -> Path | None:
             arrays["drift"] = np.asarray(s.drift)
         for kind, track in scores.tracks.get(log_id, {}).items():
             arrays[f"track.{kind}"] = np.asarray(track)
-        tmp = folder / f".{log_id:06d}.{uuid.uuid4().hex[:8]}.npz"
-        with open(tmp, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, folder / f"{log_id:06d}.npz")
+        for name, array in arrays.items():
+            tmp = folder / f".{log_id:06d}.{name}.{uuid.uuid4().hex[:8]}.npy"
+            with open(tmp, "wb") as f:
+                np.save(f, array)
+            os.replace(tmp, folder / f"{log_id:06d}.{name}.npy")
+        names[str(log_id)] = sorted(arrays)
     meta = {
         "version": STORE_VERSION,
         "predictor": scores.predictor,
         "classifier": scores.classifier,
         "classes": list(scores.classes),
         "logs": {str(i): logs[i] for i in scores.scores if i in logs},
+        "arrays": names,
     }
+    for old in folder.glob("*.npz"):  # the first version's files: one zip per log
+        old.unlink(missing_ok=True)
     _write_json(folder / META_FILE, meta)  # last: its presence marks the folder complete
     for other in folder.parent.glob("scores-p*"):
         if other != folder and other.is_dir():
@@ -101,8 +108,10 @@ def store_scores(session: Session, scores: SessionScores) -> Path | None:
 def stored_scores(session: Session) -> StoredScores | None:
     """The stored scoring of the active models, or ``None`` when there is none (or it is unreadable).
 
-    The suggestions' embeddings are rebuilt from the stage-1 cache, memory-mapped; when that cache is gone the
-    stored scores are not used, since rebuilding it is the slow part anyway.
+    The arrays are memory-mapped (read-only): the first screen reads the pages it draws, not every log's scores
+    (10 h of logs: 1.7 s to read them whole). The suggestions' embeddings are rebuilt from the stage-1 cache,
+    memory-mapped too; when that cache is gone the stored scores are not used, since rebuilding it is the slow part
+    anyway.
     """
     from training import load_bundle
 
@@ -134,16 +143,16 @@ def stored_scores(session: Session) -> StoredScores | None:
     tracks: dict[int, dict[str, np.ndarray]] = {}
     try:
         for x in logs:
-            with np.load(folder / f"{x.id:06d}.npz") as z:
-                has = "probs" in z.files  # stage 1 only: surprise alone
-                scores[x.id] = labeling.LogScores(
-                    z["surprise"],
-                    z["probs"] if has else None,
-                    z["disagreement"] if has else None,
-                    z["drift"] if "drift" in z.files else None,
-                )
-                tracks[x.id] = {k.split(".", 1)[1]: z[k] for k in z.files if k.startswith("track.")}
-    except (OSError, ValueError, KeyError):
+            z = {n: np.load(folder / f"{x.id:06d}.{n}.npy", mmap_mode="r") for n in meta["arrays"][str(x.id)]}
+            has = "probs" in z  # stage 1 only: surprise alone
+            scores[x.id] = labeling.LogScores(
+                z["surprise"],
+                z["probs"] if has else None,
+                z["disagreement"] if has else None,
+                z.get("drift"),
+            )
+            tracks[x.id] = {k.split(".", 1)[1]: v for k, v in z.items() if k.startswith("track.")}
+    except (OSError, ValueError, KeyError, TypeError):
         return None
     outs = stage1_outputs(session, p_version, bundle, logs)  # cached: memory maps only
     result = SessionScores(

@@ -3,6 +3,7 @@ changed, and used by the shared state so that a restart draws at once instead of
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
@@ -36,6 +37,22 @@ def test_stored_scores_read_back_equal_and_complete(trained: Session) -> None:  
         for kind, track in scores.tracks[log_id].items():
             np.testing.assert_array_equal(got.tracks[log_id][kind], track)
         np.testing.assert_array_equal(got.embeddings[log_id][100:140], scores.embeddings[log_id][100:140])
+        # read lazily from the files, as a fleet's hours of scores must be: never written through
+        assert isinstance(g.probs, np.memmap) and not g.probs.flags.writeable
+
+
+def test_a_store_of_the_first_version_is_not_read_and_its_files_go_with_the_next_store(
+    trained: Session,  # noqa: F811
+) -> None:
+    scores = compute_scores(trained)
+    store_scores(trained, scores)
+    (folder,) = (trained.path / "cache").glob("scores-*")
+    meta = json.loads((folder / "meta.json").read_text())
+    (folder / "meta.json").write_text(json.dumps({**meta, "version": 1}))
+    (folder / "000001.npz").write_bytes(b"PK")  # the first version kept one zip per log
+    assert stored_scores(trained) is None  # scored again, as after a model change
+    store_scores(trained, scores)
+    assert stored_scores(trained) is not None and not list(folder.glob("*.npz"))
 
 
 def test_a_new_log_makes_the_stored_scores_incomplete(trained: Session, tmp_path: Path) -> None:  # noqa: F811
