@@ -142,9 +142,10 @@ def _first_screen(folder: Path) -> dict:
         return hosted_like_the_server(run)
 
 
-def _retrain(folder: Path) -> dict:
+def _retrain(folder: Path, every_log: float = 1.0) -> dict:
     """A person adds a few labels and presses Retrain: seconds to the quick phase's model on the log in view, and to
-    every log showing it; the refining phase (stage 2 from scratch) is cancelled there, as new labels would."""
+    every log showing it (``every_log`` 0: the log in view only, ``"all"`` then ``None``); the refining phase (stage 2
+    from scratch) is cancelled there, as new labels would."""
     from speed_common import hosted_like_the_server, label_stretches
 
     from sessions import Session
@@ -169,6 +170,8 @@ def _retrain(folder: Path) -> dict:
                     return
                 if shown in state.scores.scores and "view" not in seen:
                     seen["view"] = time.perf_counter()
+                    if not every_log:
+                        done.set()
                 if len(state.scores.scores) == n_logs:
                     seen["all"] = time.perf_counter()
                     done.set()
@@ -182,7 +185,7 @@ def _retrain(folder: Path) -> dict:
             while job.running:
                 time.sleep(0.05)
             state.stop()
-            return {"view": seen["view"] - t0, "all": seen["all"] - t0}
+            return {"view": seen["view"] - t0, "all": seen["all"] - t0 if "all" in seen else None}
 
         return hosted_like_the_server(run)
 
