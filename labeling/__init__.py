@@ -22,7 +22,7 @@ from .simulate import (
     time_to_reach,
 )
 from .stretches import PredictedStretch, predicted_stretches, uncovered
-from .suggest import STRATEGIES, MainAnswer, Strategy, candidates, class_weights, suggest
+from .suggest import STRATEGIES, Interrupted, MainAnswer, Strategy, candidates, class_weights, suggest
 from .tracks import (
     DRIFT_TRACK_AT_1,
     KINDS,
@@ -47,6 +47,7 @@ __all__ = [
     "STRATEGIES",
     "CheckEstimate",
     "CurvePoint",
+    "Interrupted",
     "Interval",
     "Kind",
     "Labelled",

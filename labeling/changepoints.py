@@ -101,13 +101,27 @@ def spans(length: int, points: np.ndarray, *, max_len: int, min_len: int = 1) ->
 
     Pieces shorter than ``min_len`` are dropped.
     """
-    edges = [0, *sorted(int(p) for p in points if 0 < p < length), length]
-    out = []
-    for a, b in itertools.pairwise(edges):
-        n = -(-(b - a) // max_len)
-        cuts = np.linspace(a, b, n + 1).round().astype(int)
-        out += [(int(x), int(y)) for x, y in itertools.pairwise(cuts) if y - x >= min_len]
-    return out
+    return [(int(a), int(b)) for a, b in span_array(length, points, max_len=max_len, min_len=min_len)]
+
+
+def span_array(length: int, points: np.ndarray, *, max_len: int, min_len: int = 1) -> np.ndarray:
+    """:func:`spans` as an ``(N, 2)`` int64 array of ``(start, stop)``, computed without a loop over the stretches
+    (a fleet's hours hold hundreds of thousands of them: the suggestion queue cuts every log each time it ranks)."""
+    pts = np.asarray(points, np.int64).reshape(-1)
+    edges = np.unique(np.concatenate([[0, length], pts[(pts > 0) & (pts < length)]]))
+    a, b = edges[:-1], edges[1:]  # (S,) stretches between change points, none empty
+    if not len(a):
+        return np.zeros((0, 2), np.int64)
+    pieces = -(-(b - a) // max_len)  # (S,)
+    which = np.repeat(np.arange(len(a)), pieces)  # (P,) the stretch of each piece
+    k = np.arange(len(which)) - np.repeat(np.cumsum(pieces) - pieces, pieces)  # (P,) its place in the stretch
+    step = (b - a) / pieces
+
+    def cut(j: np.ndarray) -> np.ndarray:  # as np.linspace(a, b, pieces + 1) places it: j * step + a, b exactly last
+        return np.where(j == pieces[which], b[which], np.round(j * step[which] + a[which])).astype(np.int64)
+
+    out = np.stack([cut(k), cut(k + 1)], axis=1)  # (P, 2)
+    return out[out[:, 1] - out[:, 0] >= min_len]
 
 
 def stretch_agreement(labels: np.ndarray, points: np.ndarray) -> float | None:

@@ -122,21 +122,23 @@ def spot_checks(
         return []
     cov = coverage(lengths, [*labelled, *taken])
     rng = np.random.default_rng([seed, 65])
-    offsets = np.concatenate([[0], np.cumsum(lengths)])
     out: list[Suggestion] = []
-    free = np.flatnonzero(np.concatenate([~c for c in cov]))  # every unlabelled step of every log, in one index
+    # the unlabelled steps of every log, counted per log: the n-th of them all is drawn without listing them (a
+    # fleet's hours of steps as one index were 300 MB, copied after each pick)
+    free = np.array([len(c) - int(np.count_nonzero(c)) for c in cov], np.int64)
     for _ in range(50 * count):
-        if len(out) == count or not len(free):
+        if len(out) == count or not free.sum():
             break
-        at = int(free[rng.integers(len(free))])
-        log = int(np.searchsorted(offsets, at, side="right") - 1)
-        step = at - int(offsets[log])
+        at = int(rng.integers(free.sum()))
+        before = np.cumsum(free)
+        log = int(np.searchsorted(before, at, side="right"))
+        step = int(np.flatnonzero(~cov[log])[at - (int(before[log]) - int(free[log]))])
         a, b = max(0, step - max_len // 2), min(lengths[log], step - max_len // 2 + max_len)
         pieces = [(x, y) for x, y in unlabelled_runs(a, b, cov[log], min_len=min_len) if x <= step < y]
         if not pieces:
             continue
         x, y = pieces[0]
         cov[log][x:y] = True
-        free = free[(free < offsets[log] + x) | (free >= offsets[log] + y)]
+        free[log] -= y - x
         out.append(Suggestion(log, x, y, 0.0, SPOT_REASON, None, len(out), "spot check"))
     return out

@@ -86,3 +86,16 @@ def test_coarser_points_merge_each_short_stretch_into_the_one_before() -> None:
     assert coarser_points(points, 100, 0).tolist() == points.tolist()
     assert coarser_points(points, 100, 60).tolist() == []  # no cut leaves 60 steps on both sides: one stretch
     assert coarser_points(np.asarray([-5, 0, 100, 120]), 100, 1).tolist() == []  # only points inside the steps cut
+
+
+@given(st.integers(0, 3000), st.lists(st.integers(-10, 3010), max_size=12), st.integers(1, 700), st.integers(1, 50))
+def test_spans_cut_each_stretch_into_equal_pieces_as_linspace_does(
+    length: int, points: list[int], max_len: int, min_len: int
+) -> None:
+    # the pieces computed without a loop (a fleet's hours: hundreds of thousands) are those of a loop over stretches
+    edges = [0, *sorted(p for p in points if 0 < p < length), length]
+    want = []
+    for a, b in itertools.pairwise(edges):
+        cuts = np.linspace(a, b, -(-(b - a) // max_len) + 1).round().astype(int)
+        want += [(int(x), int(y)) for x, y in itertools.pairwise(cuts) if y - x >= min_len]
+    assert spans(length, np.array(points, np.int64), max_len=max_len, min_len=min_len) == want

@@ -1,5 +1,7 @@
 """The simulation loop with a stand-in learner (no model): oracle, curves, savings and table."""
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -34,8 +36,12 @@ def test_simulate_labels_suggestions_through_the_oracle() -> None:
     assert calls[0] == []
     for log, a, b, c in calls[-1]:
         assert (truth[log][a:b] == c).all()  # the oracle labels from the truth
-    # surprise goes to unseen classes: every class is found within three rounds
-    assert curve[-1].accuracy == 1.0
+    # surprise goes to unseen classes: every pick after the cold start is of a class no earlier label had (which of
+    # the equally surprising unseen pieces comes first is a tie: it once hung on float32 rounding in the track means)
+    for before, after in itertools.pairwise(calls[1:]):
+        seen = {c for *_, c in before}
+        assert all(c not in seen for *_, c in after[len(before) :])
+    assert curve[-1].accuracy >= 0.75
 
 
 def test_random_strategy_is_reproducible() -> None:

@@ -3,6 +3,7 @@
 import itertools
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -338,3 +339,58 @@ def test_a_main_answer_never_lies_on_labelled_time() -> None:
     assert main.stop - main.start == 200
     whole = suggest(scores, labelled=[(0, 0, 3000)], **kwargs)
     assert whole == []  # nothing unlabelled: no main answer, no pick
+
+
+class _FrameRows:
+    """A per-step embedding that answers its own span means, as stage 1's per-frame rows do: 10 steps a row."""
+
+    def __init__(self, rows: np.ndarray) -> None:
+        self.rows, self.calls = rows, 0
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (10 * len(self.rows), self.rows.shape[1])
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, key: slice) -> np.ndarray:
+        return np.repeat(self.rows, 10, axis=0)[key]
+
+    def segment_means(self, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
+        self.calls += 1
+        steps = np.repeat(self.rows, 10, axis=0).astype(np.float64)
+        return np.array([steps[a:b].mean(axis=0) for a, b in zip(starts, stops, strict=True)])
+
+
+def test_span_means_match_each_spans_own_mean_and_use_an_embeddings_own_means() -> None:
+    from labeling.span_means import embedding_means
+
+    rng = np.random.default_rng(3)
+    plain = [rng.normal(size=(n, 4)).astype(np.float32) for n in (70_000, 500, 90)]  # the first: two read blocks
+    spans = np.array([(0, 0, 70_000), (0, 65_530, 65_560), (0, 3, 4), (1, 0, 500), (1, 480, 600), (2, 10, 60)])
+    got = embedding_means(spans, plain)
+    want = [np.asarray(plain[g][a:b], np.float64).mean(axis=0) for g, a, b in spans]  # a span past the end: clipped
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+    framed = _FrameRows(rng.normal(size=(40, 3)))
+    spans = np.array([(0, 0, 400), (0, 5, 17), (0, 390, 400)])
+    np.testing.assert_allclose(embedding_means(spans, [framed]), [framed[a:b].mean(axis=0) for _, a, b in spans])
+    assert framed.calls == 1  # one call for the log's spans, no step read
+
+
+def test_suggest_stops_when_asked_and_ranks_the_same_otherwise() -> None:
+    from labeling import Interrupted
+
+    scores = make_scores([2000, 1500], 3, 4)
+    rng = np.random.default_rng(4)
+    kwargs = dict(
+        n=4,
+        max_len=200,
+        min_len=50,
+        labelled=[(0, 100, 300)],
+        embeddings=[rng.normal(size=(2000, 5)), rng.normal(size=(1500, 5))],
+    )
+    asked = []
+    with pytest.raises(Interrupted):
+        suggest(scores, stop=lambda: asked.append(1) or len(asked) > 1, **kwargs)  # the second pass is stopped
+    assert suggest(scores, stop=lambda: False, **kwargs) == suggest(scores, **kwargs)

@@ -102,3 +102,17 @@ def test_drop_pages_gives_back_what_a_pass_over_a_memory_map_made_resident(tmp_p
     mean, _ = frame_moments([np.load(path, mmap_mode="r")])
     assert abs(mean[0] - np.arange(0, 12_000_000, 6).mean()) < 1.0
     assert _resident_file_kb() - after < 30_000  # the pass left its pages out of the resident set
+
+
+def test_step_rows_span_means_are_the_means_of_the_steps_sliced() -> None:
+    from training import StepRows
+
+    rng = np.random.default_rng(5)
+    for frame, hop, n_samples, n_frames in [(40, 20, 1000, 49), (7, 3, 200, 80), (40, 20, 1000, 10), (1, 1, 50, 50)]:
+        rows = StepRows(
+            rng.normal(size=(n_frames, 3)).astype(np.float16), n_samples, SpectralConfig(frame=frame, hop=hop)
+        )
+        starts = rng.integers(0, n_samples, 40)
+        stops = np.minimum(starts + rng.integers(1, 300, 40), n_samples)
+        want = [np.asarray(rows[a:b], np.float64).mean(axis=0) for a, b in zip(starts, stops, strict=True)]
+        np.testing.assert_allclose(rows.segment_means(starts, stops), want, atol=1e-9)

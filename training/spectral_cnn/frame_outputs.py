@@ -40,6 +40,25 @@ class StepRows:
             out[known] = block[which[known] - lo]
         return out
 
+    def segment_means(self, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
+        """``(N, D)`` the mean over each span of steps ``[start, stop)``: ``self[start:stop].mean(axis=0)`` for every
+        span at once, from prefix sums over the frames (a fleet's suggestion queue asks for half a million spans;
+        expanding their steps took 44 s at 100 hours of logs)."""
+        starts, stops = np.asarray(starts, np.int64), np.asarray(stops, np.int64)
+        rows = np.asarray(self.rows, np.float64)  # (F, D)
+        cum = np.concatenate([np.zeros((1, rows.shape[1])), np.cumsum(rows, axis=0)])  # (F + 1, D)
+        first, hop, n = self.config.frame - 1, self.config.hop, len(rows)
+
+        def prefix(t: np.ndarray) -> np.ndarray:  # (L,) -> (L, D): the sum over steps [0, t)
+            done = np.maximum(np.minimum(t, self.shape[0]) - first, 0)  # steps from the first frame's
+            whole, part = done // hop, done % hop  # frames every step of which is before t; steps of the next
+            out = hop * cum[np.minimum(whole, n)]
+            inside = whole < n  # steps past the last frame hold zeros
+            out[inside] += part[inside, None] * rows[whole[inside]]
+            return out
+
+        return (prefix(stops) - prefix(starts)) / np.maximum(stops - starts, 1)[:, None]
+
 
 @dataclass(frozen=True)
 class FrameOutputs:
