@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -181,6 +182,9 @@ def _retrain(folder: Path, every_log: float = 1.0) -> dict:
             t0 = time.perf_counter()
             job.start()
             done.wait(3600)
+            if not every_log:  # the rescoring of every log it started would hold the process 20 minutes at 100 h
+                _CHILD["exit"] = True
+                _finish({"view": seen["view"] - t0, "all": None})
             job.cancel()
             while job.running:
                 time.sleep(0.05)
@@ -224,16 +228,27 @@ def _anonymous_peak(stop: threading.Event, out: dict) -> None:
             return
 
 
+_CHILD: dict = {}  # the running step's start, sampler and what it sampled
+
+
+def _finish(out: dict) -> None:
+    """Print the step's figures (its peak RSS, peak anonymous memory, seconds and ``out``) as one line of JSON."""
+    _CHILD["stop"].set()
+    _CHILD["sampler"].join()
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # kB on Linux
+    seconds = time.perf_counter() - _CHILD["t"]
+    print(json.dumps({"peak": peak, "anon": _CHILD["anon"].get("anon", 0), "seconds": seconds, **out}), flush=True)
+    if _CHILD.get("exit"):
+        os._exit(0)  # work the step started and has no use for (a rescoring) is not waited for
+
+
 def run_child(step: str, folder: Path, extra: list[str]) -> None:
-    t = time.perf_counter()
     stop, anon = threading.Event(), {}
     sampler = threading.Thread(target=_anonymous_peak, args=(stop, anon), daemon=True)
+    _CHILD.update(t=time.perf_counter(), stop=stop, anon=anon, sampler=sampler)
     sampler.start()
     out = STEPS[step](folder, *(float(a) for a in extra))
-    stop.set()
-    sampler.join()
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # kB on Linux
-    print(json.dumps({"peak": peak, "anon": anon.get("anon", 0), "seconds": time.perf_counter() - t, **out}))
+    _finish(out)
 
 
 def main() -> None:

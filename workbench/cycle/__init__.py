@@ -7,11 +7,13 @@ Modules: ``train_stages`` (stage 1 and stage 2 of any family, versions, the acti
 default family's stage 1, and which stage 1 a family trains), ``stage_inputs`` (stage
 1's cache per predictor version, the paper family's stage-2 features, change points), ``front_end`` (the spectral
 frames per log, the unlabelled stretches self-training reads), ``scores`` (the one scoring path), ``score_store``
-(the last scoring kept in the session), ``suggestions`` (the queue), ``checks_record`` (each label first a check of
+(the last scoring kept in the session), ``change_point_store`` (each log's change points kept per predictor),
+``suggestions`` (the queue), ``checks_record`` (each label first a check of
 the model: test then train), ``family_choice`` (``--model auto``: every family over the default stage 1 fitted, the one
 the session's held-out evidence favours kept).
 """
 
+from .change_point_store import keep_change_points, kept_change_points
 from .checks_record import ChecksSummary, checks_summary, estimate_disagrees, record_check
 from .family_choice import FamilyChoice, auto_families, train_best_classifier
 from .frame_stage1 import train_frame_predictor, train_stage1
@@ -75,6 +77,8 @@ __all__ = [
     "free_stretches",
     "front_end_of",
     "in_memory_features",
+    "keep_change_points",
+    "kept_change_points",
     "log_change_points",
     "log_frame_files",
     "model_logs",

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 import labeling
@@ -55,6 +57,7 @@ def suggest_for_session(
     spot_checks: int | None = None,
     wrong_first: bool = True,
     main_answer: labeling.MainAnswer = MAIN_ANSWER,
+    stop: Callable[[], bool] = lambda: False,
 ) -> list[tuple[LogInfo, labeling.Suggestion]]:
     """The session's suggestion queue: ``n`` segments of ``SUGGESTION_S / 2`` to ``SUGGESTION_S`` to label next,
     with the log each lies in. ``seed``: of the ``random`` strategy and the clustering; ``unchecked_first``: see
@@ -63,7 +66,8 @@ def suggest_for_session(
     none); ``wrong_first``: a checked log where the person's checks found the model wrong stays ahead
     (``labeling.suggest``'s ``wrong``; off only to measure what it is worth); ``main_answer``: which logs are
     first asked the model's main answer there (``labeling.suggest``'s; ``MAIN_ANSWER``: once the person's checks
-    there found the model mostly right)."""
+    there found the model mostly right); ``stop``: polled between the ranking's passes (``labeling.Interrupted``
+    raised when it says so)."""
     logs = [x for x in logs if x.id in scores.scores]
     if not logs:
         return []
@@ -102,6 +106,7 @@ def suggest_for_session(
         wrong=_wrong_checks(checks, [x.id for x in logs]),
         main_answer=main_answer,
         answered=answered,
+        stop=stop,
         window=scores.window,
         # the tracks the scores carry, where they were ranked over exactly these logs: taken, not computed again
         tracks=[scores.tracks[x.id] for x in logs] if set(scores.tracks) == {x.id for x in logs} else None,

@@ -2,7 +2,8 @@
 
 from .app import WorkbenchApp
 from .jobs import JobStatus, TrainJob
-from .state import Queued, SharedState, score_and_keep
+from .score_keep import score_and_keep
+from .state import Queued, SharedState
 from .torch_lane import LANE, TorchLane
 from .uploads import MAX_UPLOAD_MB, safe_name
 from .view import ClientView

@@ -140,6 +140,9 @@ class TrainJob:
         predictor_run = "predictor" in stages  # new features: the classifier starts afresh anyway
         quick = None  # the version a warm fine-tune saved: the refining phase follows it
         hidden = self.hidden
+        # a classifier's scores come next and the queue is ranked from them; a new stage 1 takes minutes, during
+        # which the queue keeps following the person's labels
+        self.state.hold_queue = stages == ("classifier",)
         try:
             if "predictor" in stages:
                 LANE.run(
@@ -181,12 +184,16 @@ class TrainJob:
         except Exception as exc:
             traceback.print_exc()
             self.status = replace(self.status, state="failed", message=f"{type(exc).__name__}: {exc}")
+        finally:
+            self.state.hold_queue = False
         self.state.notify("models")
         self.state.notify("job")
         if self.status.state == "done":
             self.state.refresh(scores=True, first=self.state.viewed_logs())
             if quick is not None and self.refine:
                 self._refine(quick.id, hidden)
+        else:  # nothing new to score: the queue held back meanwhile is ranked now
+            self.state.refresh(scores=False)
 
     def _refine(self, quick: int, hidden: int) -> None:
         """Stage 2 from scratch on every label once the quick models' highlights are up; its models replace them."""

@@ -18,6 +18,8 @@ from sessions import LogInfo, Segment, Session, Terrain, WorkbenchError
 from ..cycle import (
     SessionScores,
     compute_scores,
+    keep_change_points,
+    kept_change_points,
     log_change_points,
     queue_key,
     record_check,
@@ -80,6 +82,9 @@ class SharedState:
         self._stop = threading.Event()
         self._on_error = on_error or (lambda msg: print(msg, flush=True))
         self.busy = ""  # what the worker is doing, for the status line
+        # a Retrain's quick phase is training: a queue ranked now would be ranked again from its scores in seconds,
+        # and would take a core from it (100 h of logs: 24 s of ranking beside the fine-tune)
+        self.hold_queue = False
         self.problem = ""  # why the last refresh failed (one line), shown in every page until one succeeds
         self._stretches: tuple[SessionScores, dict[int, list[labeling.PredictedStretch]]] = (self.scores, {})
         self._queue_of: tuple[SessionScores, str] | None = None  # what the queue was ranked from: (scores, key)
@@ -330,7 +335,13 @@ class SharedState:
         if cps is None:
             log = self.log(log_id)
             s = self.scores.scores.get(log_id)
-            cps = log_change_points(self.session.array(log_id), None if s is None else s.surprise, rate_hz=log.rate_hz)
+            predictor = self.scores.predictor if s is not None else None  # found over that predictor's surprise
+            cps = None if predictor is None else kept_change_points(self.session, predictor, log)
+            if cps is None:
+                surprise = None if s is None else s.surprise
+                cps = log_change_points(self.session.array(log_id), surprise, rate_hz=log.rate_hz)
+                if predictor is not None:
+                    self._keep(keep_change_points, self.session, predictor, log, cps)
             with self._lock:
                 self._change_points[key] = cps
         return cps
@@ -407,7 +418,11 @@ class SharedState:
                 key = queue_key(self.session, self.strategy, self.terrains())
                 if self._queue_of is None or self._queue_of[0] is not self.scores or self._queue_of[1] != key:
                     self.busy = "updating suggestions"
-                    queue = self._compute_queue()
+                    queue = None if self.hold_queue else self._compute_queue()
+                    if queue is None:  # new models: their scores first, then the queue (the job refreshes it)
+                        if self._scores_wanted:
+                            self._dirty.set()
+                        continue
                     with self._lock:
                         self.queue = queue
                     self._queue_of = (self.scores, key)
@@ -448,37 +463,28 @@ class SharedState:
                 self.busy = "finding change points"
                 self.change_points(log.id)
 
-    def _compute_queue(self) -> list[Queued]:
+    def _compute_queue(self) -> list[Queued] | None:
+        """The suggestion queue ranked from the current scores; ``None`` when new scores are wanted first, a Retrain's
+        quick phase trains (``hold_queue``) or the server stops: each makes this ranking worthless."""
+
+        def newer() -> bool:
+            return self._scores_wanted or self.hold_queue or self._stop.is_set()
+
         scores = self.scores
         if scores.predictor is None:
             return []
         logs = [x for x in self.logs() if x.id in scores.scores]
-        cps = {x.id: self.change_points(x.id) for x in logs}
+        cps = {}
+        for x in logs:
+            if newer():
+                return None  # new models' scores first (the log in view after a Retrain); the queue follows them
+            cps[x.id] = self.change_points(x.id)
         out = []
-        for log, s in suggest_for_session(self.session, scores, cps, logs=logs, strategy=self.strategy):
+        try:
+            ranked = suggest_for_session(self.session, scores, cps, logs=logs, strategy=self.strategy, stop=newer)
+        except labeling.Interrupted:
+            return None
+        for log, s in ranked:
             guess = None if s.guess is None or s.guess >= len(scores.classes) else scores.classes[s.guess]
             out.append(Queued((log.id, s.start, s.stop), log, s.start, s.stop, s.reason, guess, s.score, s.kind))
         return out
-
-
-def score_and_keep(session: Session, *, timeout_s: float = 3600.0) -> bool:
-    """Score every log and rank the suggestion queue once, kept in the session, so the page's first screen draws
-    them at once (``workbench demo`` does this before serving). The calling thread runs the torch work (it may have
-    trained already: see ``workbench.ui.torch_lane``). Returns False when it did not finish in time."""
-    errors: list[str] = []
-    finished: list[bool] = []
-
-    def score() -> None:
-        state = SharedState(session, on_error=errors.append)
-        try:
-            finished.append(state.wait_idle(stop=lambda: False, deadline_s=timeout_s))
-        finally:
-            state.stop()
-
-    waiter = threading.Thread(target=score, name="score-and-keep", daemon=True)
-    if LANE.serving:
-        waiter.start()
-    else:  # the worker's torch work comes to this thread
-        LANE.serve(stop=lambda: not waiter.is_alive(), started=waiter.start)
-    waiter.join()
-    return bool(finished and finished[0]) and not errors

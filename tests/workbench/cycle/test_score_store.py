@@ -15,8 +15,8 @@ from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained, trained_o
 from workbench import cycle
 from workbench.cycle import compute_scores, queue_key, store_queue, store_scores, stored_queue, stored_scores
 from workbench.demo import generate_demo_logs
+from workbench.ui import SharedState, score_and_keep
 from workbench.ui import state as state_module
-from workbench.ui.state import SharedState, score_and_keep
 
 
 def test_stored_scores_read_back_equal_and_complete(trained: Session) -> None:  # noqa: F811
@@ -132,5 +132,58 @@ def test_a_restart_from_the_kept_queue_finds_the_change_points_the_data_tab_read
             points = state.known_change_points(log.id)
             assert points is not None
             np.testing.assert_array_equal(points, state.change_points(log.id))
+    finally:
+        state.stop()
+
+
+def test_change_points_are_kept_per_predictor_and_a_restart_reads_them(
+    trained: Session,  # noqa: F811
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Finding them took 25 s of a restart at 100 hours of logs, before the first queue could be ranked."""
+    first = SharedState(trained, on_error=pytest.fail)
+    try:
+        assert first.wait_idle(stop=lambda: False, deadline_s=120)
+        found = {x.id: first.change_points(x.id) for x in trained.logs()}
+    finally:
+        first.stop()
+    predictor = trained.active_model("predictor").id
+    for log in trained.logs():
+        np.testing.assert_array_equal(cycle.kept_change_points(trained, predictor, log), found[log.id])
+
+    def not_again(*args, **kwargs):
+        raise AssertionError("change points found again though they were kept")
+
+    monkeypatch.setattr(state_module, "log_change_points", not_again)
+    second = SharedState(trained, on_error=pytest.fail)
+    try:
+        assert second.wait_idle(stop=lambda: False, deadline_s=120)
+        for log in trained.logs():
+            np.testing.assert_array_equal(second.change_points(log.id), found[log.id])
+    finally:
+        second.stop()
+    log = trained.logs()[0]
+    cycle.keep_change_points(trained, predictor + 1, log, np.array([5, 9]))  # a new predictor's replace them
+    assert cycle.kept_change_points(trained, predictor, log) is None
+    np.testing.assert_array_equal(cycle.kept_change_points(trained, predictor + 1, log), [5, 9])
+
+
+def test_the_queue_waits_while_a_retrains_quick_phase_trains(trained: Session) -> None:  # noqa: F811
+    """Its scores come seconds later and the queue is ranked from them: ranked meanwhile, it took a core from the
+    fine-tune (100 hours of logs: the log in view 63 s after Retrain, 37 s without)."""
+    state = SharedState(trained, on_error=pytest.fail)
+    try:
+        assert state.wait_idle(stop=lambda: False, deadline_s=120)
+        before = [q.key for q in state.queue]
+        state.hold_queue = True
+        log = trained.logs()[0]
+        state.add_label(log.id, 0, 50, trained.terrains()[0].name, author="test", source="manual")
+        assert state.wait_idle(stop=lambda: False, deadline_s=60)
+        assert [q.key for q in state.queue] == before  # not ranked while held
+        state.hold_queue = False
+        state.refresh(scores=False)
+        assert state.wait_idle(stop=lambda: False, deadline_s=120)
+        assert all(q.key[0] != log.id or q.start >= 50 for q in state.queue)
+        assert state._queue_of is not None and state._queue_of[1] == queue_key(trained, "combined", state.terrains())
     finally:
         state.stop()
