@@ -19,6 +19,14 @@ def per_log(spans: np.ndarray) -> list[tuple[int, slice]]:
     return [(int(spans[a, 0]), slice(int(a), int(b))) for a, b in zip(begin, end, strict=True)]
 
 
+def log_span_means(values: np.ndarray, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
+    """``(L,)`` or ``(L, K)`` the mean of one log's ``values`` (``(T,)`` or ``(T, K)``, in memory) over each span
+    ``[start, stop)`` (none empty), from float64 prefix sums."""
+    v = np.asarray(values)
+    c = np.concatenate([np.zeros((1, *v.shape[1:])), np.cumsum(v, axis=0, dtype=np.float64)])  # (T + 1, ...)
+    return (c[stops] - c[starts]) / (stops - starts).reshape(-1, *([1] * (v.ndim - 1)))
+
+
 def embedding_means(spans: np.ndarray, embeddings: Sequence[np.ndarray]) -> np.ndarray:
     """``(N, D)`` the mean embedding over each span ``(log, start, stop)`` (``(N, 3)``, grouped by log).
 

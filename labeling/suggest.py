@@ -19,7 +19,7 @@ import numpy as np
 from .changepoints import span_array
 from .placed_picks import Span, Suggestion, coverage, main_answers, spot_guess, unlabelled_runs
 from .placed_picks import spot_checks as place_spot_checks
-from .span_means import embedding_means, per_log
+from .span_means import embedding_means, log_span_means, per_log
 from .tracks import DRIFT_TRACK_AT_1, Kind, LogScores, normalised_tracks
 
 Strategy = Literal["random", "entropy", "margin", "disagreement", "surprise", "combined"]
@@ -397,12 +397,9 @@ def _components(
     for g, rows in per_log(cands):  # one log's prefix sums at a time: a fleet's would be gigabytes at once
         a, b = cands[rows, 1], cands[rows, 2]
         for k, t in tracks[g].items():
-            c = np.concatenate([[0.0], np.cumsum(t, dtype=np.float64)])
-            parts[k][rows] = (c[b] - c[a]) / (b - a)
+            parts[k][rows] = log_span_means(t, a, b)
         if probs is not None:
-            p = scores[g].probs
-            c = np.concatenate([np.zeros((1, p.shape[1])), np.cumsum(p, axis=0, dtype=np.float64)])  # (T + 1, K)
-            probs[rows] = (c[b] - c[a]) / (b - a)[:, None]
+            probs[rows] = log_span_means(scores[g].probs, a, b)  # (n, K)
     return parts, probs
 
 
@@ -412,8 +409,7 @@ def _mean_drift(cands: np.ndarray, scores: Sequence[LogScores]) -> np.ndarray | 
         return None
     out = np.zeros(len(cands))
     for g, rows in per_log(cands):
-        c = np.concatenate([[0.0], np.cumsum(np.asarray(scores[g].drift, np.float64))])
-        out[rows] = (c[cands[rows, 2]] - c[cands[rows, 1]]) / (cands[rows, 2] - cands[rows, 1])
+        out[rows] = log_span_means(scores[g].drift, cands[rows, 1], cands[rows, 2])
     return out
 
 
