@@ -21,9 +21,14 @@ def per_log(spans: np.ndarray) -> list[tuple[int, slice]]:
 
 def log_span_means(values: np.ndarray, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
     """``(L,)`` or ``(L, K)`` the mean of one log's ``values`` (``(T,)`` or ``(T, K)``, in memory) over each span
-    ``[start, stop)`` (none empty), from float64 prefix sums."""
+    ``[start, stop)`` (none empty), from prefix sums in the values' own precision.
+
+    Float32 tracks and probabilities accumulate in float32, as the ranking always did: in float64, `evaluate loop`
+    on the demo walks (seed 2) picked other pieces from the first round on (near-ties decided by rounding), and the
+    loop's measured figures were made with this ranking.
+    """
     v = np.asarray(values)
-    c = np.concatenate([np.zeros((1, *v.shape[1:])), np.cumsum(v, axis=0, dtype=np.float64)])  # (T + 1, ...)
+    c = np.concatenate([np.zeros((1, *v.shape[1:])), np.cumsum(v, axis=0)])  # (T + 1, ...)
     return (c[stops] - c[starts]) / (stops - starts).reshape(-1, *([1] * (v.ndim - 1)))
 
 

@@ -409,7 +409,7 @@ def _mean_drift(cands: np.ndarray, scores: Sequence[LogScores]) -> np.ndarray | 
         return None
     out = np.zeros(len(cands))
     for g, rows in per_log(cands):
-        out[rows] = log_span_means(scores[g].drift, cands[rows, 1], cands[rows, 2])
+        out[rows] = log_span_means(np.asarray(scores[g].drift, np.float64), cands[rows, 1], cands[rows, 2])
     return out
 
 
