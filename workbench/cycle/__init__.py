@@ -29,7 +29,15 @@ from .front_end import (
     window_features,
     window_sizes,
 )
-from .score_store import StoredScores, queue_key, store_queue, store_scores, stored_queue, stored_scores
+from .score_store import (
+    StoredScores,
+    queue_key,
+    score_and_store,
+    store_queue,
+    store_scores,
+    stored_queue,
+    stored_scores,
+)
 from .scores import EMBEDDING_MODE, SessionScores, compute_scores, score_logs, score_session, stage1_embedding
 from .stage2_fit import STAGE1_FEATURES, train_classifier
 from .stage_inputs import (
@@ -85,6 +93,7 @@ __all__ = [
     "queue_key",
     "record_check",
     "require_stage1",
+    "score_and_store",
     "score_logs",
     "score_session",
     "signal_change_points",

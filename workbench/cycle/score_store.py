@@ -13,7 +13,7 @@ import json
 import os
 import shutil
 import uuid
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,11 +22,12 @@ import numpy as np
 import labeling
 from sessions import Session, Terrain
 
-from .scores import SessionScores, stage1_embedding
+from .scores import TRACK_WINDOW, SessionScores, stage1_embedding
 
 # 2: one .npy per array, memory-mapped when read (a fleet's hours of scores: gigabytes a zip would read whole)
 STORE_VERSION = 2
 META_FILE = "meta.json"
+GROUP_STEPS = 1 << 22  # samples of logs scored together and written before the next (11.7 h at 100 Hz)
 QUEUE_FILE = "queue.json"
 
 
@@ -63,31 +64,29 @@ def _write_json(path: Path, value: object) -> None:
     os.replace(tmp, path)  # whole or not at all: a reader never sees half a file
 
 
-def store_scores(session: Session, scores: SessionScores) -> Path | None:
-    """Keep a complete scoring of the session (``compute_scores`` over every log) for the next start.
+def _write_array(folder: Path, log_id: int, name: str, array: np.ndarray) -> np.ndarray:
+    """Write one array whole or not at all; it comes back memory-mapped (read-only)."""
+    tmp = folder / f".{log_id:06d}.{name}.{uuid.uuid4().hex[:8]}.npy"
+    with open(tmp, "wb") as f:
+        np.save(f, np.asarray(array))
+    path = folder / f"{log_id:06d}.{name}.npy"
+    os.replace(tmp, path)
+    return np.load(path, mmap_mode="r")
 
-    Scores of older model versions are removed. Returns the folder, or ``None`` when there is nothing to keep.
-    """
-    if scores.predictor is None:
-        return None
-    folder = session.cache_dir(_folder_name(scores.predictor, scores.classifier))
+
+def _score_arrays(s: labeling.LogScores) -> dict[str, np.ndarray]:
+    arrays = {"surprise": np.asarray(s.surprise)}
+    if s.probs is not None and s.disagreement is not None:
+        arrays["probs"] = np.asarray(s.probs)
+        arrays["disagreement"] = np.asarray(s.disagreement)
+    if s.drift is not None:
+        arrays["drift"] = np.asarray(s.drift)
+    return arrays
+
+
+def _finish_store(session: Session, folder: Path, scores: SessionScores, names: dict[str, list[str]]) -> None:
+    """Write the folder's meta last (its presence marks the folder complete) and remove older versions' scores."""
     logs = {x.id: x.n_samples for x in session.logs()}
-    names: dict[str, list[str]] = {}
-    for log_id, s in scores.scores.items():
-        arrays = {"surprise": np.asarray(s.surprise)}
-        if s.probs is not None and s.disagreement is not None:
-            arrays["probs"] = np.asarray(s.probs)
-            arrays["disagreement"] = np.asarray(s.disagreement)
-        if s.drift is not None:
-            arrays["drift"] = np.asarray(s.drift)
-        for kind, track in scores.tracks.get(log_id, {}).items():
-            arrays[f"track.{kind}"] = np.asarray(track)
-        for name, array in arrays.items():
-            tmp = folder / f".{log_id:06d}.{name}.{uuid.uuid4().hex[:8]}.npy"
-            with open(tmp, "wb") as f:
-                np.save(f, array)
-            os.replace(tmp, folder / f"{log_id:06d}.{name}.npy")
-        names[str(log_id)] = sorted(arrays)
     meta = {
         "version": STORE_VERSION,
         "predictor": scores.predictor,
@@ -98,11 +97,139 @@ def store_scores(session: Session, scores: SessionScores) -> Path | None:
     }
     for old in folder.glob("*.npz"):  # the first version's files: one zip per log
         old.unlink(missing_ok=True)
-    _write_json(folder / META_FILE, meta)  # last: its presence marks the folder complete
+    _write_json(folder / META_FILE, meta)
     for other in folder.parent.glob("scores-p*"):
         if other != folder and other.is_dir():
             shutil.rmtree(other, ignore_errors=True)
+
+
+def store_scores(session: Session, scores: SessionScores) -> Path | None:
+    """Keep a complete scoring of the session (``compute_scores`` over every log) for the next start.
+
+    Scores of older model versions are removed. Returns the folder, or ``None`` when there is nothing to keep.
+    """
+    if scores.predictor is None:
+        return None
+    folder = session.cache_dir(_folder_name(scores.predictor, scores.classifier))
+    names: dict[str, list[str]] = {}
+    for log_id, s in scores.scores.items():
+        arrays = _score_arrays(s)
+        for kind, track in scores.tracks.get(log_id, {}).items():
+            arrays[f"track.{kind}"] = np.asarray(track)
+        for name, array in arrays.items():
+            _write_array(folder, log_id, name, array)
+        names[str(log_id)] = sorted(arrays)
+    _finish_store(session, folder, scores, names)
     return folder
+
+
+def score_and_store(
+    session: Session,
+    *,
+    score: Callable[..., SessionScores],
+    run: Callable[..., SessionScores] = lambda fn, *a, **k: fn(*a, **k),
+    stop: Callable[[], bool] = lambda: False,
+    window: int = TRACK_WINDOW,
+    group_steps: int = GROUP_STEPS,
+    on_error: Callable[[str], None] = print,
+) -> SessionScores | None:
+    """Score every log a group at a time, each group's scores written to the kept files as it is scored and held
+    memory-mapped, then the tracks ranked over the whole session, one kind at a time, and kept too.
+
+    Scoring every log in one call held every log's per-step scores at once (at 100 hours of logs, 6.4 GiB of the
+    process's own memory) and took the server's torch lane for twenty minutes; a group of logs takes it for
+    seconds, and other work (a Retrain, a page's request) goes between two groups.
+
+    Args:
+        score: ``compute_scores`` (or what stands for it): called as ``score(session, log_ids=..., tracks=False)``.
+        run: How each group's scoring runs (the server's torch lane: ``LANE.run``).
+        stop: Polled between groups; ``None`` is returned when it says so, or when the active models changed
+            (a Retrain ended meanwhile: its scores are wanted instead).
+        window: The tracks' smoothing, in samples.
+        group_steps: Samples of logs scored together (at least one log).
+        on_error: Told when the scores cannot be written (a full disk): every log is then scored in memory, as
+            before, and the next start scores them again.
+
+    Returns:
+        The scores of every log, their arrays memory-mapped from the session's kept scores; ``None`` when stopped.
+    """
+    try:
+        return _score_and_store(session, score, run, stop, window, group_steps)
+    except OSError as exc:  # a full disk costs the next start its head start, nothing more
+        on_error(f"could not keep the scores for the next start: {exc}")
+        return run(score, session, window=window)
+
+
+def _score_and_store(
+    session: Session,
+    score: Callable[..., SessionScores],
+    run: Callable[..., SessionScores],
+    stop: Callable[[], bool],
+    window: int,
+    group_steps: int,
+) -> SessionScores | None:
+    from training import load_bundle
+
+    from .train_stages import model_logs
+
+    versions = _active_versions(session)
+    p_version = session.active_model("predictor")
+    if versions is None or p_version is None:
+        return run(score, session, window=window)  # nothing trained: nothing to keep
+    logs = model_logs(session, load_bundle(session.path / p_version.path).channels)
+    folder = session.cache_dir(_folder_name(*versions))
+    (folder / META_FILE).unlink(missing_ok=True)  # incomplete until every log is written again
+    groups: list[list[int]] = [[]]
+    size = 0
+    for x in logs:
+        if groups[-1] and size + x.n_samples > group_steps:
+            groups.append([])
+            size = 0
+        groups[-1].append(x.id)
+        size += x.n_samples
+    first: SessionScores | None = None
+    scores: dict[int, labeling.LogScores] = {}
+    embeddings: dict = {}
+    names: dict[str, list[str]] = {}
+    for group in groups:
+        if stop() or _active_versions(session) != versions:
+            return None
+        part = run(score, session, log_ids=group, window=window, tracks=False)
+        if (part.predictor, part.classifier) != versions:
+            return None
+        first = first or part
+        embeddings.update(part.embeddings)
+        for log_id, s in part.scores.items():
+            kept = {n: _write_array(folder, log_id, n, a) for n, a in _score_arrays(s).items()}
+            scores[log_id] = labeling.LogScores(
+                kept["surprise"], kept.get("probs"), kept.get("disagreement"), kept.get("drift")
+            )
+            names[str(log_id)] = sorted(kept)
+        del part
+    if first is None:  # no log to score
+        return run(score, session, window=window)
+    ids = [x.id for x in logs if x.id in scores]
+    tracks: dict[int, dict[str, np.ndarray]] = {i: {} for i in ids}
+    for kind in labeling.KINDS:  # one kind of every log at a time: a fleet's tracks of every kind are gigabytes
+        if stop():
+            return None
+        ranked = labeling.normalised_tracks([scores[i] for i in ids], window=window, kinds=(kind,))
+        for i, t in zip(ids, ranked, strict=True):
+            if kind in t:
+                tracks[i][kind] = _write_array(folder, i, f"track.{kind}", t[kind])
+                names[str(i)].append(f"track.{kind}")
+        del ranked
+    result = SessionScores(
+        first.predictor,
+        first.classifier,
+        first.classes,
+        {i: scores[i] for i in ids},
+        tracks,
+        {i: embeddings[i] for i in ids},
+        window,
+    )
+    _finish_store(session, folder, result, {k: sorted(v) for k, v in names.items()})
+    return result
 
 
 def stored_scores(session: Session) -> StoredScores | None:

@@ -147,7 +147,12 @@ def _score_session_logs(
 
 
 def compute_scores(
-    session: Session, *, window: int = TRACK_WINDOW, log_ids: Collection[int] | None = None, votes: bool = True
+    session: Session,
+    *,
+    window: int = TRACK_WINDOW,
+    log_ids: Collection[int] | None = None,
+    votes: bool = True,
+    tracks: bool = True,
 ) -> SessionScores:
     """What the UI shows: every log scored with the active predictor (and the active classifier when it was trained
     on it), with highlight tracks and suggestion embeddings.
@@ -159,6 +164,7 @@ def compute_scores(
             among themselves until the whole session is scored.
         votes: A labelled run's probabilities blended with its labels' vote (``run_votes``); off only to measure
             what that is worth.
+        tracks: Rank the highlight tracks (off: ``tracks`` is empty, for a caller that ranks them over more logs).
     """
     p_version = session.active_model("predictor")
     if p_version is None:
@@ -170,13 +176,13 @@ def compute_scores(
     c_bundle = None if c_version is None else load_bundle(session.path / c_version.path)
     logs, outs, scored = _score_session_logs(session, p_version, bundle, c_bundle, log_ids, votes=votes)
     ids = [x.id for x in logs]
-    tracks = labeling.normalised_tracks(scored, window=window)
+    ranked = labeling.normalised_tracks(scored, window=window) if tracks else []
     return SessionScores(
         p_version.id,
         None if c_version is None else c_version.id,
         () if c_bundle is None else tuple(c_bundle.classes),
         dict(zip(ids, scored, strict=True)),
-        dict(zip(ids, tracks, strict=True)),
+        dict(zip(ids, ranked, strict=True)) if tracks else {},
         # rows are computed from the cache only where a suggestion reads them: an hour of them is 1.6 GB
         {x.id: stage1_embedding(outs[x.id]) for x in logs},
         window,

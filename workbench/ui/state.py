@@ -23,8 +23,8 @@ from ..cycle import (
     log_change_points,
     queue_key,
     record_check,
+    score_and_store,
     store_queue,
-    store_scores,
     stored_queue,
     stored_scores,
     suggest_for_session,
@@ -411,10 +411,20 @@ class SharedState:
                     if first and len(first) < len(self._logs):
                         self.scores = LANE.run(compute_scores, self.session, log_ids=first)
                         self.notify("scores")
-                    self.scores = LANE.run(compute_scores, self.session)
+                    scores = score_and_store(  # a group of logs at a time through the lane, kept as they come
+                        self.session,
+                        score=compute_scores,  # looked up here, so a test can stand in for it
+                        run=LANE.run,
+                        stop=lambda: self._stop.is_set() or self._scores_wanted,
+                        on_error=self._on_error,
+                    )
+                    if scores is None:  # stopped, or other models became active meanwhile: theirs are wanted
+                        self._scores_wanted = not self._stop.is_set()
+                        self._dirty.set()
+                        continue
+                    self.scores = scores
                     self.scored = True
                     self.notify("scores")
-                    self._keep(store_scores, self.session, self.scores)
                 key = queue_key(self.session, self.strategy, self.terrains())
                 if self._queue_of is None or self._queue_of[0] is not self.scores or self._queue_of[1] != key:
                     self.busy = "updating suggestions"

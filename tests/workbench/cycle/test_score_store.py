@@ -187,3 +187,44 @@ def test_the_queue_waits_while_a_retrains_quick_phase_trains(trained: Session) -
         assert state._queue_of is not None and state._queue_of[1] == queue_key(trained, "combined", state.terrains())
     finally:
         state.stop()
+
+
+def test_scoring_a_group_at_a_time_keeps_what_scoring_at_once_computes(trained: Session) -> None:  # noqa: F811
+    """At 100 hours of logs, scoring every log in one call held 6.4 GiB of scores; a group at a time, written as it
+    comes, holds one group's."""
+    whole = compute_scores(trained)
+    calls: list[tuple[int, ...]] = []
+
+    def score(session, **kw):
+        out = compute_scores(session, **kw)
+        calls.append(tuple(out.scores))
+        return out
+
+    smallest = min(x.n_samples for x in trained.logs())
+    got = cycle.score_and_store(trained, score=score, group_steps=smallest)  # a log per group
+    assert got is not None and len(calls) == len(trained.logs()) >= 2
+    assert (got.predictor, got.classifier, got.classes) == (whole.predictor, whole.classifier, whole.classes)
+    for log_id, s in whole.scores.items():
+        g = got.scores[log_id]
+        assert isinstance(g.probs, np.memmap) and not g.probs.flags.writeable  # read back from the kept files
+        for name in ("surprise", "probs", "disagreement", "drift"):
+            if getattr(s, name) is None:
+                assert getattr(g, name) is None
+            else:
+                np.testing.assert_allclose(getattr(g, name), getattr(s, name), rtol=1e-6, atol=1e-7)
+        assert set(got.tracks[log_id]) == set(whole.tracks[log_id])
+        for kind, track in whole.tracks[log_id].items():  # ranked over the whole session, not per group
+            np.testing.assert_allclose(got.tracks[log_id][kind], track, rtol=1e-6, atol=1e-7)
+    back = stored_scores(trained)
+    assert back is not None and back.complete and set(back.scores.scores) == set(whole.scores)
+
+
+def test_scoring_a_group_at_a_time_stops_when_asked_and_keeps_nothing_incomplete(trained: Session) -> None:  # noqa: F811
+    store_scores(trained, compute_scores(trained))
+    assert stored_scores(trained) is not None
+    asked = []
+    got = cycle.score_and_store(
+        trained, score=compute_scores, group_steps=1, stop=lambda: asked.append(1) or len(asked) > 1
+    )
+    assert got is None and len(asked) == 2  # stopped before the second group
+    assert stored_scores(trained) is None  # the folder says it is incomplete until a scoring ends
