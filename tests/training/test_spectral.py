@@ -104,6 +104,33 @@ def test_drop_pages_gives_back_what_a_pass_over_a_memory_map_made_resident(tmp_p
     assert _resident_file_kb() - after < 30_000  # the pass left its pages out of the resident set
 
 
+def test_the_pool_and_the_labels_rows_leave_the_mapped_frames_they_read_out_of_the_resident_set(tmp_path: Path) -> None:
+    """Issue 66: the pool copies its rows; the frames it read them from (every log's, on a fleet's hours) must not
+    stay resident beside that copy (0.9 GiB of a 100 h train's 3.2 GiB peak)."""
+    from training.spectral_cnn.spectra import SpectralSteps
+    from training.spectral_cnn.stretch_pool import PSEUDO_STRIDE, every_row, stretch_pool
+    from training.spectral_cnn.window_rows import window_rows
+
+    cfg = SpectralConfig(frame=40, hop=20, fast=(0,), slow=(1,))
+    rng = np.random.default_rng(0)
+    path = tmp_path / "frames.npy"
+    np.save(path, rng.standard_normal((100_000, cfg.width)).astype(np.float32))  # 10 MB of frames
+    frames = np.load(path, mmap_mode="r")
+    steps = SpectralSteps(frames, len(frames) * cfg.hop, cfg)
+    stretches = [(0, a, a + 500_000) for a in range(0, 2_000_000, 500_000)]
+    before = _resident_file_kb()
+    pool, bounds = stretch_pool([steps], stretches, PSEUDO_STRIDE)
+    assert _resident_file_kb() - before < 2_000, "the pass left the frames it read resident"
+    every = steps.frame_rows(500_000, 1_000_000)[::PSEUDO_STRIDE]
+    assert np.array_equal(pool[bounds[1] : bounds[2]], steps.at(every))  # and the rows are still the frames'
+    steps.release()
+    before = _resident_file_kb()
+    rows, ends = window_rows([steps], [(0, 0, 1_000_000), (0, 1_500_000, 2_000_000)], every_row)  # as a fit's labels
+    assert _resident_file_kb() - before < 2_000, "the labels' rows left the frames they read resident"
+    assert np.array_equal(rows[ends[1] : ends[2]], steps.at(every_row(steps, 1_500_000, 2_000_000)))
+    assert np.array_equal(rows[: ends[1]], steps.at(every_row(steps, 0, 1_000_000)))  # its first windows repeat
+
+
 def test_step_rows_span_means_are_the_means_of_the_steps_sliced() -> None:
     from training import StepRows
 

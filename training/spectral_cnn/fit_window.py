@@ -150,6 +150,7 @@ def predict_steps(model: WindowClassifier, features: SpectralSteps, start: int, 
     for c in range(start, stop, PREDICT_CHUNK):
         chunk = torch.from_numpy(features[c : min(c + PREDICT_CHUNK, stop)])[None].to(dev)  # (1, L, D)
         out.append(model(chunk)[0][0].argmax(1).cpu().numpy())
+    features.release()
     return np.concatenate(out) if out else np.zeros(0, np.int64)
 
 

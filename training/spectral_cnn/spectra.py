@@ -341,6 +341,11 @@ class SpectralSteps:
             out[known] = stacked_frames(block, distinct, cfg.window)[inverse]  # each frame's window stacked once
         return out
 
+    def release(self) -> None:
+        """Give back the pages reads of its memory-mapped frames put in the resident set (:func:`drop_pages`): a
+        pass that copies what it reads calls it once done with the log, so a fleet's frames are not held twice."""
+        drop_pages(self.frames)
+
     def frame_rows(self, start: int, stop: int) -> np.ndarray:
         """The steps of ``[start, stop)`` at which a frame completes: one row per distinct input."""
         cfg = self.config

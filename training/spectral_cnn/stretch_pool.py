@@ -74,4 +74,5 @@ def stretch_pool(
     for j, (i, a, b) in enumerate(stretches):
         if counts[j]:
             pool[bounds[j] : bounds[j + 1]] = frame_rows(features[i], a, b, stride=stride)
+            features[i].release()  # the pool holds its copy: at 100 h every log's mapped frames stayed resident
     return pool, bounds
