@@ -93,6 +93,15 @@ def ensemble_pass(
                 k = min(size, lengths[j] - c0)
                 if k > 0:
                     sink(i, c0, c0 + k, probs[:, j, :k])
+                    _release(features[i])
+
+
+def _release(rows: Rows) -> None:
+    """Give back what reading ``rows`` put in the resident set, where they can (memory-mapped frames: a pass over a
+    fleet's logs left them all resident, 1.8 GiB at 100 hours); nothing for an array or rows read on demand."""
+    release = getattr(rows, "release", None)
+    if release is not None:
+        release()
 
 
 def run_classifiers(

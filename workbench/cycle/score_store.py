@@ -21,6 +21,7 @@ import numpy as np
 
 import labeling
 from sessions import Session, Terrain
+from training import drop_pages
 
 from .scores import TRACK_WINDOW, SessionScores, stage1_embedding
 
@@ -219,6 +220,10 @@ def _score_and_store(
                 tracks[i][kind] = _write_array(folder, i, f"track.{kind}", t[kind])
                 names[str(i)].append(f"track.{kind}")
         del ranked
+        for s in scores.values():  # the ranking read every log's kept scores: not held resident for the next kind
+            for array in (s.surprise, s.probs, s.disagreement, s.drift):
+                if array is not None:
+                    drop_pages(array)
     result = SessionScores(
         first.predictor,
         first.classifier,

@@ -78,7 +78,9 @@ def score_logs(
     ensemble_pass(classifiers, features, reduce, batch=batch, device=device)
     drifts: list[np.ndarray | None] = [None] * len(features)
     if drift is not None and all(isinstance(f, SpectralSteps) for f in features):
-        drifts = [drift_of_log(drift, classifiers, f) for f in features]  # type: ignore[arg-type]
+        for i, f in enumerate(features):
+            drifts[i] = drift_of_log(drift, classifiers, f)  # type: ignore[arg-type]
+            f.release()  # type: ignore[union-attr]  # read whole again: its mapped frames not held over the logs
     return [
         labeling.LogScores(np.asarray(s), m, d, r)
         for s, m, d, r in zip(surprise, mean, disagreement, drifts, strict=True)
