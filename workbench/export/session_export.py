@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import shutil
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -17,6 +17,7 @@ from sessions import (
     IngestError,
     IngestOptions,
     LogClock,
+    LogInfo,
     ModelVersion,
     Session,
     TerrainPredictions,
@@ -44,6 +45,7 @@ from ..expectations import card_accuracy, file_expectation, stretch_share
 from .bundle_checks import read_checks, write_checks
 from .export_staging import check_target, staged
 from .model_card import model_card
+from .predictions_stream import PredictionsWriter, scored_logs, with_drift_column
 
 ONNX_TOLERANCE = 1e-4
 CHECK_SAMPLES = 1500  # per log, for the ONNX check: a per-sample loop in onnxruntime
@@ -98,22 +100,6 @@ def export_all(
     return [(out / path.relative_to(tmp), what) for path, what in written]
 
 
-def _agreement(session: Session, scored: Mapping[int, labeling.LogScores]) -> float | None:
-    """The share of these logs' steps predicted as their stretch's most predicted terrain, the stretches cut at each
-    log's signal change points (none shorter than ``SHORTEST_STRETCH_S``); ``None`` without predictions."""
-    from ..cycle import signal_change_points
-
-    agree, steps = 0.0, 0
-    for log_id, s in scored.items():
-        if s.probs is None or not len(s.probs):
-            continue
-        log = session.log(log_id)
-        share = stretch_share(s.probs.argmax(1), signal_change_points(session, log), rate_hz=log.rate_hz)
-        agree += share * len(s.probs)  # type: ignore[operator]
-        steps += len(s.probs)
-    return agree / steps if steps else None
-
-
 def _write_export(
     session: Session,
     out: Path,
@@ -126,26 +112,48 @@ def _write_export(
 ) -> list[tuple[Path, str]]:
     from training import check_onnx, export_onnx
 
-    from ..cycle import checks_summary, model_logs, score_session
+    from ..cycle import checks_summary, model_logs, score_session, signal_change_points
 
     written: list[tuple[Path, str]] = []
+    streamed: list[tuple[Path, str]] = []  # the predictions, then each log's MCAP: listed after the bundle's files
     shutil.copytree(session.path / version.path, out / "bundle")
-    scored = score_session(session) if predictions or mcap or bundle.drift is not None else {}
-    drifted = {
-        session.log(log_id).name: share
-        for log_id, s in scored.items()
-        if (share := labeling.drifted_share(s.drift)) is not None
-    }
     labelled_logs = {g.log_id for g in session.segments()}
-    unlabelled = {  # the logs nobody labelled: what the model expects there, at their drift
-        e.name: (e.expected, len(s.drift))
-        for log_id, s in scored.items()
-        if log_id not in labelled_logs
-        and (e := file_expectation(session.log(log_id).name, s.drift, bundle.metrics)) is not None
-        and e.expected is not None
-    }
-    unlabelled_scores = {log_id: s for log_id, s in scored.items() if log_id not in labelled_logs}
-    agreement = _agreement(session, unlabelled_scores) if unlabelled else None
+    drifted: dict[str, float] = {}
+    unlabelled: dict[str, tuple[float, int]] = {}  # the logs nobody labelled: what the model expects there
+    agree, agree_steps = 0.0, 0  # their steps predicted as their stretch's most predicted terrain
+    logs = model_logs(session, bundle.channels)
+    if predictions or mcap or bundle.drift is not None:  # every log scored, a group at a time, handed on per log
+        table = PredictionsWriter(out / "predictions.parquet") if predictions else None
+        if mcap:
+            (out / "mcap").mkdir()
+            mcap_paths = dict(
+                zip(
+                    (x.id for x in logs),
+                    per_log_paths(out / "mcap" / "terrain.mcap", [x.name for x in logs], each=True),
+                    strict=True,
+                )
+            )
+        for log, s in scored_logs(logs, lambda ids: score_session(session, ids)):
+            if (share := labeling.drifted_share(s.drift)) is not None:
+                drifted[log.name] = share
+            if log.id not in labelled_logs and bundle.drift is not None:
+                e = file_expectation(log.name, s.drift, bundle.metrics)
+                if e is not None and e.expected is not None:
+                    unlabelled[log.name] = (e.expected, len(s.drift))
+                if s.probs is not None and len(s.probs):
+                    cuts = signal_change_points(session, log)
+                    agree += stretch_share(s.probs.argmax(1), cuts, rate_hz=log.rate_hz) * len(s.probs)
+                    agree_steps += len(s.probs)
+            if table is not None:
+                frame = prediction_frame(log.name, s.probs, bundle.classes, bundle.rate_hz, s.drift)
+                table.write(with_drift_column(frame, bundle.drift is not None))
+            if mcap:
+                streamed.append(_write_mcap(session, mcap_paths[log.id], log, version, bundle, s))
+        if table is not None:
+            empty = prediction_frame("", np.zeros((0, len(bundle.classes)), np.float32), bundle.classes, 1.0)
+            table.close(with_drift_column(empty, bundle.drift is not None))
+            streamed.insert(0, (table.path, "per-timestep predictions"))
+    agreement = agree / agree_steps if unlabelled and agree_steps else None
     card = model_card(
         bundle,
         version=version.id,
@@ -159,21 +167,13 @@ def _write_export(
     write_checks(out / "bundle", checks)
     written.append((out / "bundle", f"model bundle v{version.id} (safetensors + model.json + MODEL_CARD.md)"))
     onnx = export_onnx(bundle, out / "classifier_stream.onnx")
-    logs = model_logs(session, bundle.channels)[:2]
-    worst = max(check_onnx(onnx, bundle, session.samples(x.id, 0, CHECK_SAMPLES)) for x in logs)
+    worst = max(check_onnx(onnx, bundle, session.samples(x.id, 0, CHECK_SAMPLES)) for x in logs[:2])
     if worst > ONNX_TOLERANCE:
         raise WorkbenchError(f"ONNX export differs from PyTorch by {worst:.2e} (> {ONNX_TOLERANCE}); not exported")
     written.append((onnx, f"streaming classifier, checked with onnxruntime: max |Δp| {worst:.1e} on real logs"))
     for suffix in (".csv", ".parquet", ".json"):
         written.append((session.export_labels(out / f"labels{suffix}"), "label segments"))
-    if predictions:
-        frames = [
-            prediction_frame(session.log(log_id).name, scores.probs, bundle.classes, bundle.rate_hz, scores.drift)
-            for log_id, scores in scored.items()
-        ]
-        written.append((write_frame(pd.concat(frames), out / "predictions.parquet"), "per-timestep predictions"))
-    if mcap:
-        written += _write_mcaps(session, out / "mcap", version, bundle, scored)
+    written += streamed
     if frames:
         written.append(write_labelled_frames(session, out / "frames"))
     return written
@@ -204,25 +204,18 @@ def write_labelled_frames(session: Session, folder: Path) -> tuple[Path, str]:
     return folder, f"camera frames, a folder per terrain ({cams}; index.csv)"
 
 
-def _write_mcaps(
-    session: Session, folder: Path, version: ModelVersion, bundle: ModelBundle, scored: Mapping
-) -> list[tuple[Path, str]]:
-    """One MCAP file per log the model reads: its terrain per sample and its labels, on the log's own clock."""
-    folder.mkdir()
-    logs = [session.log(log_id) for log_id in scored]
-    paths = per_log_paths(folder / "terrain.mcap", [x.name for x in logs], each=True)
-    written = []
-    for log, path in zip(logs, paths, strict=True):
-        s = scored[log.id]
-        write_terrain_mcap(
-            path,
-            LogClock.of(log),
-            predictions=TerrainPredictions(tuple(bundle.classes), s.probs, s.drift),
-            labels=session.segments(log.id),
-            about={"model_version": str(version.id), "session": session.path.name, "source_file": log.source_path},
-        )
-        written.append((path, f"{log.name}: topics {PREDICTION_TOPIC} and {LABEL_TOPIC} on the log's clock"))
-    return written
+def _write_mcap(
+    session: Session, path: Path, log: LogInfo, version: ModelVersion, bundle: ModelBundle, s: labeling.LogScores
+) -> tuple[Path, str]:
+    """One log's MCAP file: its terrain per sample and its labels, on the log's own clock."""
+    write_terrain_mcap(
+        path,
+        LogClock.of(log),
+        predictions=TerrainPredictions(tuple(bundle.classes), s.probs, s.drift),
+        labels=session.segments(log.id),
+        about={"model_version": str(version.id), "session": session.path.name, "source_file": log.source_path},
+    )
+    return path, f"{log.name}: topics {PREDICTION_TOPIC} and {LABEL_TOPIC} on the log's clock"
 
 
 def _arrays_for(bundle: ModelBundle, files: Sequence[Path], options: IngestOptions):

@@ -160,6 +160,35 @@ def test_export_writes_bundle_card_checked_onnx_and_label_files(trained: Session
         export_all(trained, out)
 
 
+def test_export_scores_a_group_of_logs_at_a_time_and_writes_what_one_scoring_of_every_log_gives(
+    trained: Session, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 66: `export --predictions` held every log's scores and a table of every step at once (a fleet's hours:
+    gigabytes); it now scores a group of logs at a time and writes each log as it comes, with the same result."""
+    from workbench.export import export_all, prediction_frame, predictions_stream
+
+    whole = tmp_path / "whole"
+    export_all(trained, whole, predictions=True, mcap=True)
+    asked: list[list[int]] = []
+    real = cycle.score_session
+    monkeypatch.setattr(cycle, "score_session", lambda s, ids=None: asked.append(list(ids)) or real(s, ids))
+    monkeypatch.setattr(predictions_stream, "GROUP_STEPS", 1)  # every log a group of its own
+    out = tmp_path / "grouped"
+    export_all(trained, out, predictions=True, mcap=True)
+    logs = trained.logs()
+    assert asked == [[x.id] for x in logs]
+    bundle = cycle.active_bundle(trained)[1]
+    one_call = real(trained)  # what the export wrote before: every log scored at once, one table
+    expected = pd.concat(
+        [prediction_frame(x.name, one_call[x.id].probs, bundle.classes, x.rate_hz, one_call[x.id].drift) for x in logs],
+        ignore_index=True,
+    )
+    for folder in (whole, out):
+        pd.testing.assert_frame_equal(pd.read_parquet(folder / "predictions.parquet"), expected, rtol=1e-6)
+        assert len(list((folder / "mcap").glob("*.mcap"))) == len(logs)
+    assert (out / "bundle" / "MODEL_CARD.md").read_text() == (whole / "bundle" / "MODEL_CARD.md").read_text()
+
+
 @pytest.mark.parametrize("suffix", [".csv", ".parquet", ".json"])
 def test_label_files_round_trip(trained: Session, tmp_path: Path, demo_logs: list[Path], suffix: str) -> None:
     path = trained.export_labels(tmp_path / f"labels{suffix}")
