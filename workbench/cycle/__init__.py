@@ -30,7 +30,9 @@ from .front_end import (
     window_sizes,
 )
 from .score_store import (
+    GROUP_STEPS,
     StoredScores,
+    log_groups,
     queue_key,
     score_and_store,
     store_queue,
@@ -64,6 +66,7 @@ from .train_stages import (
 
 __all__ = [
     "EMBEDDING_MODE",
+    "GROUP_STEPS",
     "MODEL_FAMILIES",
     "STAGE1_FEATURES",
     "STRETCH_S",
@@ -89,6 +92,7 @@ __all__ = [
     "kept_change_points",
     "log_change_points",
     "log_frame_files",
+    "log_groups",
     "model_logs",
     "queue_key",
     "record_check",

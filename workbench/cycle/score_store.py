@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 import labeling
-from sessions import Session, Terrain
+from sessions import LogInfo, Session, Terrain
 from training import drop_pages
 
 from .scores import TRACK_WINDOW, SessionScores, stage1_embedding
@@ -43,6 +43,20 @@ class StoredScores:
 
     scores: SessionScores
     complete: bool
+
+
+def log_groups(logs: Sequence[LogInfo], *, group_steps: int = GROUP_STEPS) -> list[list[LogInfo]]:
+    """``logs`` in order, cut into groups of at most ``group_steps`` samples (a longer log is a group alone): what
+    a pass over a fleet's logs scores and hands on before the next, so their scores are never held together."""
+    groups: list[list[LogInfo]] = []
+    size = 0
+    for x in logs:
+        if not groups or (groups[-1] and size + x.n_samples > group_steps):
+            groups.append([])
+            size = 0
+        groups[-1].append(x)
+        size += x.n_samples
+    return groups
 
 
 def _active_versions(session: Session) -> tuple[int, int | None] | None:
@@ -180,14 +194,7 @@ def _score_and_store(
     logs = model_logs(session, load_bundle(session.path / p_version.path).channels)
     folder = session.cache_dir(_folder_name(*versions))
     (folder / META_FILE).unlink(missing_ok=True)  # incomplete until every log is written again
-    groups: list[list[int]] = [[]]
-    size = 0
-    for x in logs:
-        if groups[-1] and size + x.n_samples > group_steps:
-            groups.append([])
-            size = 0
-        groups[-1].append(x.id)
-        size += x.n_samples
+    groups = [[x.id for x in g] for g in log_groups(logs, group_steps=group_steps)]
     first: SessionScores | None = None
     scores: dict[int, labeling.LogScores] = {}
     embeddings: dict = {}

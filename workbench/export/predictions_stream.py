@@ -17,22 +17,9 @@ import pandas as pd
 import labeling
 from sessions import LogInfo
 
-GROUP_STEPS = 1 << 22  # samples of logs scored at a time (11.7 h at 100 Hz), as the UI's first start
+from .. import cycle
 
-
-def log_groups(logs: Sequence[LogInfo], *, group_steps: int | None = None) -> list[list[LogInfo]]:
-    """``logs`` in order, cut into groups of at most ``group_steps`` samples (default :data:`GROUP_STEPS`; a longer
-    log is a group alone)."""
-    group_steps = GROUP_STEPS if group_steps is None else group_steps
-    groups: list[list[LogInfo]] = []
-    size = 0
-    for x in logs:
-        if not groups or (groups[-1] and size + x.n_samples > group_steps):
-            groups.append([])
-            size = 0
-        groups[-1].append(x)
-        size += x.n_samples
-    return groups
+GROUP_STEPS = cycle.GROUP_STEPS  # samples of logs scored at a time (11.7 h at 100 Hz), as the UI's first start
 
 
 def scored_logs(
@@ -41,8 +28,9 @@ def scored_logs(
     *,
     group_steps: int | None = None,
 ) -> Iterator[tuple[LogInfo, labeling.LogScores]]:
-    """Each log with its scores, in the order of ``logs``, scored a group at a time by ``score(log_ids)``."""
-    for group in log_groups(logs, group_steps=group_steps):
+    """Each log with its scores, in the order of ``logs``, scored a group at a time by ``score(log_ids)`` (groups of
+    ``group_steps`` samples, default :data:`GROUP_STEPS`)."""
+    for group in cycle.log_groups(logs, group_steps=GROUP_STEPS if group_steps is None else group_steps):
         scored = score([x.id for x in group])
         for x in group:
             yield x, scored.pop(x.id)
