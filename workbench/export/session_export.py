@@ -142,7 +142,7 @@ def _write_export(
                     unlabelled[log.name] = (e.expected, len(s.drift))
                 if s.probs is not None and len(s.probs):
                     cuts = signal_change_points(session, log)
-                    agree += stretch_share(s.probs.argmax(1), cuts, rate_hz=log.rate_hz) * len(s.probs)
+                    agree += stretch_share(s.probs.argmax(1), cuts, rate_hz=log.rate_hz) * len(s.probs)  # type: ignore[operator]
                     agree_steps += len(s.probs)
             if table is not None:
                 frame = prediction_frame(log.name, s.probs, bundle.classes, bundle.rate_hz, s.drift)

@@ -338,8 +338,8 @@ class SharedState:
             predictor = self.scores.predictor if s is not None else None  # found over that predictor's surprise
             cps = None if predictor is None else kept_change_points(self.session, predictor, log)
             if cps is None:
-                surprise = None if s is None else s.surprise
-                cps = log_change_points(self.session.array(log_id), surprise, rate_hz=log.rate_hz)
+                rows = self.session.rows(log_id)[:]  # read, not mapped: a map stayed resident (3.1 GiB at 102 h)
+                cps = log_change_points(rows, None if s is None else s.surprise, rate_hz=log.rate_hz)
                 if predictor is not None:
                     self._keep(keep_change_points, self.session, predictor, log, cps)
             with self._lock:
