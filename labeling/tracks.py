@@ -28,12 +28,15 @@ class LogScores:
         disagreement: ``(T,)`` ensemble mutual information (BALD), or ``None``.
         drift: ``(T,)`` how unlike the labelled data each step is (1: as far as the farthest 5 % of held-out
             labelled time), or ``None`` when the model gives none.
+        agreement: ``(T,)`` the share of the members' pairs that name the same terrain (:func:`member_agreement`),
+            or ``None`` (fewer than two members, or scores kept before it existed).
     """
 
     surprise: np.ndarray
     probs: np.ndarray | None = None
     disagreement: np.ndarray | None = None
     drift: np.ndarray | None = None
+    agreement: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.surprise)
@@ -94,6 +97,21 @@ def mutual_information(member_probs: np.ndarray) -> np.ndarray:
     """BALD disagreement of an ensemble: ``(M, T, K)`` -> ``(T,)``, entropy of the mean minus mean entropy."""
     mean = member_probs.mean(axis=0)
     return np.maximum(entropy(mean) - np.mean([entropy(m) for m in member_probs], axis=0), 0.0)
+
+
+def member_agreement(member_probs: np.ndarray) -> np.ndarray:
+    """``(M, T, K)`` -> ``(T,)``: the share of the ``M (M - 1) / 2`` pairs of members whose most probable class is
+    the same. Its mean over a file estimates a member's accuracy there without a label (two networks trained apart
+    disagree about as often as each errs: Jiang et al., ICLR 2022); ``M`` under 2 gives ones."""
+    m, _, k = member_probs.shape
+    if m < 2:
+        return np.ones(member_probs.shape[1])
+    top = np.asarray(member_probs).argmax(axis=-1)  # (M, T)
+    same = np.zeros(top.shape[1])
+    for c in range(k):
+        n = (top == c).sum(axis=0)  # (T,) members naming c
+        same += n * (n - 1)
+    return same / (m * (m - 1))
 
 
 def smooth(x: np.ndarray, window: int) -> np.ndarray:

@@ -1,17 +1,25 @@
 """What to expect on each file a model scores: its drift, the accuracy expected on it, and a warning when that is
 well below the card's figure (issue 54).
 
-Two figures, each from what the model does on the file, with no label read:
+Three figures, each from what the model does on the file, with no label read:
 
+- the members' agreement: the share of the ensemble members' pairs that name the same terrain, averaged over the
+  file (:func:`labeling.member_agreement`); two members trained apart disagree about as often as each errs, so it
+  estimates their accuracy there. It is the file's figure where the scoring gave it: in issue 65's loop on new runs
+  (``evaluate loop``, two sessions, two seeds each, every round) it was nearer the truth than the accuracy at the
+  drift in each of the four: mean distance 4.1 / 8.6 / 6.1 / 9.9 points against 7.6 / 11.1 / 7.4 / 12.1, within 5
+  points on 51 of 90 runs and rounds against 37 (``benchmarks/results/issue-65.md``). Like every figure without a
+  label it cannot see a run the members all get wrong alike;
 - the accuracy at its drift (:mod:`training.figures.drift_accuracy`'s relation);
 - the agreement of its predictions within each stretch between change points (:func:`labeling.stretch_agreement`),
   no stretch shorter than ``SHORTEST_STRETCH_S``: where a stretch is one terrain, accuracy is at most this, and
   equal to it where the stretch's most predicted terrain is right. It cannot see a stretch the model gets wholly
   wrong, so it is printed as a bound.
 
-Either figure 10 points or more under the card warns, and so does a file's figure that the person's own checks in
-that log contradict (10 points or more away, outside their 95 % interval: issue 65). The figures measured
-(``benchmarks/studies/expected_borealtc.py``, ``benchmarks/results/issue-54.md``) are in ``docs/model.md``.
+The drift's figure or the stretches' 10 points or more under the card warns, and so does a file's figure that the
+person's own checks in that log contradict (10 points or more away, outside their 95 % interval: issue 65). The
+figures measured (``benchmarks/studies/expected_borealtc.py``, ``benchmarks/results/issue-54.md``) are in
+``docs/model.md``.
 """
 
 from __future__ import annotations
@@ -66,6 +74,7 @@ class FileExpectation:
             predictions and change points were not given).
         checks: The person's counted checks in this log of the model whose figure this is (a session's log;
             ``None`` for a file outside one): a check of an earlier model says little of one that learned from it.
+        members: The mean of its steps' members' agreement (``None`` when the scoring gave none).
     """
 
     name: str
@@ -75,11 +84,16 @@ class FileExpectation:
     card: float | None
     agreement: float | None = None
     checks: labeling.CheckEstimate | None = None
+    members: float | None = None
 
     @property
     def figure(self) -> float | None:
-        """What the Data tab shows of the log: the accuracy at its drift, else the bound by its stretches."""
-        return self.expected if self.expected is not None else self.agreement
+        """What the Data tab shows of the log: the members' agreement, else the accuracy at its drift, else the
+        bound by its stretches."""
+        for value in (self.members, self.expected, self.agreement):
+            if value is not None:
+                return value
+        return None
 
     @property
     def checks_disagree(self) -> bool:
@@ -103,6 +117,7 @@ class FileExpectation:
         """``"expected accuracy 80 % at its drift, at most 88 % by its stretches (the card: 82 %)"``; ``None``
         when neither figure exists."""
         figures = [  # by its stretches is an upper bound where each stretch is one terrain: it reads as one
+            *([] if self.members is None else [f"{self.members:.0%} by its members' agreement"]),
             *([] if self.expected is None else [f"{self.expected:.0%} at its drift"]),
             *([] if self.agreement is None else [f"at most {self.agreement:.0%} by its stretches"]),
         ]
@@ -122,7 +137,11 @@ class FileExpectation:
         """One line when the person's checks in the log contradict its figure, when the file is expected to score
         well below the card, or (with no relation) is mostly drifted; else ``None``."""
         if self.checks_disagree:
-            what = "expected accuracy" if self.expected is not None else "its stretches bound its accuracy at"
+            what = (
+                "expected accuracy"
+                if self.members is not None or self.expected is not None
+                else ("its stretches bound its accuracy at")
+            )
             return (
                 f"warning: {self.name}: {what} {self.figure:.0%}, but your checks of this model in it found it "
                 f"{self.checks.words()}: trust the checks; label more of it and retrain"  # type: ignore[union-attr]
@@ -163,6 +182,7 @@ def file_expectation(
     change_points: np.ndarray | None = None,
     rate_hz: float | None = None,
     checks: labeling.CheckEstimate | None = None,
+    members: np.ndarray | None = None,
 ) -> FileExpectation | None:
     """A file's expectation; ``None`` without drift.
 
@@ -174,6 +194,7 @@ def file_expectation(
         change_points: Its change points (sample indices), as the session finds them.
         rate_hz: Its sample rate; with ``predicted`` and ``change_points``, the agreement within stretches.
         checks: The person's checks in it, where it is a session's log (``cycle.checks_summary``'s ``per_log``).
+        members: Its steps' members' agreement ``(T,)`` (``labeling.LogScores.agreement``), where the scoring gave it.
     """
     share = labeling.drifted_share(drift)
     if share is None:
@@ -183,7 +204,8 @@ def file_expectation(
     agreement = None
     if predicted is not None and change_points is not None and rate_hz is not None:
         agreement = stretch_share(predicted, change_points, rate_hz=rate_hz)
-    return FileExpectation(name, float(np.median(drift)), share, expected, card, agreement, checks)
+    mean_agreement = float(np.mean(members)) if members is not None and len(members) else None
+    return FileExpectation(name, float(np.median(drift)), share, expected, card, agreement, checks, mean_agreement)
 
 
 def stretch_share(predicted: np.ndarray, change_points: np.ndarray, *, rate_hz: float) -> float | None:

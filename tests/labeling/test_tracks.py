@@ -12,6 +12,7 @@ from labeling import (
     highlight_intervals,
     intervals,
     margin_uncertainty,
+    member_agreement,
     mutual_information,
     normalised_tracks,
     session_normaliser,
@@ -30,6 +31,14 @@ def test_entropy_margin_and_mutual_information_by_hand() -> None:
     # two members certain of different classes: MI = ln 2; members agreeing: 0
     members = np.array([[[1.0, 0.0], [0.5, 0.5]], [[0.0, 1.0], [0.5, 0.5]]])  # (M=2, T=2, K=2)
     np.testing.assert_allclose(mutual_information(members), [np.log(2), 0.0], atol=1e-9)
+
+
+def test_member_agreement_counts_the_pairs_naming_the_same_class() -> None:
+    # four members, three steps: all name class 0; three name 0 and one 1 (3 of 6 pairs agree); two and two (2 of 6)
+    top = np.array([[0, 0, 0], [0, 0, 0], [0, 0, 1], [0, 1, 1]])  # (M=4, T=3) each member's top class
+    members = np.eye(3)[top] * 0.8 + 0.2 / 3  # (M, T, K=3): the top class first, the rest shared
+    np.testing.assert_allclose(member_agreement(members), [1.0, 0.5, 2 / 6])
+    assert member_agreement(members[:1]).tolist() == [1.0, 1.0, 1.0]  # one member has no pair: nothing against it
 
 
 def test_smooth_is_a_centred_mean_that_shrinks_at_the_ends() -> None:

@@ -68,6 +68,20 @@ def test_predictions_that_change_within_a_stretch_lower_the_expectation_and_warn
     assert no_rate.agreement is None  # without the rate no stretch length is known: no figure
 
 
+def test_the_members_agreement_is_the_figure_where_the_scoring_gives_it() -> None:
+    """Issue 65: nearer the truth on new runs after the loop than the accuracy at the drift (expectations' note);
+    the drift's figure still decides the card's warning, and the line says every figure."""
+    m = metrics()
+    members = np.r_[np.ones(300), np.full(100, 0.5)]  # (T,) three quarters of the steps all agree, the rest half
+    e = file_expectation("walk3.csv", np.full(400, 1.9), m, members=members)
+    assert e.members == pytest.approx(0.875) and e.figure == e.members and e.expected < 0.72
+    assert e.below_card and e.warning().startswith(f"warning: walk3.csv: expected accuracy {e.expected:.0%}, ")
+    assert e.line().endswith(
+        f"expected accuracy 88% by its members' agreement, {e.expected:.0%} at its drift (the card: 82%)"
+    )
+    assert file_expectation("walk3.csv", np.full(400, 1.9), m).figure == e.expected  # scores kept before it: drift
+
+
 def test_without_a_relation_the_drifted_share_decides_and_without_drift_nothing_is_said() -> None:
     m = {"estimate": {"accuracy": 0.82}}
     mostly = file_expectation("odd.csv", np.full(100, 1.5), m)

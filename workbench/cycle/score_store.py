@@ -96,6 +96,8 @@ def _score_arrays(s: labeling.LogScores) -> dict[str, np.ndarray]:
         arrays["disagreement"] = np.asarray(s.disagreement)
     if s.drift is not None:
         arrays["drift"] = np.asarray(s.drift)
+    if s.probs is not None and s.agreement is not None:
+        arrays["agreement"] = np.asarray(s.agreement)
     return arrays
 
 
@@ -210,7 +212,7 @@ def _score_and_store(
         for log_id, s in part.scores.items():
             kept = {n: _write_array(folder, log_id, n, a) for n, a in _score_arrays(s).items()}
             scores[log_id] = labeling.LogScores(
-                kept["surprise"], kept.get("probs"), kept.get("disagreement"), kept.get("drift")
+                kept["surprise"], kept.get("probs"), kept.get("disagreement"), kept.get("drift"), kept.get("agreement")
             )
             names[str(log_id)] = sorted(kept)
         del part
@@ -228,7 +230,7 @@ def _score_and_store(
                 names[str(i)].append(f"track.{kind}")
         del ranked
         for s in scores.values():  # the ranking read every log's kept scores: not held resident for the next kind
-            for array in (s.surprise, s.probs, s.disagreement, s.drift):
+            for array in (s.surprise, s.probs, s.disagreement, s.drift, s.agreement):
                 if array is not None:
                     drop_pages(array)
     result = SessionScores(
@@ -289,6 +291,7 @@ def stored_scores(session: Session) -> StoredScores | None:
                 z["probs"] if has else None,
                 z["disagreement"] if has else None,
                 z.get("drift"),
+                z.get("agreement") if has else None,  # none in scores kept before it was: the drift's figure then
             )
             tracks[x.id] = {k.split(".", 1)[1]: v for k, v in z.items() if k.startswith("track.")}
     except (OSError, ValueError, KeyError, TypeError):

@@ -62,18 +62,23 @@ def score_logs(
         device: Torch device.
 
     Returns:
-        Per log, ``LogScores``: ``(T,)`` surprise, and with classifiers ``(T, K)`` mean probabilities and ``(T,)``
-        mutual information between prediction and member (BALD), and ``(T,)`` drift where it is known.
+        Per log, ``LogScores``: ``(T,)`` surprise, and with classifiers ``(T, K)`` mean probabilities, ``(T,)``
+        mutual information between prediction and member (BALD) and, with two members or more, ``(T,)`` their
+        agreement (``labeling.member_agreement``), and ``(T,)`` drift where it is known.
     """
     if not classifiers:
         return [labeling.LogScores(np.asarray(s)) for s in surprise]
     k = classifiers[0].config.n_classes
     mean = [np.empty((len(f), k), np.float32) for f in features]
     disagreement = [np.empty(len(f), np.float32) for f in features]
+    pairs = len(classifiers) >= 2  # the members' agreement needs a pair
+    agreement = [np.empty(len(f), np.float32) if pairs else None for f in features]
 
     def reduce(i: int, a: int, b: int, probs: np.ndarray) -> None:  # probs: (M, b - a, K)
         mean[i][a:b] = probs.mean(axis=0)
         disagreement[i][a:b] = labeling.mutual_information(probs)
+        if pairs:
+            agreement[i][a:b] = labeling.member_agreement(probs)  # type: ignore[index]
 
     ensemble_pass(classifiers, features, reduce, batch=batch, device=device)
     drifts: list[np.ndarray | None] = [None] * len(features)
@@ -82,8 +87,8 @@ def score_logs(
             drifts[i] = drift_of_log(drift, classifiers, f)  # type: ignore[arg-type]
             f.release()  # type: ignore[union-attr]  # read whole again: its mapped frames not held over the logs
     return [
-        labeling.LogScores(np.asarray(s), m, d, r)
-        for s, m, d, r in zip(surprise, mean, disagreement, drifts, strict=True)
+        labeling.LogScores(np.asarray(s), m, d, r, g)
+        for s, m, d, r, g in zip(surprise, mean, disagreement, drifts, agreement, strict=True)
     ]
 
 

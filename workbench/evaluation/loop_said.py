@@ -46,6 +46,7 @@ def said_of_logs(
             change_points=points.get(x.id),
             rate_hz=x.rate_hz,
             checks=fresh.get(x.id),
+            members=s.agreement,
         )
         c = checks.get(x.id)
         free = ~covered(session, x)

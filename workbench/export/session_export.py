@@ -341,7 +341,13 @@ def classify_files(
         for name, a, s in zip(names, arrays, scored, strict=True):  # per file: its drift and what to expect on it
             points = log_change_points(a, s.surprise if own_surprise else None, rate_hz=bundle.rate_hz)
             expect = file_expectation(
-                name, s.drift, bundle.metrics, predicted=s.probs.argmax(1), change_points=points, rate_hz=bundle.rate_hz
+                name,
+                s.drift,
+                bundle.metrics,
+                predicted=s.probs.argmax(1),
+                change_points=points,
+                rate_hz=bundle.rate_hz,
+                members=s.agreement,
             )
             if expect is not None:
                 lines += [expect.line(), *filter(None, [expect.warning()])]

@@ -62,9 +62,7 @@ def logs_table_html(
         labelled[seg.log_id] = labelled.get(seg.log_id, 0) + seg.length
     rows = []
     drift_column = bool(drifted) and any(v is not None for v in drifted.values())
-    expect_column = bool(expected) and any(
-        e is not None and (e.expected is not None or e.agreement is not None) for e in expected.values()
-    )
+    expect_column = bool(expected) and any(e is not None and e.figure is not None for e in expected.values())
     for log in logs:
         lab = labelled.get(log.id, 0) / max(log.n_samples, 1)
         title = html.escape(f"{log.format}: {log.source_path}", quote=True)
@@ -95,8 +93,9 @@ def logs_table_html(
         red = [] if card is None else [f"10 points or more below the card&#39;s {card:.0%}"]
         below = "; red: " + ", or ".join([*red, "contradicted by your checks of this model in the log"])
         head += (
-            "<th class='n' title='accuracy expected on the log at its drift, else the share of its steps predicted "
-            "as their stretch&#39;s most predicted terrain (stretches between change points; both on hover)"
+            "<th class='n' title='accuracy expected on the log: how often the model&#39;s members name the same "
+            "terrain there, else its expected accuracy at its drift, else the share of its steps predicted as their "
+            "stretch&#39;s most predicted terrain (stretches between change points; each on hover)"
             f"{below}'>expect</th>"
         )
     if checks:
@@ -119,7 +118,7 @@ def logs_table_html(
 
 
 def _expected_cell(e: FileExpectation | None) -> str:
-    if e is None or (e.expected is None and e.agreement is None):
+    if e is None or e.figure is None:
         return "<td class='n'>–</td>"
     text = f"{e.figure:.0%}"
     both = html.escape(" ".join(filter(None, [e.figures(), e.warning() if e.checks_disagree else None])), quote=True)
@@ -170,6 +169,7 @@ class DataPanel:
                 change_points=state.known_change_points(i),  # the worker's; none computed here, on the UI's thread
                 rate_hz=rates.get(i),
                 checks=fresh.get(i),
+                members=s.agreement,
             )
             for i, s in scores.items()
         }

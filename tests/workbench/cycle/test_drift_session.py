@@ -90,14 +90,16 @@ def test_classify_writes_the_drift_and_warns_once_for_the_shifted_file(drifted, 
     assert code == 0, lines
     warnings = [x for x in lines if x.startswith("warning:")]
     assert len(warnings) == 1 and "shifted" in warnings[0] and "unlike anything labelled" in warnings[0], lines
-    # each file's drift and the agreement of its predictions within its stretches; two short walks hold out too few
-    # labelled rows for a relation, so no accuracy at the drift
+    # each file's drift, its members' agreement and the agreement of its predictions within its stretches; two short
+    # walks hold out too few labelled rows for a relation, so no accuracy at the drift
     said = {
         m[1]: float(m[2])
         for x in lines
         if (
             m := re.match(
-                r"^(\S+): median drift ([\d.]+), \d+% of it above 1; expected accuracy at most \d+% by its stretches", x
+                r"^(\S+): median drift ([\d.]+), \d+% of it above 1; expected accuracy \d+% by its members' "
+                r"agreement, at most \d+% by its stretches",
+                x,
             )
         )
     }

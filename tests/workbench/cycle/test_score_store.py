@@ -33,6 +33,8 @@ def test_stored_scores_read_back_equal_and_complete(trained: Session) -> None:  
         np.testing.assert_array_equal(g.surprise, s.surprise)
         np.testing.assert_array_equal(g.probs, s.probs)
         np.testing.assert_array_equal(g.disagreement, s.disagreement)
+        assert s.agreement is not None and s.agreement.min() >= 0 and s.agreement.max() <= 1  # the Data tab's figure
+        np.testing.assert_array_equal(g.agreement, s.agreement)
         assert set(got.tracks[log_id]) == set(scores.tracks[log_id])
         for kind, track in scores.tracks[log_id].items():
             np.testing.assert_array_equal(got.tracks[log_id][kind], track)
