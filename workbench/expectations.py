@@ -24,7 +24,7 @@ figures measured (``benchmarks/studies/expected_borealtc.py``, ``benchmarks/resu
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -183,6 +183,7 @@ def file_expectation(
     rate_hz: float | None = None,
     checks: labeling.CheckEstimate | None = None,
     members: np.ndarray | None = None,
+    labelled: Sequence[tuple[int, int]] = (),
 ) -> FileExpectation | None:
     """A file's expectation; ``None`` without drift.
 
@@ -195,6 +196,9 @@ def file_expectation(
         rate_hz: Its sample rate; with ``predicted`` and ``change_points``, the agreement within stretches.
         checks: The person's checks in it, where it is a session's log (``cycle.checks_summary``'s ``per_log``).
         members: Its steps' members' agreement ``(T,)`` (``labeling.LogScores.agreement``), where the scoring gave it.
+        labelled: Its labelled spans ``(start, stop)``, left out of the members' figure: what is expected is the
+            accuracy where the person has not said the terrain (a session's log; the loop's labels are where the
+            members doubted, and a short run's few seconds of them moved its figure by 2.5 points).
     """
     share = labeling.drifted_share(drift)
     if share is None:
@@ -204,7 +208,13 @@ def file_expectation(
     agreement = None
     if predicted is not None and change_points is not None and rate_hz is not None:
         agreement = stretch_share(predicted, change_points, rate_hz=rate_hz)
-    mean_agreement = float(np.mean(members)) if members is not None and len(members) else None
+    mean_agreement = None
+    if members is not None:
+        free = np.ones(len(members), bool)
+        for a, b in labelled:
+            free[a:b] = False
+        if free.any():
+            mean_agreement = float(np.mean(members[free], dtype=np.float64))
     return FileExpectation(name, float(np.median(drift)), share, expected, card, agreement, checks, mean_agreement)
 
 

@@ -80,6 +80,9 @@ def test_the_members_agreement_is_the_figure_where_the_scoring_gives_it() -> Non
         f"expected accuracy 88% by its members' agreement, {e.expected:.0%} at its drift (the card: 82%)"
     )
     assert file_expectation("walk3.csv", np.full(400, 1.9), m).figure == e.expected  # scores kept before it: drift
+    # the person's labelled time is left out: there the terrain is known, not expected
+    assert file_expectation("walk3.csv", np.full(400, 1.9), m, members=members, labelled=[(300, 400)]).members == 1.0
+    assert file_expectation("w.csv", np.full(400, 1.9), m, members=members, labelled=[(0, 400)]).figure == e.expected
 
 
 def test_without_a_relation_the_drifted_share_decides_and_without_drift_nothing_is_said() -> None:

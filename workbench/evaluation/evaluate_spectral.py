@@ -79,6 +79,7 @@ def run_expectations(
     stretch: np.ndarray | None = None,
     *,
     coarser: dict[float, np.ndarray] | None = None,
+    members: np.ndarray | None = None,
 ) -> list[dict]:
     """Per held-out run, what the fit expected it to score and what it scored: from its windows' drift ``(N,)``,
     probabilities ``(N, K)``, truth ``(N,)`` and run ``(N,)``. ``expected`` is what ``classify`` prints at its drift
@@ -88,7 +89,8 @@ def run_expectations(
     rules they were chosen against. With ``stretch`` ``(N,)`` (each window's stretch of its run, as ``classify``
     cuts a file at its change points), ``stretches`` is the same share per stretch: what ``classify`` prints;
     ``coarser`` maps a shortest stretch in seconds to such an array with shorter stretches merged (a screen), read
-    into ``stretches_at``."""
+    into ``stretches_at``. With ``members`` ``(N,)`` (each window's members' agreement,
+    ``labeling.member_agreement``), ``members`` is its mean over the run: what the Data tab shows of a log."""
     card = (fit_metrics.get("estimate") or {}).get("accuracy")
     relation = fit_metrics.get("drift_accuracy")
     out = []
@@ -106,6 +108,7 @@ def run_expectations(
                 "purity": float(np.bincount(probs[mine].argmax(1)).max() / mine.sum()),
                 "stretches": None if stretch is None else _agreement(probs, mine, stretch),
                 "stretches_at": {s: _agreement(probs, mine, cut) for s, cut in (coarser or {}).items()},
+                "members": None if members is None else float(members[mine].mean()),
                 "median_drift": float(np.median(drift[mine])),
                 "card": card,
             }
@@ -269,7 +272,8 @@ def borealtc_window_protocol(
         )
         x, owner = window_inputs([parts[i] for i in test_idx], win, stride, config, normalizer)
         # (N, K): the windows as steps, the model is per step
-        probs = run_classifiers(cfit.models, [x], device=device)[0].mean(0)
+        members = run_classifiers(cfit.models, [x], device=device)[0]  # (M, N, K)
+        probs = members.mean(0)
         for model in cfit.models:  # the pass moved them; the drift and the member below read them on the CPU
             model.cpu()
         y_true = y[test_idx][owner]
@@ -283,8 +287,16 @@ def borealtc_window_protocol(
         coarser = {s: _window_stretches(*cut, min_length=round(s * rate_hz)) for s in screen_stretch_s}
         stretch = _window_stretches(*cut, min_length=round(SHORTEST_STRETCH_S * rate_hz))  # as classify cuts
         m["runs"] = run_expectations(
-            cfit.metrics, drift, probs, y_true, run_of[test_idx][owner], stretch, coarser=coarser
+            cfit.metrics,
+            drift,
+            probs,
+            y_true,
+            run_of[test_idx][owner],
+            stretch,
+            coarser=coarser,
+            members=labeling.member_agreement(members) if len(members) >= 2 else None,
         )
+        del members
         if member is not None:
             test = [normalizer(parts[i]) for i in test_idx]
             raw, raw_owner = cut_windows(test, win, stride)

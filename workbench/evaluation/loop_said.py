@@ -1,7 +1,7 @@
 """What the workbench says of each new log in ``evaluate loop`` (issue 65's fourth target): the figure its Data tab
-shows (the accuracy expected at the log's drift, else the bound by its stretches), the person's checks in it, and
-whether it warns, beside the truth. A log passes when its figure lies within ``WITHIN`` of the truth or the
-workbench warns about it by name."""
+shows (its members' agreement, else the accuracy expected at the log's drift, else the bound by its stretches), the
+person's checks in it, and whether it warns, beside the truth. A log passes when its figure lies within ``WITHIN`` of
+the truth or the workbench warns about it by name."""
 
 from __future__ import annotations
 
@@ -47,6 +47,7 @@ def said_of_logs(
             rate_hz=x.rate_hz,
             checks=fresh.get(x.id),
             members=s.agreement,
+            labelled=[(g.start, g.stop) for g in session.segments(x.id)],  # as the Data tab
         )
         c = checks.get(x.id)
         free = ~covered(session, x)
@@ -74,9 +75,9 @@ def said_table(arms: Mapping[str, Sequence[tuple[Mapping[str, float], Mapping[st
         arms: Per strategy, its rounds as ``(accuracy per log, said per log)``; the last one is reported.
     """
     lines = [
-        "What the workbench says of each new log after the last round (the Data tab's figure: expected at its drift,",
-        f"else bounded by its stretches); a log passes when that figure is within {100 * WITHIN:.0f} points of the "
-        "truth or a warning names it:",
+        "What the workbench says of each new log after the last round (the Data tab's figure: its members' agreement,",
+        "else expected at its drift, else bounded by its stretches); a log passes when that figure is within "
+        f"{100 * WITHIN:.0f} points of the truth or a warning names it:",
         "",
         "| strategy | log | accuracy (%) | the workbench's figure (%) | its mean confidence (%) | checks in it right | "
         "warning | passes |",

@@ -160,6 +160,9 @@ class DataPanel:
         # a figure is the active model's: only the checks of that model can contradict it (each earlier check was
         # of a model that has since learned from it)
         fresh = {} if classifier is None else checks_summary(session, classifier=classifier.id).per_log
+        spans: dict[int, list[tuple[int, int]]] = {}
+        for g in session.segments():
+            spans.setdefault(g.log_id, []).append((g.start, g.stop))
         expected = {
             i: file_expectation(
                 names.get(i, str(i)),
@@ -170,6 +173,7 @@ class DataPanel:
                 rate_hz=rates.get(i),
                 checks=fresh.get(i),
                 members=s.agreement,
+                labelled=spans.get(i, ()),
             )
             for i, s in scores.items()
         }

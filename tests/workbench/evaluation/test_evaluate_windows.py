@@ -157,3 +157,8 @@ def test_the_default_family_protocol_learns_easy_terrains_on_unseen_runs() -> No
     )
     assert len(res) == 2 and all("(runs)" in line and "pseudo-labelled" in line for line in lines)
     assert all(r.windows > 0 for r in res) and np.mean([r.accuracy for r in res]) > 0.9
+    # per held-out run, what each figure expected beside what it scored: easy runs the members agree on and get right
+    runs_said = [r for fold in res for r in fold.metrics["runs"]]
+    assert runs_said and all(0 <= r["members"] <= 1 for r in runs_said)
+    right = [r for r in runs_said if r["accuracy"] > 0.9]
+    assert right and np.mean([r["members"] for r in right]) > 0.8
