@@ -121,6 +121,7 @@ def _write_export(
     drifted: dict[str, float] = {}
     unlabelled: dict[str, tuple[float, int]] = {}  # the logs nobody labelled: what the model expects there
     agree, agree_steps = 0.0, 0  # their steps predicted as their stretch's most predicted terrain
+    members, members_steps, members_logs = 0.0, 0, 0  # their steps' members' agreement (the Data tab's figure)
     logs = model_logs(session, bundle.channels)
     if predictions or mcap or bundle.drift is not None:  # every log scored, a group at a time, handed on per log
         table = PredictionsWriter(out / "predictions.parquet") if predictions else None
@@ -140,6 +141,10 @@ def _write_export(
                 e = file_expectation(log.name, s.drift, bundle.metrics)
                 if e is not None and e.expected is not None:
                     unlabelled[log.name] = (e.expected, len(s.drift))
+                if s.agreement is not None and len(s.agreement):
+                    members += float(np.sum(s.agreement, dtype=np.float64))
+                    members_steps += len(s.agreement)
+                    members_logs += 1
                 if s.probs is not None and len(s.probs):
                     cuts = signal_change_points(session, log)
                     agree += stretch_share(s.probs.argmax(1), cuts, rate_hz=log.rate_hz) * len(s.probs)  # type: ignore[operator]
@@ -161,6 +166,7 @@ def _write_export(
         drifted=drifted,
         unlabelled=unlabelled,
         unlabelled_agreement=agreement,
+        unlabelled_members=(members / members_steps, members_logs) if members_steps else None,
         checks=(checks := checks_summary(session)),
     )
     (out / "bundle" / "MODEL_CARD.md").write_text(card)
