@@ -172,7 +172,7 @@ def test_the_card_says_what_the_logs_with_no_label_are_expected_to_score() -> No
     assert "Their predictions agree with the most predicted terrain of their stretch on **70%**" in bounded
     assert "members' agreement" not in bounded  # the scores gave none
     both = model_card(bundle, version=1, session="s", unlabelled={"a": (0.9, 100)}, unlabelled_members=(0.85, 1))
-    assert "By their members' agreement, the 1 log with no label are expected to score **85%**" in both
+    assert "By their members' agreement, the 1 log with no label is expected to score **85%**" in both
     assert both.index("members' agreement") < both.index("At their drift")
     assert "logs with no label" not in model_card(bundle, version=1, session="s", drifted={"a": 0.1})
 

@@ -96,7 +96,8 @@ def _held_out_section(m: dict) -> list[str]:
 
 
 def _logs(n: int) -> str:
-    return f"{n} log" if n == 1 else f"{n} logs"
+    """``"1 log with no label is"``, ``"3 logs with no label are"``: the card's subject and its verb."""
+    return f"{n} log with no label is" if n == 1 else f"{n} logs with no label are"
 
 
 def _drift_section(
@@ -134,7 +135,7 @@ def _drift_section(
         ]
     if members is not None:
         lines += [
-            f"By their members' agreement, the {_logs(members[1])} with no label are expected to score "
+            f"By their members' agreement, the {_logs(members[1])} expected to score "
             f"**{members[0]:.0%}**: how often two of the ensemble's members name the same terrain there, the figure "
             "the Data tab and `workbench classify` give first (on BorealTC's held-out runs within 10 points of what "
             "a run scored on 62 % of them, the drift's figure below on 46 %; it reads high where every member is "
@@ -145,7 +146,7 @@ def _drift_section(
         weight = np.asarray([n for _, n in unlabelled.values()], np.float64)
         expected = float(np.average([e for e, _ in unlabelled.values()], weights=weight))
         lines += [
-            f"At their drift, the {_logs(len(unlabelled))} with no label are expected to score **{expected:.0%}** "
+            f"At their drift, the {_logs(len(unlabelled))} expected to score **{expected:.0%}** "
             "(each log's steps read through the relation between drift and accuracy measured on held-out labelled "
             "blocks; `workbench classify` prints the same per file). Nearer what new runs score than a same-run "
             "figure, and still above it where every terrain is labelled in one run (docs/model.md).",
