@@ -137,11 +137,8 @@ class FileExpectation:
         """One line when the person's checks in the log contradict its figure, when the file is expected to score
         well below the card, or (with no relation) is mostly drifted; else ``None``."""
         if self.checks_disagree:
-            what = (
-                "expected accuracy"
-                if self.members is not None or self.expected is not None
-                else ("its stretches bound its accuracy at")
-            )
+            bound = self.members is None and self.expected is None  # the figure is the stretches' bound
+            what = "its stretches bound its accuracy at" if bound else "expected accuracy"
             return (
                 f"warning: {self.name}: {what} {self.figure:.0%}, but your checks of this model in it found it "
                 f"{self.checks.words()}: trust the checks; label more of it and retrain"  # type: ignore[union-attr]
