@@ -8,8 +8,8 @@ and ``runtime``, what ships to a robot: ``bundle`` (a model as files), ``stream`
 ``onnx_export``. Two rooms hold what every family shares:
     ``figures``  what a fit's numbers mean: ``blocking`` (folds by blocks of time and by log), ``metrics``,
                  ``estimates`` (per terrain, and which kind of figure), ``drift_accuracy`` (accuracy at a drift)
-    ``running``  how fits run: ``cpu_threads``, ``fit_threads``, ``distributed`` (``torchrun``), ``checkpoint``,
-                 ``progress``
+    ``running``  how fits run: ``cpu_threads``, ``fit_threads``, ``fit_processes``, ``distributed`` (``torchrun``),
+                 ``checkpoint``, ``progress``
 
 At this level: ``registry`` (family name -> room), ``passes`` (stage 2 over whole logs), ``fitting`` (what every
 stage-2 fit returns), ``normalizer``, ``training_errors``, ``lazy_names``.

@@ -4,14 +4,17 @@ run, each on its own copy of the session (the frames are computed anew by each) 
 
 - limited to 2 CPUs (the process's affinity and ``OMP_NUM_THREADS=2``, as ``taskset -c 0,1`` gives): the reference;
 - on every CPU of the machine;
+- on every CPU with stage 2's fits in threads (``WORKBENCH_FIT_PROCESSES=0``), as before they ran in processes: what
+  the processes are worth;
 - with ``--device cuda`` on every CPU, where a CUDA device is present (else the row says "not run").
 
 Then the paper family's stage 1 (``--model paper --stage predictor``, ``--paper-epochs`` epochs, no early stop) on
-every CPU and with ``--device cuda``: its throughput in timesteps per second.
+every CPU and with ``--device cuda``: its throughput in timesteps per second (``--no-paper``: not run).
 
 Usage::
 
-    python benchmarks/speed/bench_devices.py [--hours 4] [--paper-epochs 2] [--quick] [--out FILE.json]
+    python benchmarks/speed/bench_devices.py [--hours 4] [--paper-epochs 2] [--no-paper] [--keep DIR] [--quick]
+        [--out FILE.json]
 
 Writing, ingesting and labelling the logs are set-up (``bench_first_model.py``'s), timed but not part of a figure.
 On a 2-CPU machine the first two rows are the same machine twice: the ratio says so rather than hides it.
@@ -49,10 +52,10 @@ def _setup(folder: Path, hours: float) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def _train(session: Path, extra: list[str], *, cpus: int | None) -> dict:
-    """``workbench train SESSION *extra`` in a fresh interpreter on ``cpus`` CPUs (``None``: all); its seconds and
-    the new classifier's out-of-fold accuracy."""
-    env = dict(os.environ)
+def _train(session: Path, extra: list[str], *, cpus: int | None, env_extra: dict[str, str] | None = None) -> dict:
+    """``workbench train SESSION *extra`` in a fresh interpreter on ``cpus`` CPUs (``None``: all); its seconds, the
+    new classifier's out-of-fold accuracy and the stages' own "done in" lines."""
+    env = {**os.environ, **(env_extra or {})}
     pin = None
     if cpus is not None:
         chosen = sorted(os.sched_getaffinity(0))[:cpus]
@@ -74,7 +77,8 @@ def _train(session: Path, extra: list[str], *, cpus: int | None) -> dict:
         "    print(json.dumps({'accuracy': c.metrics.get('accuracy') if c else None, 'predictor': p.metrics}))"
     )
     info = subprocess.run([sys.executable, "-c", code, str(session)], capture_output=True, text=True, cwd=ROOT)
-    return {"seconds": seconds, **json.loads(info.stdout.strip().splitlines()[-1])}
+    stages = [line.strip() for line in (out.stdout + out.stderr).splitlines() if "done in" in line]
+    return {"seconds": seconds, "stages": stages, **json.loads(info.stdout.strip().splitlines()[-1])}
 
 
 def _copy(src: Path, dst: Path) -> Path:
@@ -86,27 +90,35 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--hours", type=float, default=4.0)
     p.add_argument("--paper-epochs", type=int, default=2)
+    p.add_argument("--no-paper", action="store_true", help="leave out the paper family's stage-1 arms")
+    p.add_argument("--no-cuda-arm", action="store_true", help="leave out the default family's `--device cuda` arm")
+    p.add_argument("--keep", type=Path, default=None, help="copy the set-up session here (no model yet) for more runs")
     p.add_argument("--quick", action="store_true", help="half an hour, one paper epoch: checks the script runs")
     p.add_argument("--out", type=Path, default=None, help="also write every measurement here (JSON)")
     args = p.parse_args()
     hours, epochs = (0.5, 1) if args.quick else (args.hours, args.paper_epochs)
     cpus = len(os.sched_getaffinity(0))
     cuda = _cuda()
-    runs: dict = {"cpus": cpus, "cuda": cuda}
+    runs: dict = {"cpus": cpus, "cuda": cuda, "no_paper": args.no_paper}
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(tmp)
         runs["setup"] = _setup(base, hours)
         session = base / "session"
         print(f"set-up: {runs['setup']}", flush=True)
-        arms = {"2 cpus": ([], 2), f"{cpus} cpus": ([], None)}
-        if cuda:
-            arms[f"{cpus} cpus + cuda"] = (["--device", "cuda"], None)
-        for name, (extra, n) in arms.items():
-            runs[name] = _train(_copy(session, base / name.replace(" ", "-")), extra, cpus=n)
+        if args.keep:
+            _copy(session, args.keep)
+        threads = {"WORKBENCH_FIT_PROCESSES": "0"}
+        arms = {"2 cpus": ([], 2, None), f"{cpus} cpus": ([], None, None), f"{cpus} cpus, threads": ([], None, threads)}
+        if cuda and not args.no_cuda_arm:
+            arms[f"{cpus} cpus + cuda"] = (["--device", "cuda"], None, None)
+        for name, (extra, n, env) in arms.items():
+            folder = base / name.replace(" ", "-").replace(",", "")
+            runs[name] = _train(_copy(session, folder), extra, cpus=n, env_extra=env)
             print(f"default family, {name}: {runs[name]}", flush=True)
+            shutil.rmtree(folder)
         paper = ["--model", "paper", "--stage", "predictor", "--max-epochs", str(epochs), "--patience", str(epochs + 1)]
-        paper_arms = {f"paper {cpus} cpus": (paper, None)}
-        if cuda:
+        paper_arms = {} if args.no_paper else {f"paper {cpus} cpus": (paper, None)}
+        if cuda and not args.no_paper:
             paper_arms[f"paper {cpus} cpus + cuda"] = ([*paper, "--device", "cuda"], None)
         for name, (extra, n) in paper_arms.items():
             runs[name] = _train(_copy(session, base / name.replace(" ", "-")), extra, cpus=n)
@@ -139,6 +151,7 @@ def _rows(runs: dict, epochs: int) -> list[Row]:
     many, gpu = f"{cpus} cpus", f"{cpus} cpus + cuda"
     r_cores, x_cores = ratio(many, "2 cpus") if cpus > 2 else ("– (this machine has 2 CPUs: one arm)", None)
     r_gpu, x_gpu = ratio(gpu, many)
+    r_forked, _ = ratio(many, f"{many}, threads")
     r_paper, _ = ratio(f"paper {gpu}", f"paper {many}")
     steps = setup["hours"] * 3600 * 100 * epochs
     paper = {
@@ -156,6 +169,14 @@ def _rows(runs: dict, epochs: int) -> list[Row]:
             None if x_cores is None or cpus < 16 else x_cores >= 4,
         ),
         Row(
+            f"first model, {shape}, every CPU ({cpus}): stage 2's fits in forked processes",
+            fig(many),
+            f"the fits in threads (`WORKBENCH_FIT_PROCESSES=0`): {fig(f'{many}, threads')}",
+            r_forked,
+            "–",
+            None,
+        ),
+        Row(
             f"first model, {shape}: `--device cuda`",
             fig(gpu),
             f"every CPU ({cpus}): {fig(many)}",
@@ -165,7 +186,7 @@ def _rows(runs: dict, epochs: int) -> list[Row]:
         ),
         Row(
             f"paper family's stage 1, {epochs} epoch(s) over {shape}: `--device cuda`",
-            paper.get(f"paper {gpu}", "not run (no CUDA device)"),
+            paper.get(f"paper {gpu}", "not run" if runs.get("no_paper") else "not run (no CUDA device)"),
             f"every CPU ({cpus}): {paper.get(f'paper {many}', '–')}",
             r_paper,
             "–",

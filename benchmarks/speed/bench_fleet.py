@@ -216,14 +216,48 @@ STEPS = {
 }
 
 
+def _children(pid: str) -> list[str]:
+    """The processes ``pid`` started and that still run (every thread's), and theirs."""
+    out = []
+    for children in Path(f"/proc/{pid}/task").glob("*/children"):
+        try:
+            out += children.read_text().split()
+        except OSError:  # the thread ended
+            continue
+    return out + [g for c in out for g in _children(c)]
+
+
+def _proportional(pids: list[str]) -> tuple[int, int]:
+    """The summed ``Pss`` and ``Pss_Anon`` of ``pids``, in bytes: a page shared by n of them counts 1/n in each,
+    so the sum is what they hold together (a forked fit's inherited pages are not counted twice)."""
+    pss = anon = 0
+    for pid in pids:
+        try:
+            text = Path(f"/proc/{pid}/smaps_rollup").read_text()
+        except OSError:  # it ended
+            continue
+        for line in text.splitlines():
+            if line.startswith("Pss:"):
+                pss += int(line.split()[1]) * 1024
+            elif line.startswith("Pss_Anon:"):
+                anon += int(line.split()[1]) * 1024
+    return pss, anon
+
+
 def _anonymous_peak(stop: threading.Event, out: dict) -> None:
     """The highest ``RssAnon`` (memory the process itself holds, not mapped file pages, which the kernel takes back
-    when it needs them) seen every 50 ms until ``stop``."""
+    when it needs them) seen every 50 ms until ``stop``; while the process has children (stage 2's forked fits),
+    also the highest summed ``Pss`` and ``Pss_Anon`` of it and them (``tree``, ``tree_anon``), which
+    ``ru_maxrss`` of this process alone would leave out."""
+    me = str(os.getpid())
     while True:
         with open("/proc/self/status") as f:
             for line in f:
                 if line.startswith("RssAnon:"):
                     out["anon"] = max(out.get("anon", 0), int(line.split()[1]) * 1024)
+        if children := _children(me):
+            pss, anon = _proportional([me, *children])
+            out["tree"], out["tree_anon"] = max(out.get("tree", 0), pss), max(out.get("tree_anon", 0), anon)
         if stop.wait(0.05):
             return
 
@@ -237,7 +271,9 @@ def _finish(out: dict) -> None:
     _CHILD["sampler"].join()
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # kB on Linux
     seconds = time.perf_counter() - _CHILD["t"]
-    print(json.dumps({"peak": peak, "anon": _CHILD["anon"].get("anon", 0), "seconds": seconds, **out}), flush=True)
+    sampled = _CHILD["anon"]
+    tree = {k: sampled[k] for k in ("tree", "tree_anon") if k in sampled}  # only where fits were forked
+    print(json.dumps({"peak": peak, "anon": sampled.get("anon", 0), **tree, "seconds": seconds, **out}), flush=True)
     if _CHILD.get("exit"):
         os._exit(0)  # work the step started and has no use for (a rescoring) is not waited for
 
@@ -284,7 +320,9 @@ def main() -> None:
     )
 
     def peak(step: str) -> str:
-        return f"peak {r[step]['peak'] / gib:.2f} GiB RSS ({r[step]['anon'] / gib:.2f} GiB not file pages)"
+        tree = r[step].get("tree")
+        forked = "" if tree is None else f"; with its forked fits, summed Pss {tree / gib:.2f} GiB"
+        return f"peak {r[step]['peak'] / gib:.2f} GiB RSS ({r[step]['anon'] / gib:.2f} GiB not file pages{forked})"
 
     rows = [
         Row(

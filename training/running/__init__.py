@@ -1,8 +1,9 @@
-"""How fits run: on the CPUs that are free, side by side in threads, across processes under ``torchrun``, resumable
-from checkpoints, reporting progress and polled for a cancel.
+"""How fits run: on the CPUs that are free, side by side in forked processes or threads, across processes under
+``torchrun``, resumable from checkpoints, reporting progress and polled for a cancel.
 
 Modules: ``cpu_threads`` (threads for the free CPUs), ``fit_threads`` (a family's fits run two or more at a time,
-bit-identical whatever the threads), ``distributed`` (the process group under ``torchrun``; a public submodule),
+bit-identical whatever the workers), ``fit_processes`` (those fits in forked children, clear of the GIL),
+``distributed`` (the process group under ``torchrun``; a public submodule),
 ``checkpoint`` (a fit's state on disk, keyed by its settings), ``progress`` (what a fit reports, and its cancel).
 Names load on first use: ``progress`` and ``cpu_threads`` never load torch.
 """
@@ -22,6 +23,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "save_checkpoint",
         ),
         "cpu_threads": ("free_cpus", "threads_for", "use_free_cpus", "usable_cpus"),
+        "fit_processes": ("fork_safe", "hide_gpus"),
         "fit_threads": ("INIT_LOCK", "fit_workers", "run_fits"),
         "progress": ("CancelFn", "Cancelled", "Progress", "ProgressFn", "never"),
     },

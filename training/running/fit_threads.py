@@ -1,4 +1,5 @@
-"""Independent fits side by side, one thread each, on the cores torch would otherwise share within one fit.
+"""Independent fits side by side, one thread (or forked process, :mod:`.fit_processes`) each, on the cores torch
+would otherwise share within one fit.
 
 A fold's small network gains little from torch's threads (two threads: 1.2 times one, on a 2-core machine; each op
 is too small to split well), while two fits in two threads each running torch on one take 1.85 times less time than
@@ -12,9 +13,12 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_EXCEPTION, Future, ThreadPoolExecutor, wait
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import torch
+
+from .fit_processes import fork_safe, give_up_forking, run_fits_forked
+from .progress import CancelFn, never
 
 T = TypeVar("T")
 
@@ -26,14 +30,29 @@ def fit_workers(jobs: int) -> int:
     return max(1, min(jobs, torch.get_num_threads()))
 
 
-def run_fits(jobs: Sequence[Callable[[], T]], *, workers: int, done: Callable[[int], None] | None = None) -> list[T]:
+def run_fits(
+    jobs: Sequence[Callable[[], T]],
+    *,
+    workers: int,
+    done: Callable[[int], None] | None = None,
+    portable: tuple[Callable[[T], Any], Callable[[Any], T]] | None = None,
+    cancel: CancelFn = never,
+) -> list[T]:
     """Run ``jobs`` and return their results in the jobs' order.
 
     Args:
         jobs: Independent fits (each draws from its own generator, see the module's note).
-        workers: Threads; with one, the jobs run in turn on the calling thread with torch's threads as they are.
-            With more, each thread runs torch on one thread for the duration, and the count is restored after.
+        workers: Threads or processes; with one, the jobs run in turn on the calling thread with torch's threads as
+            they are. With more, each runs torch on one thread for the duration, and the count is restored after.
         done: Called on the calling thread with the number of jobs finished so far, after each one.
+        portable: ``(pack, unpack)``, a result to plain data and back: given, and where forking is allowed
+            (:func:`.fit_processes.fork_safe`), the jobs run in forked processes (:mod:`.fit_processes`), which the
+            GIL does not hold back; without it, in threads. Not for jobs that use CUDA (a forked child cannot). A
+            ``RuntimeError`` raised in a child (torch refusing to train there) runs the jobs again in threads, and
+            this process forks no more fits (a job's own ``RuntimeError`` then comes from the threads, at twice the
+            time); a child that died raises :class:`.fit_processes.FitProcessError` (in a thread it would have
+            taken this process with it).
+        cancel: Polled while forked children run (threads and the calling thread poll it inside the jobs).
 
     Returns:
         Each job's result.
@@ -49,6 +68,12 @@ def run_fits(jobs: Sequence[Callable[[], T]], *, workers: int, done: Callable[[i
             if done:
                 done(i + 1)
         return out
+    if portable is not None and fork_safe():
+        pack, unpack = portable
+        try:
+            return run_fits_forked(jobs, workers=workers, pack=pack, unpack=unpack, done=done, cancel=cancel)
+        except RuntimeError as e:  # torch refusing to train in a forked child: the fits again, in threads
+            give_up_forking(e)  # (not FitProcessError: a job whose child died would take this process down in a thread)
     threads = torch.get_num_threads()
 
     def one(job: Callable[[], T]) -> T:

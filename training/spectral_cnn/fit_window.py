@@ -242,8 +242,8 @@ def fit_window_classifier(
             every log is its own (a session's logs are runs; a protocol that cuts runs into pieces passes the runs).
         progress: Called after each fit, on the calling thread.
         cancel: Polled between epochs.
-        workers: Fits run side by side (:mod:`training.running.fit_threads`); default: one per torch thread. The result
-            does not depend on it.
+        workers: Fits run side by side (in forked processes on Linux, :mod:`training.running.fit_processes`, else in
+            threads); default: one per torch thread. The result does not depend on it.
         device: Where the networks train and score their held-out rows (``"cuda"``: on the GPU, their batches still
             gathered on the CPU); the models come back on the CPU either way.
 
@@ -364,7 +364,26 @@ def fit_window_classifier(
 
     jobs = [partial(member, f) for f in range(blocked.k)]
     jobs += [partial(log_fit, f_i, tr, va) for f_i, (tr, va) in enumerate(by_log, blocked.k + 1)]
-    results = run_fits(jobs, workers=fit_workers(total) if workers is None else workers, done=reported)
+
+    def pack(result: tuple) -> tuple:  # a member's network travels from a forked fit as its weights
+        if result and isinstance(result[0], WindowClassifier):
+            return ({k: v.numpy() for k, v in result[0].state_dict().items()}, *result[1:])
+        return result
+
+    def unpack(result: tuple) -> tuple:
+        if result and isinstance(result[0], dict):
+            model = WindowClassifier(model_config)
+            model.load_state_dict({k: torch.from_numpy(v) for k, v in result[0].items()})
+            return (model.eval(), *result[1:])
+        return result
+
+    results = run_fits(
+        jobs,
+        workers=fit_workers(total) if workers is None else workers,
+        done=reported,
+        portable=(pack, unpack) if torch.device(device).type == "cpu" else None,
+        cancel=cancel,
+    )
     models, histories, oof_true, oof_pred, pseudo = [], [], [], [], []
     trained_rows, oof_rows, oof_logits, oof_classes = [], [], [], []  # per member: for the drift and calibration
     right = []  # per member: whether it named each row of its drift sample right

@@ -102,6 +102,10 @@ def evaluate(
     from ..evaluation import protocols as ev
 
     check_device(device)
+    if device == "cpu":
+        from training import hide_gpus
+
+        hide_gpus()  # a CUDA torch's autograd would otherwise forbid the fits' forked processes their backward pass
     if dataset in ("loop", "session") and device != "cpu":  # both fit as the session's Retrain does: on the CPU
         raise WorkbenchError(
             f"--device {device}: evaluate {dataset} fits as the Retrain does, on the CPU; leave --device out"

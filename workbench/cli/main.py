@@ -223,6 +223,8 @@ def serve(
         stage1_epochs: Most epochs of a predictor retrain from the UI (early stopping may end it sooner).
         stage2_epochs: Most epochs of a classifier retrain from the UI.
     """
+    from training import hide_gpus
+
     from ..ui.app import WorkbenchApp
     from ..ui.gate import check_token, is_loopback, new_token
 
@@ -233,6 +235,7 @@ def serve(
     if token is None and not no_token and not is_loopback(host):
         token = new_token()
     check_token(token, host=host)  # before the session opens: an empty --token is refused, never served
+    hide_gpus()  # the UI trains and scores on the CPU: a GPU seen by torch would keep its fits from forking
     s = Session.open(session)
     if not is_loopback(host):
         print(
@@ -285,8 +288,12 @@ def demo(
             paper --hidden 200` gives the paper's width). The default family's sizes are its own.
         serve_ui: Serve the UI when ready (--no-serve: prepare the session and exit).
     """
+    from training import hide_gpus
+
     from ..demo import TERRAINS, generate_demo_logs
     from ..demo import seed_labels as add_seed_labels
+
+    hide_gpus()  # the demo trains and serves on the CPU (see serve)
 
     if (session / "session.sqlite").exists():
         with Session.open(session) as s:

@@ -163,6 +163,10 @@ def train(
             "under torchrun only the paper family's LSTM predictor trains (--model paper --stage predictor); the "
             "default family's stage 1 trains in seconds in one process: run `workbench train SESSION` without torchrun"
         )
+    if device == "cpu":
+        from training import hide_gpus
+
+        hide_gpus()  # a CUDA torch's autograd would otherwise forbid the fits' forked processes their backward pass
     from .. import cycle  # after the refusals: they come without loading the families (seconds)
 
     world = distributed.join(device)
