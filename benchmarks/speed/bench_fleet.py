@@ -8,7 +8,9 @@ MCAP, 5 % of the time labelled.
 Each step runs in a fresh interpreter, as a person runs the command (the first screen and the Retrain as
 `workbench serve` hosts them), and reports its wall time and peak resident set (``ru_maxrss``: mapped file pages
 count in it once read), and beside it the peak of what is not file pages (``RssAnon`` sampled every 50 ms: the
-memory the process itself holds; mapped pages of the session's files are the kernel's to take back). Writing the
+memory the process itself holds; mapped pages of the session's files are the kernel's to take back). While a step
+has child processes (stage 2's forked fits), it also reports the peak of its and their summed ``Pss``
+(``tree``, ``tree_anon``: a page they share counts once), which its own ``ru_maxrss`` would leave out. Writing the
 logs and labelling them are set-up, timed but not part of any figure.
 
 References, measured in the same run on the same session:

@@ -48,7 +48,8 @@ _UNSAFE: list[bool] = []  # set once a child's backward pass failed: autograd's 
 def hide_gpus() -> bool:
     """For a run that trains on the CPU only: hide the GPUs from torch before anything asks torch about them, so that
     its autograd starts no GPU threads and the fits can fork (:func:`fork_safe`). Returns whether they were hidden
-    (not where torch already counted them, nor where ``CUDA_VISIBLE_DEVICES`` is set already)."""
+    (not where torch has initialised CUDA, nor where ``CUDA_VISIBLE_DEVICES`` is set already; where torch has only
+    counted the GPUs, the variable comes too late and :func:`fork_safe` finds that out)."""
     if not forking() or "CUDA_VISIBLE_DEVICES" in os.environ or torch.cuda.is_initialized():
         return False
     os.environ["CUDA_VISIBLE_DEVICES"] = ""
