@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -116,3 +117,42 @@ def test_hiding_the_gpus_leaves_a_chosen_device_list_alone(monkeypatch: pytest.M
     monkeypatch.delenv("CUDA_VISIBLE_DEVICES")
     if not torch.cuda.is_initialized():  # a CPU run on a machine whose GPUs torch has not counted yet
         assert fit_processes.hide_gpus() and os.environ["CUDA_VISIBLE_DEVICES"] == ""
+
+
+def test_a_killed_parent_leaves_no_fit_running(tmp_path) -> None:
+    """A `train` killed with SIGKILL (as the kill tests do) takes its forked fits with it."""
+    import signal
+    import subprocess
+    import sys
+
+    pids = tmp_path / "pids"
+    code = (
+        "import os, sys, time\n"
+        "from training.running import run_fits\n"
+        "def fit():\n"
+        f"    open({str(pids)!r}, 'a').write(f'{{os.getpid()}}\\n')\n"
+        "    time.sleep(60)\n"
+        "run_fits([fit, fit], workers=2, portable=(lambda r: r, lambda r: r))\n"
+    )
+    parent = subprocess.Popen([sys.executable, "-c", code])
+    try:
+        deadline = time.monotonic() + 60
+        while (not pids.exists() or len(pids.read_text().split()) < 2) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        children = [int(p) for p in pids.read_text().split()]
+        assert len(children) == 2
+    finally:
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+    deadline = time.monotonic() + 10
+    while any(_alive(c) for c in children) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(_alive(c) for c in children)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"  # a zombie has ended (its parent, init, reaps it)

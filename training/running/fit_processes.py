@@ -18,8 +18,10 @@ CPU has no use for the GPU, and a torch that sees none starts no such thread).
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
+import signal
 import sys
 import traceback
 import warnings
@@ -35,6 +37,7 @@ from .progress import CancelFn, Cancelled, never
 T = TypeVar("T")
 
 POLL_S = 0.25  # how often a cancel is polled while the fits run
+PR_SET_PDEATHSIG = 1  # prctl's option: a signal for this process when the thread that forked it ends
 
 
 def forking() -> bool:
@@ -97,7 +100,19 @@ def _warm() -> None:
     opt.step()
 
 
-def _child(job: Callable[[], Any], pack: Callable[[Any], Any], conn: Connection) -> None:
+def _end_with(parent: int) -> None:
+    """Have the kernel end this child when the thread that forked it ends (a killed ``train`` or server leaves no fit
+    running on), or end it now if that already happened."""
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):  # no prctl: the child ends when its send finds the pipe closed
+        return
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def _child(job: Callable[[], Any], pack: Callable[[Any], Any], conn: Connection, parent: int) -> None:
+    _end_with(parent)
     torch.set_num_threads(1)
     try:
         out: tuple[str, Any] = ("ok", pack(job()))
@@ -148,7 +163,9 @@ def run_fits_forked(
             while waiting and len(running) < workers:
                 i = waiting.pop(0)
                 receive, send = context.Pipe(duplex=False)
-                child = context.Process(target=_child, args=(jobs[i], pack, send), daemon=True, name=f"fit-{i}")
+                child = context.Process(
+                    target=_child, args=(jobs[i], pack, send, os.getpid()), daemon=True, name=f"fit-{i}"
+                )
                 child.start()
                 send.close()  # the child holds the only writer: its end reads as EOF if it dies
                 running[receive] = (i, child)
