@@ -120,8 +120,9 @@ def _child(job: Callable[[], Any], pack: Callable[[Any], Any], conn: Connection,
         out = ("error", e, traceback.format_exc())
     try:
         conn.send(out)
-    except Exception as e:  # an exception that does not pickle: its type and message, as text
-        conn.send(("error", RuntimeError(f"{type(out[1]).__name__}: {out[1]}"), str(e)))
+    except Exception as e:  # what does not pickle goes back as text; the caller then runs the fits in threads
+        what = f"{type(out[1]).__name__}: {out[1]}" if out[0] == "error" else "its result"
+        conn.send(("error", RuntimeError(f"a forked fit could not send {what} back ({e})"), traceback.format_exc()))
     conn.close()
 
 
@@ -183,7 +184,9 @@ def run_fits_forked(
                     conn.close()
                 child.join()
                 if message[0] == "error":
-                    raise message[1]
+                    error = message[1]
+                    error.add_note(f"raised in the fit's forked process:\n{message[2]}")
+                    raise error
                 results[i] = unpack(message[1])
                 finished += 1
                 if done:
