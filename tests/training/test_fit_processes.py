@@ -122,31 +122,32 @@ def test_hiding_the_gpus_leaves_a_chosen_device_list_alone(monkeypatch: pytest.M
 def test_a_killed_parent_leaves_no_fit_running(tmp_path) -> None:
     """A `train` killed with SIGKILL (as the kill tests do) takes its forked fits with it."""
     import signal
-    import subprocess
-    import sys
 
     pids = tmp_path / "pids"
-    code = (
-        "import os, sys, time\n"
-        "from training.running import run_fits\n"
-        "def fit():\n"
-        f"    open({str(pids)!r}, 'a').write(f'{{os.getpid()}}\\n')\n"
-        "    time.sleep(60)\n"
-        "run_fits([fit, fit], workers=2, portable=(lambda r: r, lambda r: r))\n"
-    )
-    parent = subprocess.Popen([sys.executable, "-c", code])
+
+    def fit() -> None:
+        with pids.open("a") as f:
+            f.write(f"{os.getpid()}\n")
+        time.sleep(60)
+
+    parent = os.fork()  # a process standing for `train`, forked from this one (torch already imported)
+    if parent == 0:
+        try:
+            run_fits([fit, fit], workers=2, portable=PLAIN)
+        finally:
+            os._exit(0)
     try:
         deadline = time.monotonic() + 60
         while (not pids.exists() or len(pids.read_text().split()) < 2) and time.monotonic() < deadline:
-            time.sleep(0.1)
+            time.sleep(0.05)
         children = [int(p) for p in pids.read_text().split()]
         assert len(children) == 2
     finally:
-        parent.send_signal(signal.SIGKILL)
-        parent.wait()
+        os.kill(parent, signal.SIGKILL)
+        os.waitpid(parent, 0)
     deadline = time.monotonic() + 10
     while any(_alive(c) for c in children) and time.monotonic() < deadline:
-        time.sleep(0.1)
+        time.sleep(0.05)
     assert not any(_alive(c) for c in children)
 
 
