@@ -29,8 +29,9 @@ ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT.parent / "shared" / "data" / "borealtc"
 
 
-def labelled_session(folder: Path, how: str, seed: int) -> Path:
-    """A session of BorealTC's runs (their folder names as the reference), labelled ``how``."""
+def labelled_session(folder: Path, how: str, seed: int, *, share: float = 0.10) -> Path:
+    """A session of BorealTC's runs (their folder names as the reference), labelled ``how`` (``pieces``: ``share``
+    of the time in 5 s pieces; ``runs``: each terrain's longest run whole)."""
     from sessions import Session
     from workbench.demo import seed_labels
 
@@ -39,7 +40,7 @@ def labelled_session(folder: Path, how: str, seed: int) -> Path:
         for name in sorted({t for x in logs for _, _, t in s.reference(x.id)}):
             s.add_terrain(name)
         if how == "pieces":
-            seed_labels(s, 0.10, seed=seed, segment_s=5.0, author="benchmark")
+            seed_labels(s, share, seed=seed, segment_s=5.0, author="benchmark")
         else:
             longest: dict[str, tuple[int, int, int, int]] = {}
             for x in logs:

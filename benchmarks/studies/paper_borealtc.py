@@ -6,8 +6,9 @@ script of this room whose first line says what it decided and the figure that di
     python benchmarks/studies/paper_borealtc.py issue54 PART...   # some of its parts: labels, card-runs, ...
 
 ``decisions``: the default family's kept choices, each its study (the spectral front end under a plain learner, the
-network over the frames against the linear model, self-training left out, ``classify --smooth``); each output goes
-to ``benchmarks/results/decisions-NAME.txt``. Their durations on 2 cores were not measured as one command.
+network over the frames against the linear model, self-training left out, ``classify --smooth``), and MiniRocket's
+heads at 4,096 windows; each output goes to ``benchmarks/results/decisions-NAME.txt``. Their durations on 2 cores
+were not measured as one command.
 
 ``protocol``: the default family (about 2 minutes on 2 CPU cores) and the paper family (about an hour per split) on
 the authors' partition folds and on folds holding out whole runs, 10 % of the training partitions labelled.
@@ -89,6 +90,7 @@ DECISIONS = (
     ("network", [f"{BENCH}/default_family_cnn.py", "--outer", "3", "--variants", "lr", "cnn_st"]),
     ("self-training", [f"{BENCH}/default_family_ablation.py", "--labelled", "0.1"]),
     ("smooth", [f"{BENCH}/smooth_demo.py"]),
+    ("rocket-rows", [f"{BENCH}/rocket_rows_borealtc.py"]),  # MiniRocket's 4,096 windows where they bite (25 %)
 )
 ISSUES = {"decisions": DECISIONS, "issue54": ISSUE54, "issue65": ISSUE65}
 PREFIX = {"decisions": "decisions", "issue54": "issue-54", "issue65": "issue-65"}  # of each part's results file

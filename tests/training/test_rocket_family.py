@@ -76,6 +76,23 @@ def test_the_fit_measures_its_folds_and_held_out_logs_and_tells_the_terrains_apa
     assert not np.array_equal(a.head.weight.detach().numpy(), b.head.weight.detach().numpy())
 
 
+def test_past_the_row_budget_each_terrain_keeps_its_share_and_a_floor(small_rocket, fitted) -> None:
+    """Issue 66: the heads read at most ``ROWS`` labelled hop rows, a draw of each terrain's in proportion with
+    ``FLOOR`` rows at least (a briefly labelled terrain is not drawn away); under the budget, every row."""
+    _, _, feats, fit = fitted
+    assert fit.metrics["rows_read"] == [270, 270]  # 9 logs x 600 labelled steps / a hop of 20: all read
+    terrains = [0, 1, 2] * 3
+    segments = [(i, 300, 900 if k < 2 else 400, k) for i, k in enumerate(terrains)]  # 90, 90 and 15 rows
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("training.minirocket.rocket_steps_fit.ROWS", 60)
+        mp.setattr("training.minirocket.rocket_steps_fit.FLOOR", 20)
+        small = fit_rocket_steps(feats, segments, ("a", "b", "c"), config=WindowFitConfig(k_folds=3))
+    # 28 + 28 by their shares of 60, and all 15 of the third (under the floor)
+    assert small.metrics["rows_read"] == [71, 195]
+    assert small.metrics["held_out_logs"]["accuracy"] > 0.9
+    assert small.metrics["per_class_recall"]["c"] > 0.5
+
+
 def test_bundle_stream_and_onnx_give_the_offline_numbers(fitted, tmp_path) -> None:
     bundle, arrays, feats, _ = fitted
     loaded = load_bundle(save_bundle(bundle, tmp_path / "b"))
