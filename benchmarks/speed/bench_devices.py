@@ -108,9 +108,16 @@ def main() -> None:
         if args.keep:
             _copy(session, args.keep)
         threads = {"WORKBENCH_FIT_PROCESSES": "0"}
-        arms = {"2 cpus": ([], 2, None), f"{cpus} cpus": ([], None, None), f"{cpus} cpus, threads": ([], None, threads)}
+        # the default family named: unset, a first classifier on the CPU would be auto's (both families) and on CUDA
+        # the default's, and the arms would not compare like with like
+        default = ["--model", "default"]
+        arms = {
+            "2 cpus": (default, 2, None),
+            f"{cpus} cpus": (default, None, None),
+            f"{cpus} cpus, threads": (default, None, threads),
+        }
         if cuda and not args.no_cuda_arm:
-            arms[f"{cpus} cpus + cuda"] = (["--device", "cuda"], None, None)
+            arms[f"{cpus} cpus + cuda"] = ([*default, "--device", "cuda"], None, None)
         for name, (extra, n, env) in arms.items():
             folder = base / name.replace(" ", "-").replace(",", "")
             runs[name] = _train(_copy(session, folder), extra, cpus=n, env_extra=env)
