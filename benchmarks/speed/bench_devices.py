@@ -108,8 +108,8 @@ def main() -> None:
         if args.keep:
             _copy(session, args.keep)
         threads = {"WORKBENCH_FIT_PROCESSES": "0"}
-        # the default family named: unset, a first classifier on the CPU would be auto's (both families) and on CUDA
-        # the default's, and the arms would not compare like with like
+        # the default family named, as each arm's line says: every arm fits the same family, whatever a session's
+        # first classifier defaults to
         default = ["--model", "default"]
         arms = {
             "2 cpus": (default, 2, None),

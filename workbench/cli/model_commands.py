@@ -126,8 +126,8 @@ def train(
             or "paper" (the paper's two LSTMs; the options below are their settings). "auto": stage 2 of every
             family over the default's stage 1 (default and minirocket), each a version, the one the session's
             held-out evidence favours (balanced accuracy; another family must lead the default by a point) made
-            active, and the figures and the rule printed. Unset: the active classifier's family; for a session's
-            first classifier "auto" (with --device cuda, "default").
+            active, and the figures and the rule printed. Unset: the active classifier's family, "default" for
+            the first.
         device: Where to train: "cuda" trains the default family's fits and the paper family's LSTMs there; a
             family without a CUDA path (minirocket, auto's choice among families) refuses it in one line rather
             than train on the CPU unsaid.
@@ -175,8 +175,6 @@ def train(
             cycle.follow_predictor_training(config=config, hidden=hidden)
         else:
             with Session.open(session) as s:
-                if stage != "predictor":  # unset, a session's first classifier is chosen by its evidence
-                    model = cycle.first_model(s, model, device=device)
                 names = cycle.auto_families() if model == "auto" else (cycle.stage1_family(s, model).name,)
                 refuse_family_device(names, device)
                 if stage in ("predictor", "all"):  # auto's families share one stage 1: the first one's

@@ -15,7 +15,7 @@ the session's held-out evidence favours kept).
 
 from .change_point_store import keep_change_points, kept_change_points
 from .checks_record import ChecksSummary, checks_summary, estimate_disagrees, record_check
-from .family_choice import FamilyChoice, auto_families, first_model, train_best_classifier
+from .family_choice import FamilyChoice, auto_families, train_best_classifier
 from .frame_stage1 import train_frame_predictor, train_stage1
 from .front_end import (
     STRETCH_S,
@@ -84,7 +84,6 @@ __all__ = [
     "compute_scores",
     "consistency_pairs",
     "estimate_disagrees",
-    "first_model",
     "follow_predictor_training",
     "free_stretches",
     "front_end_of",

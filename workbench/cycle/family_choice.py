@@ -32,32 +32,17 @@ class FamilyChoice:
         kept: The version made active.
         fitted: Every version fitted, in registry order (``kept`` among them).
         why: One sentence: each family's figure and the rule that chose.
-        rule: The rule's words alone ("kept default: no other family led it by 1 point(s) or more").
     """
 
     kept: ModelVersion
     fitted: tuple[ModelVersion, ...]
     why: str
-    rule: str = ""
 
 
 def auto_families() -> tuple[str, ...]:
     """The families ``auto`` chooses among: those over the default's stage 1 (the next-frame predictor), so the
     session's one stage 1 serves them all; the registry's first (the default) first."""
     return tuple(n for n in training.family_names() if training.family(n).stage1 == "next-frame")
-
-
-def first_model(session: Session, model: str | None, *, device: str = "cpu") -> str | None:
-    """The family a train asked for ``model`` fits: ``model`` when named; unset, ``"auto"`` for a session's first
-    classifier over the default's stage 1 (issue 65, item 7: its own evidence chooses the family), else ``None``
-    (the active classifier's family, as a Retrain keeps it). Not on CUDA, where MiniRocket has no path: there the
-    first classifier is the default family's, as before."""
-    if model is not None or device != "cpu" or session.active_model("classifier") is not None:
-        return model
-    predictor = session.active_model("predictor")
-    if predictor is not None and predictor.config.get("kind") != training.FRAME_PREDICTOR_KIND:
-        return None  # the paper family's LSTM is stage 1: the families auto chooses among do not read it
-    return "auto" if len(auto_families()) > 1 else None
 
 
 def evidence(metrics: Mapping) -> tuple[float | None, str]:
@@ -111,4 +96,4 @@ def train_best_classifier(session: Session, **fit) -> FamilyChoice:
         rule = f"kept {first_name}: no other family could be measured"
     session.activate_model(kept.id)
     kept = next(v for v in session.model_versions("classifier") if v.id == kept.id)
-    return FamilyChoice(kept, fitted, f"{said}: {rule}", rule)
+    return FamilyChoice(kept, fitted, f"{said}: {rule}")

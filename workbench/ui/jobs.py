@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 from sessions import WorkbenchError
 from training import Cancelled, Progress, TrainConfig
 
-from ..cycle import first_model, train_best_classifier, train_classifier, train_stage1
+from ..cycle import train_classifier, train_stage1
 from ..retrain import RETRAIN
 from ..user_errors import USER_ERRORS, one_line
 from .state import SharedState
@@ -139,7 +139,6 @@ class TrainJob:
         progress = self._progress(stages, started)
         predictor_run = "predictor" in stages  # new features: the classifier starts afresh anyway
         quick = None  # the version a warm fine-tune saved: the refining phase follows it
-        chose = ""  # what a first classifier's choice among the families said
         hidden = self.hidden
         # a classifier's scores come next and the queue is ranked from them; a new stage 1 takes minutes, during
         # which the queue keeps following the person's labels
@@ -159,12 +158,15 @@ class TrainJob:
                 p = self.state.session.active_model("predictor")
                 hidden = int(p.config.get("hidden", self.hidden)) if p is not None else self.hidden
                 warm_epochs = None if predictor_run else self.warm_epochs
-                fit = dict(config=self.classifier_config, hidden=hidden, progress=progress, cancel=self._cancel.is_set)
-                if first_model(self.state.session, None) == "auto":  # the first classifier: each family, the best kept
-                    choice = LANE.run(train_best_classifier, self.state.session, **fit)
-                    version, chose = choice.kept, f"each family fitted, {choice.rule}; "
-                else:
-                    version = LANE.run(train_classifier, self.state.session, warm_epochs=warm_epochs, **fit)
+                version = LANE.run(
+                    train_classifier,
+                    self.state.session,
+                    config=self.classifier_config,
+                    warm_epochs=warm_epochs,
+                    hidden=hidden,
+                    progress=progress,
+                    cancel=self._cancel.is_set,
+                )
                 if warm_epochs is not None and version.config.get("warm_start"):
                     quick = version
             took = time.monotonic() - started
@@ -173,7 +175,7 @@ class TrainJob:
                 state="done",
                 fraction=1.0,
                 eta_s=0.0,
-                message=f"done in {took:.0f} s; {chose}refreshing highlights",
+                message=f"done in {took:.0f} s; refreshing highlights",
             )
         except Cancelled:
             self.status = replace(self.status, state="cancelled", message="cancelled; nothing was saved")

@@ -269,9 +269,11 @@ def test_model_auto_fits_each_family_over_the_default_stage1_and_keeps_the_bette
     from workbench.cycle.family_choice import MARGIN, evidence
 
     assert cycle.auto_families() == ("default", "minirocket")  # the paper's LSTM has a stage 1 of its own
+    shares: list[float] = []  # one progress over both families: a bar and its time left run once to 100 %
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr("training.minirocket.rocket_steps_fit.FEATURES", 840)
-        choice = cycle.train_best_classifier(session)
+        choice = cycle.train_best_classifier(session, progress=lambda p: shares.append(p.fraction))
+    assert shares == sorted(shares) and shares[0] <= 0.5 and shares[-1] == 1.0, shares
     default, rocket = choice.fitted
     assert (default.config["model"], rocket.config["model"]) == ("default", "minirocket")
     a, b = evidence(default.metrics)[0], evidence(rocket.metrics)[0]
@@ -284,22 +286,3 @@ def test_model_auto_fits_each_family_over_the_default_stage1_and_keeps_the_bette
     # evidence of a version with no estimate: nothing measured, never a number
     assert evidence({}) == (None, "not measurable")
     cycle.train_classifier(session, model="default")  # the module's later tests start from the default family
-
-
-def test_a_sessions_first_classifier_is_chosen_by_its_evidence_unless_something_names_one(
-    session: Session, tmp_path: Path
-) -> None:
-    """Issue 65, item 7: unset, a session's first classifier is ``auto``'s; a named family, a session with a
-    classifier (a Retrain keeps its family), ``--device cuda`` (MiniRocket has no path there) and a stage 1 of the
-    paper's LSTM (which auto's families do not read) keep the family as before."""
-    from workbench.demo import generate_demo_logs
-
-    fresh = new_session(tmp_path / "fresh")
-    assert cycle.first_model(fresh, None) == "auto"
-    assert cycle.first_model(fresh, "minirocket") == "minirocket"
-    assert cycle.first_model(fresh, None, device="cuda") is None
-    assert cycle.first_model(session, None) is None  # a classifier exists
-    fresh.ingest(generate_demo_logs(tmp_path / "logs", n_logs=1, minutes=0.2, seed=1))
-    cycle.train_predictor(fresh, config=TINY, hidden=8)  # the paper family's stage 1
-    assert cycle.first_model(fresh, None) is None
-    fresh.close()
