@@ -1,7 +1,7 @@
-"""A fleet's hours in one session (issue 66): `workbench ingest`, `workbench train` (both stages, the
-default family), the first screen after a restart (scores and the suggestion queue), a Retrain's quick
-phase and `workbench export --predictions`, on ``--hours`` (100; ``--quick``: 2) of 22-channel 100 Hz logs: demo
-walks of 30 minutes as ROS 2 MCAP, 5 % of the time labelled.
+"""A fleet's hours in one session (issue 66): `workbench ingest`, `workbench train` (both stages, the default family),
+the first screen after a restart (scores and the suggestion queue), a Retrain's quick phase and `workbench export
+--predictions`, on ``--hours`` (100; ``--quick``: 2) of 22-channel 100 Hz logs: demo walks of 30 minutes as ROS 2
+MCAP, 5 % of the time labelled.
 
     python benchmarks/speed/bench_fleet.py [--hours 100] [--quick]
 
