@@ -48,8 +48,8 @@ class _Rows:
         segments: Sequence[Segment],
         model: RocketClassifier,
         *,
-        budget: int = ROWS,
-        seed: int = 0,
+        budget: int,
+        seed: int,
     ) -> None:
         by_log: dict[int, dict[int, int]] = {}
         for log, a, b, c in segments:
@@ -86,8 +86,7 @@ class _Rows:
 def _within_budget(by_log: dict[int, dict[int, int]], budget: int, seed: int) -> dict[int, dict[int, int]]:
     """``by_log`` (per log, each labelled hop row's terrain) with at most about ``budget`` rows: each terrain keeps a
     uniform draw of its rows in proportion to its share (at least :data:`FLOOR`, or all it has); as is when under."""
-    logs = sorted(by_log)
-    where = [(log, step, c) for log in logs for step, c in sorted(by_log[log].items())]
+    where = [(log, step, c) for log in sorted(by_log) for step, c in sorted(by_log[log].items())]
     if len(where) <= budget:
         return by_log
     terrain = np.asarray([c for _, _, c in where])
