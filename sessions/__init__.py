@@ -20,10 +20,11 @@ from .ingest import (
     read_source,
     sniff_csv,
 )
-from .label_files import write_frame
+from .label_files import LabelImport, file_format, write_frame
 from .limits import MAX_NAME_CHARS, MAX_RATE_HZ, name_refusal
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import ModelVersion
+from .new_files import check_new_target, check_new_targets, new_file, rename_new
 from .rowfiles import FileRows, NpyWriter
 from .schema import KNOWN_TERRAIN_COLORS, SCHEMA_VERSION
 from .store import Session
@@ -58,6 +59,7 @@ __all__ = [
     "IngestError",
     "IngestOptions",
     "LabelError",
+    "LabelImport",
     "LogClock",
     "LogInfo",
     "Mapping",
@@ -71,13 +73,18 @@ __all__ = [
     "TimeColumn",
     "WorkbenchError",
     "align",
+    "check_new_target",
+    "check_new_targets",
+    "file_format",
     "load_mapping",
     "name_refusal",
+    "new_file",
     "per_log_paths",
     "plan_sources",
     "read_mcap",
     "read_source",
     "refuse_existing",
+    "rename_new",
     "safe_file_name",
     "sniff_csv",
     "write_frame",

@@ -77,8 +77,14 @@ def insert_check(
     classifier: int,
     kind: str,
     author: str,
-) -> Check:
-    """Add a check inside the caller's transaction.
+) -> tuple[Check, bool]:
+    """Add a check inside the caller's transaction; a piece checks a classifier version once.
+
+    A check of the same piece, version and kind as one kept already is that same test again (a file imported twice,
+    a label undone and made again): the kept row takes the person's latest terrain, and nothing is counted twice.
+
+    Returns:
+        The check as kept, and whether it is new.
 
     Raises:
         LabelError: An unknown log or kind, or a bad range or agreement.
@@ -87,6 +93,15 @@ def insert_check(
         raise LabelError(f"unknown check kind {kind!r}; one of {', '.join(CHECK_KINDS)}")
     if not (0 <= start < stop) or not 0.0 <= agreement <= 1.0:
         raise LabelError(f"a check of [{start}, {stop}) agreeing {agreement}: not a piece of a log")
+    key = (log_id, start, stop, classifier, kind)
+    same = "log_id = ? AND start = ? AND stop = ? AND classifier = ? AND kind = ?"
+    kept = conn.execute(f"SELECT id FROM checks WHERE {same}", key).fetchone()
+    if kept is not None:
+        conn.execute(
+            "UPDATE checks SET terrain = ?, agreement = ?, author = ?, at = ? WHERE id = ?",
+            (terrain, agreement, author, now(), kept[0]),
+        )
+        return Check(*conn.execute(f"SELECT {_COLS} FROM checks WHERE id = ?", (kept[0],)).fetchone()), False
     try:
         cur = conn.execute(
             f"INSERT INTO checks ({_COLS.split(', ', 1)[1]}) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -94,7 +109,7 @@ def insert_check(
         )
     except sqlite3.IntegrityError:
         raise LabelError(f"a check of unknown log {log_id}") from None
-    return Check(*conn.execute(f"SELECT {_COLS} FROM checks WHERE id = ?", (cur.lastrowid,)).fetchone())
+    return Check(*conn.execute(f"SELECT {_COLS} FROM checks WHERE id = ?", (cur.lastrowid,)).fetchone()), True
 
 
 class CheckStore:
@@ -118,13 +133,14 @@ class CheckStore:
         kind: str,
         author: str,
     ) -> Check:
-        """Record what classifier ``classifier`` said on ``[start, stop)`` of a log the person labelled ``terrain``.
+        """Record what classifier ``classifier`` said on ``[start, stop)`` of a log the person labelled ``terrain``
+        (once per piece, version and kind: :func:`insert_check`).
 
         Raises:
             LabelError: An unknown log or kind, or a bad range or agreement.
         """
         with self._write() as conn:  # type: ignore[attr-defined]
-            return insert_check(
+            check, _ = insert_check(
                 conn,
                 log_id,
                 start,
@@ -136,6 +152,7 @@ class CheckStore:
                 kind=kind,
                 author=author,
             )
+            return check
 
     def checks(self, log_id: int | None = None) -> list[Check]:
         """The checks, of one log or all, oldest first."""

@@ -16,12 +16,13 @@ import numpy as np
 if TYPE_CHECKING:  # pandas loads where a table is read: commands that read none start sooner
     import pandas as pd
 
-from .checks import CHECK_KINDS, insert_check
+from .check_rows import CHECK_COLUMNS, check_of_row, classifier_versions, given
 from .errors import LabelError
 from .label_studio import is_label_studio, label_studio_frame
-from .labels import add_segment
+from .labels import add_segment, labelled_as
 from .limits import MAX_LABEL_FILE_BYTES, MAX_LABEL_LINE_BYTES, MAX_LABEL_NESTING, MAX_LABEL_ROWS, MAX_NAME_CHARS
 from .logs import LogInfo, Segment
+from .new_files import new_file
 
 COLUMNS = (
     "log",
@@ -107,14 +108,19 @@ def restore_formulas(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 def write_frame(frame: pd.DataFrame, path: Path) -> Path:
-    """Write a table as CSV, Parquet or JSON (records), chosen by the file's suffix."""
+    """Write a table as a new CSV, Parquet or JSON (records) file, chosen by the file's suffix.
+
+    Raises:
+        WorkbenchError: ``path`` exists, is a link, or its folder is missing (``new_files``): nothing is replaced.
+    """
     fmt = file_format(path)
-    if fmt == "csv":
-        neutralise_formulas(frame).to_csv(path, index=False)
-    elif fmt == "parquet":
-        frame.to_parquet(path, index=False)
-    else:
-        frame.to_json(path, orient="records", indent=1)
+    with new_file(Path(path)) as tmp:
+        if fmt == "csv":
+            neutralise_formulas(frame).to_csv(tmp, index=False)
+        elif fmt == "parquet":
+            frame.to_parquet(tmp, index=False)
+        else:
+            frame.to_json(tmp, orient="records", indent=1)
     return path
 
 
@@ -166,7 +172,8 @@ def read_frame(path: Path, *, max_rows: int = MAX_LABEL_ROWS, logs: list[LogInfo
     return frame
 
 
-NAMED_COLUMNS = ("log", "terrain", "author")
+NAMED_COLUMNS = ("log", "terrain", "author", "guess", "kind")
+ONE_LINE_COLUMNS = ("terrain", "guess", "kind")  # names of terrains and kinds: one line of text each
 
 
 def _check_names(frame: pd.DataFrame, path: Path) -> None:
@@ -182,11 +189,12 @@ def _check_names(frame: pd.DataFrame, path: Path) -> None:
                 f"{path}: {_where(frame, int(over[0]))}: {column} is {int(lengths[over[0]]):,} characters long; a "
                 f"name is at most {MAX_NAME_CHARS}; nothing was imported"
             )
-        if column == "terrain":  # a log's name is its file's, whatever it holds; a terrain's is one line of text
+        if column in ONE_LINE_COLUMNS:  # a log's name is its file's, whatever it holds; a terrain's is one line
             control = text.str.contains(CONTROL, regex=True).fillna(False).to_numpy().nonzero()[0]
             if len(control):
+                what = "the terrain name" if column == "terrain" else f"the {column}"
                 raise LabelError(
-                    f"{path}: {_where(frame, int(control[0]))}: the terrain name holds a control character (a "
+                    f"{path}: {_where(frame, int(control[0]))}: {what} holds a control character (a "
                     "newline, an escape); a name is one line of text; nothing was imported"
                 )
 
@@ -305,38 +313,63 @@ def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *,
         log = by_name.get(str(row.log))
         if log is None:
             raise LabelError(f"{path}: {where}: unknown log {row.log!r}; nothing was imported")
+        if not given(row.terrain):
+            raise LabelError(f"{path}: {where}: terrain is empty; every row names its terrain; nothing was imported")
         if str(row.terrain) not in terrains:
             raise LabelError(
                 f"{path}: {where}: unknown terrain {row.terrain!r}; nothing was imported (add it with `workbench "
                 "terrains SESSION add NAME`, or import with --create-terrains)"
             )
-        if has_samples and (not has_seconds or _given(row.start_sample)):
+        if has_samples and (not has_seconds or given(row.start_sample)):
             start = _whole(row.start_sample, "start_sample", path=path, where=where)
             stop = _whole(row.end_sample, "end_sample", path=path, where=where)
         else:
-            start = _whole(
-                _number(row.start_s, "start_s", path=path, where=where) * log.rate_hz, "start_s", path=path, where=where
-            )
-            stop = _whole(
-                _number(row.end_s, "end_s", path=path, where=where) * log.rate_hz, "end_s", path=path, where=where
-            )
-        who = str(row.author) if "author" in frame.columns and _given(row.author) else None
+            start = _sample_at(row.start_s, "start_s", log.rate_hz, path=path, where=where)
+            stop = _sample_at(row.end_s, "end_s", log.rate_hz, path=path, where=where)
+        who = str(row.author) if "author" in frame.columns and given(row.author) else None
         out.append(Row(i, where, log, start, stop, str(row.terrain), who))
     return out
 
 
+@dataclass(frozen=True)
+class LabelImport:
+    """What importing a label file did.
+
+    Attributes:
+        segments: The segments as stored after each row that labelled anything new.
+        rows: The rows with a terrain (each a label).
+        already: Of those, rows whose span the session labelled with that terrain already (nothing changed).
+        blank: Line numbers of the rows left out because their terrain is empty (a suggestion nobody labelled).
+        checks: Checks of a classifier added (rows of a ``workbench suggest`` file).
+        checks_already: Rows that checked a piece, version and kind checked before (counted once).
+    """
+
+    segments: tuple[Segment, ...]
+    rows: int
+    already: int = 0
+    blank: tuple[int, ...] = ()
+    checks: int = 0
+    checks_already: int = 0
+
+
 def import_rows(
     conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path, author: str
-) -> list[Segment]:
+) -> LabelImport:
     """Add every row as a segment inside the caller's transaction; any bad row refuses the whole file.
 
-    A file written by ``workbench suggest`` (columns ``guess``, ``kind`` and ``classifier``) is also a set of
-    checks: each row filled in keeps what that classifier guessed there (``checks.py``), as a label made in the
-    page does."""
-    out = []
-    checks = set(frame.columns) >= CHECK_COLUMNS
+    A row whose span already holds its terrain changes nothing (a file imported twice adds nothing). A file written
+    by ``workbench suggest`` (columns ``guess``, ``kind`` and ``classifier``) is also a set of checks: each row
+    filled in keeps what that classifier guessed there (``checks.py``), once per piece, version and kind, as a
+    label made in the page does."""
+    out, already, checks = [], 0, [0, 0]
+    versions = classifier_versions(conn) if set(frame.columns) >= CHECK_COLUMNS else None
     for row in parse_rows(frame, logs, terrains, path=path):
         try:
+            if versions is not None:  # checked before its label: a forged row refuses the file
+                check_of_row(conn, frame.loc[row.line - 2], row, versions, author=row.author or author, counts=checks)
+            if labelled_as(conn, row.log.id, row.start, row.stop, row.terrain):
+                already += 1
+                continue
             out.append(
                 add_segment(
                     conn,
@@ -349,34 +382,10 @@ def import_rows(
                     kind="import",
                 )
             )
-            if checks:
-                _check_of(conn, frame.loc[row.line - 2], row, author=row.author or author)
         except LabelError as exc:
             raise LabelError(f"{path}: {row.where}: {exc}; nothing was imported") from None
-    return out
-
-
-CHECK_COLUMNS = {"guess", "kind", "classifier"}  # the columns of a suggestion file that make its rows checks
-
-
-def _check_of(conn, cells: pd.Series, row: Row, *, author: str) -> None:
-    """The check a filled-in row of a suggestion file is: the classifier's guess against the person's terrain (its
-    guess over the piece, so agreement is 1 or 0)."""
-    guess, kind, version = cells["guess"], cells["kind"], cells["classifier"]
-    if not (_given(guess) and _given(kind) and _given(version)):
-        return  # a row the classifier had no guess for (no classifier yet): no check
-    insert_check(
-        conn,
-        row.log.id,
-        row.start,
-        row.stop,
-        row.terrain,
-        predicted=str(guess),
-        agreement=float(str(guess) == row.terrain),
-        classifier=int(float(version)),
-        kind=str(kind) if str(kind) in CHECK_KINDS else "suggestion",
-        author=author,
-    )
+    rows = len(out) + already
+    return LabelImport(tuple(out), rows, already, checks=checks[0], checks_already=checks[1])
 
 
 def import_reference_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path) -> int:
@@ -408,16 +417,9 @@ def import_reference_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrai
     return len(rows)
 
 
-def _given(value: object) -> bool:
-    """Whether a cell holds anything: CSV cells are read as text (empty: ""), Parquet and JSON ones may be null."""
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return False
-    return not (isinstance(value, str) and not value.strip())
-
-
 def _number(value: object, column: str, *, path: Path, where: str) -> float:
     """A finite number from a cell, or a ``LabelError`` naming the file, the row and the column."""
-    if not _given(value):
+    if not given(value):
         raise LabelError(f"{path}: {where}: {column} is empty; nothing was imported")
     try:
         x = float(value)  # type: ignore[arg-type]
@@ -428,6 +430,14 @@ def _number(value: object, column: str, *, path: Path, where: str) -> float:
     if not math.isfinite(x):
         raise LabelError(f"{path}: {where}: {column} is {x!r}, not a finite number; nothing was imported")
     return x
+
+
+def _sample_at(value: object, column: str, rate_hz: float, *, path: Path, where: str) -> int:
+    """The sample at a time in seconds from a cell, or a ``LabelError`` naming the value as the file gives it."""
+    x = _number(value, column, path=path, where=where)
+    if not abs(x * rate_hz) <= 2**62:  # 1e308 s is a finite number of seconds, and no sample of any log
+        raise LabelError(f"{path}: {where}: {column} is {x!r}, out of range; nothing was imported")
+    return round(x * rate_hz)
 
 
 def _whole(value: object, column: str, *, path: Path, where: str) -> int:

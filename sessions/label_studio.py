@@ -32,6 +32,7 @@ from .errors import LabelError
 from .file_names import safe_file_name
 from .ingest.time_columns import EPOCH_RANGE_S
 from .logs import LogInfo, Segment, Terrain
+from .new_files import check_new_target, new_file
 
 CONTROL = "terrain"  # the TimeSeriesLabels control's name in the labeling config we write
 OBJECT = "ts"  # the TimeSeries object's name
@@ -114,7 +115,9 @@ def write_label_studio(
     import pandas as pd
 
     folder = files_folder(out)
-    folder.mkdir(parents=True, exist_ok=True)
+    check_new_target(out)
+    check_new_target(folder, what="folder")
+    folder.mkdir()
     prefix = f"/data/local-files/?d={folder.name}/" if url_prefix is None else url_prefix
     shared = [c for c in logs[0].channel_names if all(c in x.channel_names for x in logs[1:])] if logs else []
     dates = on_dates(logs)
@@ -139,7 +142,8 @@ def write_label_studio(
                 "annotations": [{"result": mine}] if mine else [],
             }
         )
-    out.write_text(json.dumps(tasks, indent=1))
+    with new_file(out) as tmp:
+        tmp.write_text(json.dumps(tasks, indent=1))
     return written
 
 

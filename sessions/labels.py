@@ -128,6 +128,21 @@ def _place(
     return start, stop, absorbed
 
 
+def labelled_as(conn: sqlite3.Connection, log_id: int, start: int, stop: int, terrain: str) -> bool:
+    """Whether ``[start, stop)`` of a log lies inside one segment of ``terrain`` (same-terrain segments that touch are
+    merged, so one segment holds any stretch labelled so): adding it again would change nothing."""
+    # segments of a log never overlap: only the last one starting at or before ``start`` can hold the span (one
+    # step down the (log_id, start) index; a scan of every earlier segment made 100,000 rows quadratic)
+    row = conn.execute(
+        "SELECT stop, terrain_id FROM segments WHERE log_id = ? AND start <= ? ORDER BY start DESC LIMIT 1",
+        (log_id, start),
+    ).fetchone()
+    if row is None or row[0] < stop:
+        return False
+    named = conn.execute("SELECT 1 FROM terrains WHERE id = ? AND name = ?", (row[1], terrain)).fetchone()
+    return named is not None
+
+
 def add_segment(
     conn: sqlite3.Connection,
     *,

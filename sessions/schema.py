@@ -166,7 +166,28 @@ def _v2(conn: sqlite3.Connection) -> None:
     )
 
 
-MIGRATIONS: tuple[Migration, ...] = (_v1, _v2)
+def _v3(conn: sqlite3.Connection) -> None:
+    """A piece checks a model once: one check per (log, span, classifier version, kind), the copies an import made
+    again dropped (the first kept); and the terrains' renames, so a name a model or a file used then is found now."""
+    _run_script(
+        conn,
+        """
+        DELETE FROM checks WHERE id NOT IN (
+            SELECT MIN(id) FROM checks GROUP BY log_id, start, stop, classifier, kind
+        );
+        CREATE UNIQUE INDEX checks_once ON checks (log_id, start, stop, classifier, kind);
+        CREATE TABLE terrain_renames (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            terrain_id INTEGER NOT NULL,
+            old TEXT NOT NULL,
+            new TEXT NOT NULL,
+            at TEXT NOT NULL
+        )
+        """,
+    )
+
+
+MIGRATIONS: tuple[Migration, ...] = (_v1, _v2, _v3)
 SCHEMA_VERSION = len(MIGRATIONS)
 
 

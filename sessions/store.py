@@ -20,7 +20,7 @@ from .cameras import CameraStore
 from .checks import CheckStore
 from .errors import LabelError, SessionError
 from .ingest_lock import sweeping
-from .limits import name_refusal
+from .label_files import LabelImport
 from .log_files import checked_log_file
 from .log_ingest import LOGS_DIR, LogIngest
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
@@ -28,7 +28,7 @@ from .model_versions import CACHE_DIR, ModelRegistry
 from .rowfiles import FileRows
 from .schema import SCHEMA_VERSION, check_objects, migrate
 from .session_copy import copy_session
-from .terrain_rows import delete_terrain, insert_terrain
+from .terrain_rows import delete_terrain, insert_terrain, names_since, rename_terrain_row
 
 DB_NAME = "session.sqlite"
 _STALE_TMP_S = 600.0  # leftovers older than this are from a crashed ingest, not one in progress
@@ -274,15 +274,16 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore):
         return next(t for t in self.terrains() if t.name == name)
 
     def rename_terrain(self, old: str, new: str) -> None:
-        """Rename a terrain class; its segments follow."""
-        new = new.strip()
+        """Rename a terrain class; its segments, checks and reference rows follow, and the old name is kept for the
+        models and files that used it (:meth:`terrain_names_since`)."""
         with self._write() as conn:
-            if (why := name_refusal(new, "terrain")) is not None:
-                raise LabelError(why)
-            if not new or conn.execute("SELECT 1 FROM terrains WHERE name = ?", (new,)).fetchone():
-                raise LabelError(f"cannot rename {old!r} to {new!r}: empty or taken")
-            if conn.execute("UPDATE terrains SET name = ? WHERE name = ?", (new, old)).rowcount == 0:
-                raise LabelError(f"unknown terrain {old!r}")
+            rename_terrain_row(conn, old, new.strip(), at=_labels.now())
+
+    def terrain_names_since(self, at: str) -> dict[str, str]:
+        """Every name a terrain has had since ``at`` (an ISO time stamp, such as a model version's ``created_at``),
+        to its name now: a model's classes and a suggestion file's guesses are named as they were then."""
+        with self._lock:
+            return names_since(self._conn, at)
 
     def remove_terrains(self, names: Sequence[str]) -> None:
         """Remove terrain classes no segment uses, in one transaction: all of them or, when any is unknown or used,
@@ -421,9 +422,7 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore):
             )
         return list(zip(paths, logs, strict=True))
 
-    def import_labels(
-        self, path: str | Path, *, author: str, create_terrains: bool = False, blank: list[int] | None = None
-    ) -> list[Segment]:
+    def import_labels(self, path: str | Path, *, author: str, create_terrains: bool = False) -> LabelImport:
         """Import a label file in one transaction: every row, or none when any row is refused.
 
         Args:
@@ -431,22 +430,25 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore):
             author: Author of rows that name none.
             create_terrains: Add the terrains the file names that the session lacks (in the same transaction:
                 a refused file adds none).
-            blank: Given a list, the line numbers of the rows left out because their terrain is empty (a row of
-                ``workbench suggest``'s file nobody labelled) are appended to it.
+
+        Returns:
+            What it did: the segments stored, the rows already labelled so, the rows left out because their terrain
+            is empty (a row of ``workbench suggest``'s file nobody labelled), the checks added and those kept before.
 
         Raises:
-            LabelError: Unreadable file, missing columns, unknown logs or terrains, or overlaps.
+            LabelError: Unreadable file, missing columns, unknown logs or terrains, overlaps, or a suggestion file's
+                row naming a classifier version or check kind the session does not have.
         """
+        from dataclasses import replace
+
         from .label_files import import_rows, read_frame, unlabelled_rows
 
         path = Path(path)
         logs = self.logs()
         frame, empty = unlabelled_rows(read_frame(path, logs=logs))
-        if blank is not None:
-            blank.extend(empty)
         with self._write() as conn:
             terrains = self._terrains_for(conn, frame, create_terrains)
-            return import_rows(conn, frame, logs, terrains, path=path, author=author)
+            return replace(import_rows(conn, frame, logs, terrains, path=path, author=author), blank=tuple(empty))
 
     def _terrains_for(self, conn, frame, create: bool) -> list[str]:
         """The session's terrain names, with those ``frame`` names added first when ``create``."""

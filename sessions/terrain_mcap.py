@@ -16,7 +16,6 @@ Messages are JSON with a JSON Schema, so any MCAP reader decodes them without ou
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -28,6 +27,7 @@ from .errors import WorkbenchError
 from .file_names import safe_file_name
 from .ingest.time_columns import EPOCH_RANGE_S
 from .logs import LogInfo, Segment
+from .new_files import check_new_targets, new_file
 
 PREDICTION_TOPIC = "/terrain"
 LABEL_TOPIC = "/terrain/labels"
@@ -127,15 +127,13 @@ def per_log_paths(out: Path, names: Sequence[str], *, each: bool = False) -> lis
 
 
 def refuse_existing(paths: Sequence[Path]) -> None:
-    """Refuse, before anything is computed or written, when an output file exists: an ``.mcap`` beside a log may be
-    the log itself, and it is never replaced.
+    """Refuse, before anything is computed or written, an output file that could not be written new: one that
+    exists (an ``.mcap`` beside a log may be the log itself, and it is never replaced), a link, a missing folder.
 
     Raises:
-        WorkbenchError: Naming the first path that exists.
+        WorkbenchError: Naming the first path refused (``sessions.new_files``).
     """
-    for path in paths:
-        if os.path.lexists(path):  # a dangling symbolic link too: it names a file of someone's
-            raise WorkbenchError(f"{path}: exists already; choose another name (an MCAP output never replaces a file)")
+    check_new_targets(list(paths))
 
 
 def write_terrain_mcap(
@@ -146,7 +144,7 @@ def write_terrain_mcap(
     labels: Sequence[Segment] | None = None,
     about: dict[str, str] | None = None,
 ) -> Path:
-    """Write one log's terrain to a new MCAP file, whole or not at all (written aside, renamed when complete).
+    """Write one log's terrain to a new MCAP file, whole or not at all (written aside, given its name when complete).
 
     Args:
         path: The file to create; an existing one is refused.
@@ -163,22 +161,16 @@ def write_terrain_mcap(
     refuse_existing([path])
     if clock.t0 < 0:
         raise WorkbenchError(f"{path}: log {clock.name!r} starts at {clock.t0} s, before time zero; MCAP has no time")
-    tmp = path.with_name(f".{path.name}.partial")
-    try:
-        with open(tmp, "wb") as f:
-            writer = Writer(f)
-            writer.start(profile=PROFILE, library="terrain-workbench")
-            meta = {"log": clock.name, "t0_s": repr(clock.t0), "rate_hz": repr(clock.rate_hz), **(about or {})}
-            writer.add_metadata(name="terrain-workbench", data=meta)
-            if labels is not None:
-                _write_labels(writer, clock, labels)
-            if predictions is not None:
-                _write_predictions(writer, clock, predictions)
-            writer.finish()
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with new_file(path) as tmp, open(tmp, "wb") as f:
+        writer = Writer(f)
+        writer.start(profile=PROFILE, library="terrain-workbench")
+        meta = {"log": clock.name, "t0_s": repr(clock.t0), "rate_hz": repr(clock.rate_hz), **(about or {})}
+        writer.add_metadata(name="terrain-workbench", data=meta)
+        if labels is not None:
+            _write_labels(writer, clock, labels)
+        if predictions is not None:
+            _write_predictions(writer, clock, predictions)
+        writer.finish()
     return path
 
 

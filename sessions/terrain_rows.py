@@ -40,3 +40,41 @@ def insert_terrain(conn, name: str, color: str | None) -> None:
             )
         )
     conn.execute("INSERT INTO terrains (name, color, position) VALUES (?, ?, ?)", (name, color, pos))
+
+
+def rename_terrain_row(conn, old: str, new: str, *, at: str) -> None:
+    """Rename a terrain inside the caller's transaction, keeping the rename (``terrain_renames``) so a name that a
+    model, a check or a file used before it is found again; the checks and reference rows, which keep names, follow.
+
+    Raises:
+        LabelError: ``new`` is refused as a name or taken, or ``old`` is unknown.
+    """
+    if (why := name_refusal(new, "terrain")) is not None:
+        raise LabelError(why)
+    if not new or conn.execute("SELECT 1 FROM terrains WHERE name = ?", (new,)).fetchone():
+        raise LabelError(f"cannot rename {old!r} to {new!r}: empty or taken")
+    row = conn.execute("SELECT id FROM terrains WHERE name = ?", (old,)).fetchone()
+    if row is None:
+        raise LabelError(f"unknown terrain {old!r}")
+    conn.execute("UPDATE terrains SET name = ? WHERE id = ?", (new, row[0]))
+    conn.execute("INSERT INTO terrain_renames (terrain_id, old, new, at) VALUES (?, ?, ?, ?)", (row[0], old, new, at))
+    for table, column in (("checks", "terrain"), ("checks", "predicted"), ("reference", "terrain")):
+        conn.execute(f"UPDATE {table} SET {column} = ? WHERE {column} = ?", (new, old))
+
+
+def names_since(conn, at: str) -> dict[str, str]:
+    """Every name a terrain of the session has had since ``at`` (an ISO time stamp), to its name now.
+
+    A model trained at ``at`` names its classes as they were called then, and a file written from it may use a later
+    name: both are found. Where two terrains held one name in turn, the later holder has it.
+    """
+    now = {int(i): str(n) for i, n in conn.execute("SELECT id, name FROM terrains")}
+    out: dict[str, str] = {}
+    renames = conn.execute(
+        "SELECT terrain_id, old, new FROM terrain_renames WHERE at > ? ORDER BY at, id", (at,)
+    ).fetchall()
+    for terrain_id, old, new in renames:
+        if int(terrain_id) in now:
+            out[str(old)] = out[str(new)] = now[int(terrain_id)]
+    out.update({name: name for name in now.values()})
+    return out

@@ -109,6 +109,7 @@ def main(which: str = "all", *, parts: list[str] | None = None) -> int:
     RESULTS.mkdir(parents=True, exist_ok=True)
     if which in ("protocol", "all"):
         t = time.monotonic()
+        (RESULTS / "borealtc-protocol.json").unlink(missing_ok=True)  # the workbench writes new files only
         report = ev.evaluate_borealtc(
             DATA, model="both", labelled=0.1, split="both", variant="shared", out=RESULTS / "borealtc-protocol.json"
         )
@@ -116,6 +117,8 @@ def main(which: str = "all", *, parts: list[str] | None = None) -> int:
         print(report)
     if which in ("simulate", "all"):
         t = time.monotonic()
+        for model in ("default", "paper"):
+            (RESULTS / model / "simulate-borealtc.png").unlink(missing_ok=True)
         report = "\n\n".join(
             f"## {model} family\n\n"
             + ev.simulate(

@@ -462,6 +462,102 @@ def long_names(tmp: Path) -> list[Case]:
     ]
 
 
+def writes(tmp: Path) -> list[Case]:
+    """Issue 81, items 1 and 2: every writer checks its target before any work: never through a link (a dangling
+    one made ``outside/x.csv`` exit 0), never over a file, never into a missing folder."""
+    outside = tmp / "outside"
+    outside.mkdir()
+    dangling = tmp / "d.csv"
+    dangling.symlink_to(outside / "x.csv")
+    kept = tmp / "kept.csv"
+    kept.write_text("somebody's file\n")
+    to_file = tmp / "to-kept.csv"
+    to_file.symlink_to(kept)
+    log = _csv(tmp / "run.csv", 10.0)
+    good = _tiny_bundle(tmp / "good")
+
+    def untouched(path: Path) -> Callable[[Path, str], None]:
+        def check(session: Path, out: str) -> None:
+            assert not (outside / "x.csv").exists() and kept.read_text() == "somebody's file\n", out
+
+        return check
+
+    cases = [
+        (
+            "suggest --out a dangling link",
+            ["suggest", "{session}", "--out", str(dangling)],
+            dangling,
+            "a symbolic link",
+        ),
+        (
+            "labels export --out a dangling link",
+            ["labels", "export", "{session}", "--out", str(dangling)],
+            dangling,
+            "",
+        ),
+        ("classify --out a dangling link", ["classify", str(good), str(log), "--out", str(dangling)], dangling, ""),
+        ("labels export --out a link to a file", ["labels", "export", "{session}", "--out", str(to_file)], to_file, ""),
+        ("labels export --out a file", ["labels", "export", "{session}", "--out", str(kept)], kept, "exists already"),
+        ("classify --out a file", ["classify", str(good), str(log), "--out", str(kept)], kept, "exists already"),
+        (
+            "suggest --out a missing folder",
+            ["suggest", "{session}", "--out", str(tmp / "no" / "x.csv")],
+            tmp / "no",
+            "",
+        ),
+        ("suggest --out a folder", ["suggest", "{session}", "--out", str(outside)], outside, "label file type"),
+        (
+            "evaluate loop --out a file",
+            ["evaluate", "loop", "{session}", "--out", str(kept)],
+            kept,
+            "exists already",
+        ),
+    ]
+    return [Case(name, args, str(target), says) for name, args, target, says in cases] + [
+        Case(
+            "labels export --out a file, read after",
+            ["labels", "export", "{session}", "--out", str(kept)],
+            check=untouched(kept),
+            code=2,
+        )
+    ]
+
+
+def check_rows(tmp: Path) -> list[Case]:
+    """Issue 81, items 3 and 5: a label file imported twice labels once; a suggestion file's check fields name a
+    classifier version the session has and a kind of check, or the file is refused naming the row."""
+    twice = tmp / "twice.csv"
+    twice.write_text("log,start_s,end_s,terrain\n" + "walk,1,2,grass\n" * 50)
+
+    def once(session: Path, out: str) -> None:
+        from sessions import Session
+
+        with Session.open(session) as s:
+            assert [(g.start, g.stop) for g in s.segments()] == [(100, 200)], out
+        assert "1 new label(s), 49 already labelled so" in out, out
+
+    cases = [
+        Case("a label file of 50 identical rows", ["labels", "import", "{session}", str(twice)], check=once, code=0)
+    ]
+    for version, kind in (("999", "suggestion"), ("true", "suggestion"), ("1e400", "spot check"), ("nan", "manual")):
+        path = tmp / f"forged-{len(cases)}.csv"
+        path.write_text(f"log,start_s,end_s,terrain,guess,kind,classifier\nwalk,1,2,grass,grass,{kind},{version}\n")
+        cases.append(
+            Case(
+                f"a suggestion file's classifier {version}",
+                ["labels", "import", "{session}", str(path)],
+                str(path),
+                "is not a classifier version of this session",
+            )
+        )
+    bogus = tmp / "bogus-kind.csv"
+    bogus.write_text("log,start_s,end_s,terrain,guess,kind,classifier\nwalk,1,2,grass,grass,bogus,1\n")
+    cases.append(
+        Case("a check of kind bogus", ["labels", "import", "{session}", str(bogus)], str(bogus), "kind 'bogus'")
+    )
+    return cases
+
+
 BUILDERS = (
     time_jump,
     rates,
@@ -477,4 +573,6 @@ BUILDERS = (
     skipped_camera_frame,
     bundles,
     long_names,
+    writes,
+    check_rows,
 )

@@ -254,7 +254,7 @@ def test_100k_label_rows_import_in_seconds(tmp_path: Path, detail) -> None:
     )
     rows.to_csv(tmp_path / "l.csv", index=False)
     t0 = time.perf_counter()
-    added = s.import_labels(tmp_path / "l.csv", author="x")
+    added = s.import_labels(tmp_path / "l.csv", author="x").segments
     took = time.perf_counter() - t0
     assert len(added) == n and len(s.segments()) == n
     assert took < 30, f"{n} rows took {took:.1f} s"
@@ -299,7 +299,7 @@ def test_exported_csv_runs_no_formula_and_imports_back(tmp_path: Path) -> None:
     assert "'=HYPERLINK(1)" in (tmp_path / "labels.csv").read_text()
     other = new_session(tmp_path / "other")
     other.ingest([csv])
-    back = other.import_labels(tmp_path / "labels.csv", author="x")
+    back = other.import_labels(tmp_path / "labels.csv", author="x").segments
     assert sorted(x.author for x in back) == ["-2+3", "@SUM(1+1)"]
     assert {x.log_id for x in back} == {other.logs()[0].id}
 

@@ -161,7 +161,7 @@ def test_a_label_studio_export_imports_back_to_the_same_segments(tmp_path: Path,
     (tmp_path / "export.json").write_text(json.dumps(tasks))
     b = new_session(tmp_path / "b")
     b.ingest(logs)
-    imported = b.import_labels(tmp_path / "export.json", author="me")
+    imported = b.import_labels(tmp_path / "export.json", author="me").segments
     assert [(s.start, s.stop, s.terrain) for s in b.segments()] == want
     assert {s.author for s in imported} == {"label-studio user 1"} and {s.source for s in imported} == {"import"}
 

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import replace
 from pathlib import Path
 from typing import Literal
 
 import tyro
 
-from sessions import WorkbenchError
+from sessions import WorkbenchError, check_new_target
 from training import FeatureMode
 
 from ..retrain import RETRAIN
@@ -102,6 +103,12 @@ def evaluate(
     from ..evaluation import protocols as ev
 
     check_device(device)
+    if out is not None:
+        _check_out(out, dataset=dataset, simulate=simulate)
+    if not strategies:
+        raise WorkbenchError("--strategies: name at least one (random, combined, entropy, margin, ...)")
+    if rounds is not None and rounds < 1:
+        raise WorkbenchError(f"--rounds {rounds}: at least one round of labelling")
     if device == "cpu":
         from training import hide_gpus
 
@@ -123,11 +130,13 @@ def evaluate(
         from ..evaluation import LoopSettings, evaluate_loop
 
         order = strategies if strategies != ("random", "combined") else ("combined", "random")
-        settings = LoopSettings(rounds=rounds or 4, per_round=per_round, person=person, strategies=order, seed=seed)
+        settings = LoopSettings(
+            rounds=4 if rounds is None else rounds, per_round=per_round, person=person, strategies=order, seed=seed
+        )
         with Session.open(folder) as s:
             print(evaluate_loop(s, reference=reference, settings=settings, out=out))
         return
-    rounds = rounds or 8
+    rounds = 8 if rounds is None else rounds
     if dataset == "session":
         from sessions import Session
 
@@ -193,3 +202,23 @@ def evaluate(
             device=device,
         )
     print(report)
+
+
+def _check_out(out: Path, *, dataset: str, simulate: bool) -> None:
+    """Refuse ``--out`` before any work: a new JSON file, or with ``--simulate`` a folder (new, or one of the
+    person's) that does not hold the plot already.
+
+    Raises:
+        WorkbenchError: The protocol writes nothing there, or the target could not be written new.
+    """
+    if simulate:
+        if os.path.lexists(out) and (out.is_symlink() or not out.is_dir()):
+            raise WorkbenchError(f"{out}: --out with --simulate is a folder for the plot, and this is not one")
+        if out.is_dir():
+            check_new_target(out / f"simulate-{dataset}.png")
+        else:
+            check_new_target(out, what="folder")
+    elif dataset in ("borealtc", "loop"):
+        check_new_target(out)
+    else:
+        raise WorkbenchError(f"--out: evaluate {dataset} writes no file; --out is for borealtc, loop and --simulate")

@@ -9,7 +9,15 @@ from typing import Literal
 
 import tyro
 
-from sessions import LABEL_TOPIC, LogClock, Session, WorkbenchError
+from sessions import (
+    LABEL_TOPIC,
+    LabelImport,
+    LogClock,
+    Session,
+    WorkbenchError,
+    check_new_target,
+    file_format,
+)
 
 from .terminal import shown
 
@@ -34,6 +42,8 @@ def labels_export(
         url_prefix: Label Studio only: what goes before each CSV's name in a task (default:
             /data/local-files/?d=OUT-files/, Label Studio's local-files URL with its document root at OUT's folder).
     """
+    if out.suffix.lower() != ".mcap":  # the MCAP names are per log, each checked before the first is written
+        check_new_target(out)
     if format == "label-studio":
         if out.suffix.lower() != ".json":
             raise WorkbenchError(f"{out}: Label Studio's import is JSON: name the tasks file *.json")
@@ -77,15 +87,24 @@ def labels_import(
             n = s.import_reference(file, create_terrains=create_terrains)
             print(f"imported {n} reference row(s) from {shown(file)} (evaluation only, never labels)")
         else:
-            blank: list[int] = []
-            added = s.import_labels(
-                file, author=author or getpass.getuser(), create_terrains=create_terrains, blank=blank
-            )
-            left = f"; {len(blank)} row(s) with no terrain left out (not labelled yet)" if blank else ""
-            print(f"imported {len(added)} segment(s) from {shown(file)}{left}")
+            done = s.import_labels(file, author=author or getpass.getuser(), create_terrains=create_terrains)
+            print(import_line(done, shown(file)))
         new = [t.name for t in s.terrains() if t.name not in before]
         if new:
             print(f"added terrain(s): {', '.join(shown(t) for t in new)}")
+
+
+def import_line(done: LabelImport, file: str) -> str:
+    """What a label import did, in one line: labels new and already there, checks new and already kept."""
+    parts = [f"imported {done.rows} row(s) from {file}: {len(done.segments)} new label(s)"]
+    if done.already:
+        parts[0] += f", {done.already} already labelled so (nothing changed)"
+    if done.checks or done.checks_already:
+        again = f", {done.checks_already} checked before (counted once)" if done.checks_already else ""
+        parts.append(f"{done.checks} new check(s) of the model{again}")
+    if done.blank:
+        parts.append(f"{len(done.blank)} row(s) with no terrain left out (not labelled yet)")
+    return "; ".join(parts)
 
 
 def suggest(
@@ -112,12 +131,12 @@ def suggest(
 
     from sessions import write_frame
 
-    from ..cycle import compute_scores, signal_change_points, suggest_for_session
+    from ..cycle import compute_scores, names_now, signal_change_points, suggest_for_session
 
     if n < 1:
         raise WorkbenchError(f"--n {n}: ask for at least one segment")
-    if out.exists():
-        raise WorkbenchError(f"{out}: exists already; choose a new file")
+    file_format(out)
+    check_new_target(out)
     with Session.open(session) as s:
         scores = compute_scores(s)
         if scores.predictor is None:
@@ -125,6 +144,7 @@ def suggest(
         logs = [x for x in s.logs() if x.id in scores.scores]
         points = {x.id: signal_change_points(s, x) for x in logs}
         picks = suggest_for_session(s, scores, points, logs=logs, n=n, strategy=strategy)
+        classes = names_now(s, scores)  # a guess names its terrain as the session does now
         rows = [
             (
                 log.name,
@@ -132,7 +152,7 @@ def suggest(
                 p.stop / log.rate_hz,
                 "",
                 p.reason,
-                None if p.guess is None else scores.classes[p.guess],
+                None if p.guess is None else classes[p.guess],
                 p.kind,
                 scores.classifier,
             )
@@ -142,3 +162,8 @@ def suggest(
     frame = pd.DataFrame(rows, columns=columns).astype({"terrain": "string", "guess": "string"})
     write_frame(frame, out)
     print(f"wrote {len(rows)} segment(s) to {shown(out)}: fill in their terrain, then `workbench labels import`")
+    if len(rows) < n:
+        print(
+            f"asked for {n:,}: the session holds {len(rows)} piece(s) to suggest (unlabelled pieces cut at change "
+            "points, none overlapping another or a label)"
+        )

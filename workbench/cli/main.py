@@ -19,6 +19,7 @@ from ..retrain import RETRAIN
 from ..user_errors import USER_ERRORS, one_line
 from . import evaluate_command, label_commands, model_commands
 from .ingest_report import dry_run_report
+from .stopping import Terminated, sigterm_unwinds
 from .terminal import EscapingStream, shown
 
 Pos = tyro.conf.Positional
@@ -366,17 +367,13 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(argv: list[str]) -> int:
     try:
-        if argv[:1] == ["labels"]:  # tyro has no nested subcommands over functions: route them here
-            result = tyro.extras.subcommand_cli_from_dict(
-                LABEL_COMMANDS, prog="workbench labels", description="Export or import label files.", args=argv[1:]
-            )
-        else:
-            result = tyro.extras.subcommand_cli_from_dict(
-                COMMANDS, prog="workbench", description="Terrain workbench: label robot logs, train, export.", args=argv
-            )
+        with sigterm_unwinds():
+            return _parse_and_run(argv)
     except USER_ERRORS as exc:
         _err(one_line(exc))
         return 2
+    except Terminated:
+        return 143  # 128 + SIGTERM, what a shell reports for a command it terminated
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:  # the reader went away (`... | head`): stop quietly, as a shell pipeline expects
@@ -388,6 +385,17 @@ def _run(argv: list[str]) -> int:
             raise
         _err(f"internal error: {type(exc).__name__}: {exc} (set WORKBENCH_DEBUG=1 for the traceback)")
         return 1
+
+
+def _parse_and_run(argv: list[str]) -> int:
+    if argv[:1] == ["labels"]:  # tyro has no nested subcommands over functions: route them here
+        result = tyro.extras.subcommand_cli_from_dict(
+            LABEL_COMMANDS, prog="workbench labels", description="Export or import label files.", args=argv[1:]
+        )
+    else:
+        result = tyro.extras.subcommand_cli_from_dict(
+            COMMANDS, prog="workbench", description="Terrain workbench: label robot logs, train, export.", args=argv
+        )
     return int(result or 0)
 
 

@@ -376,7 +376,7 @@ def classify(
         files: Log files (MCAP / CSV) with the channels the model was trained on.
         out: Output table (.csv, .parquet or .json) of every log; or .mcap: one MCAP file per log (topic /terrain,
             on the log's own clock, to open beside it in Foxglove); with several logs each file gets the log's name
-            before .mcap. An MCAP output that exists is refused.
+            before .mcap. An output that exists is refused, as is one through a link or into a missing folder.
         mapping: TOML or JSON file naming topics/columns to read, as for `workbench ingest` (a headerless CSV's
             `[csv]` section included).
         allow_gaps: Accept NaN/inf samples and dropouts, recording them as gaps instead of refusing the file.

@@ -14,7 +14,7 @@ the session's held-out evidence favours kept).
 """
 
 from .change_point_store import keep_change_points, kept_change_points
-from .checks_record import ChecksSummary, checks_summary, estimate_disagrees, record_check
+from .checks_record import ChecksSummary, checks_summary, estimate_disagrees, names_now, record_check
 from .family_choice import FamilyChoice, auto_families, train_best_classifier
 from .frame_stage1 import train_frame_predictor, train_stage1
 from .front_end import (
@@ -94,6 +94,7 @@ __all__ = [
     "log_frame_files",
     "log_groups",
     "model_logs",
+    "names_now",
     "queue_key",
     "record_check",
     "require_stage1",

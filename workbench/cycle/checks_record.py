@@ -32,12 +32,16 @@ def record_check(
     author: str,
 ) -> Check | None:
     """Keep what ``scores``' classifier said on ``[start, stop)`` of a log the person labels ``terrain``; ``None``
-    (nothing kept) when the scores hold no classifier's probabilities there."""
+    (nothing kept) when the scores hold no classifier's probabilities there.
+
+    The classifier names its classes as the terrains were called when it was trained; they are compared with the
+    person's terrain by what they are called now, so a terrain renamed since is still the same terrain.
+    """
     s = scores.scores.get(log_id)
     if scores.classifier is None or s is None or s.probs is None or not 0 <= start < stop <= len(s.probs):
         return None
     predicted = np.asarray(s.probs[start:stop]).argmax(axis=1)  # (L,)
-    classes = list(scores.classes)
+    classes = names_now(session, scores)
     most = classes[int(np.bincount(predicted, minlength=len(classes)).argmax())]
     agreement = float((predicted == classes.index(terrain)).mean()) if terrain in classes else 0.0
     return session.add_check(
@@ -51,6 +55,16 @@ def record_check(
         kind=kind,
         author=author,
     )
+
+
+def names_now(session: Session, scores: SessionScores) -> list[str]:
+    """The scores' class names as the session calls those terrains now (renamed since the classifier was trained, or
+    not)."""
+    made = next((v.created_at for v in session.model_versions("classifier") if v.id == scores.classifier), None)
+    if made is None:
+        return list(scores.classes)
+    names = session.terrain_names_since(made)
+    return [names.get(c, c) for c in scores.classes]
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,7 @@ import labeling
 from sessions import COUNTED_KINDS, Check, LogInfo, Session
 from training import terrain_recalls
 
+from .checks_record import names_now
 from .scores import SessionScores
 
 # Suggestions are short: a labelled second from many places teaches stage 2 more than the same seconds in a few
@@ -76,7 +77,7 @@ def suggest_for_session(
     checks = session.checks()
     answered = [(index[c.log_id], c.start, c.stop) for c in checks if c.kind == "main answer" and c.log_id in index]
     terrains = [t.name for t in session.terrains()]
-    classes = list(scores.classes) or terrains
+    classes = names_now(session, scores) or terrains  # as the session calls them now: the labels' names
     counts = np.zeros(len(classes))
     for s in session.segments():
         if s.terrain in classes:
@@ -86,7 +87,10 @@ def suggest_for_session(
     if spot_checks is None:
         ranked = strategy != "random"  # a random queue is a sample already
         spot_checks = SPOT_CHECKS if ranked and scores.classifier is not None and n >= 4 else 0
-    recall = terrain_recalls(classifier.metrics.get("estimate") if classifier is not None else None, classes)
+    # the metrics name the classes as they were called when the classifier was trained: the scores' names
+    recall = terrain_recalls(
+        classifier.metrics.get("estimate") if classifier is not None else None, list(scores.classes) or terrains
+    )
     out = labeling.suggest(
         [scores.scores[x.id] for x in logs],
         labelled=labelled,

@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from labeling import CurvePoint, mean_curve
+from sessions import new_file
 
 
 def plot_curves(
@@ -34,6 +35,9 @@ def plot_curves(
     )
     top.set_xlabel("labelled time (% of all time)")
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    try:
+        with new_file(path) as tmp:
+            fig.savefig(tmp)
+    finally:
+        plt.close(fig)
     return path

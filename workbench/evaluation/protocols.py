@@ -10,7 +10,7 @@ from typing import Literal
 
 import numpy as np
 
-from sessions import IngestError, IngestOptions, WorkbenchError, align, plan_sources, read_source
+from sessions import IngestError, IngestOptions, WorkbenchError, align, new_file, plan_sources, read_source
 from training import FEATURE_MODES, FeatureMode, TrainConfig
 
 from .evaluate_windows import FoldResult, borealtc_protocol
@@ -181,7 +181,8 @@ def evaluate_borealtc(
         ]
     report = "\n".join(lines + per_fold + _calibration_rows(rows))
     if out is not None:
-        out.write_text(json.dumps(detail, indent=1, default=str))
+        with new_file(out) as tmp:
+            tmp.write_text(json.dumps(detail, indent=1, default=str))
     return report
 
 

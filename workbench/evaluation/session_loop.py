@@ -14,10 +14,11 @@ nobody labelled. The session itself is never changed.
 
 from __future__ import annotations
 
+import contextlib
 import json
-import tempfile
+import re
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -25,7 +26,7 @@ from typing import Literal
 import numpy as np
 
 import labeling
-from sessions import LogInfo, Session, WorkbenchError
+from sessions import LogInfo, Session, WorkbenchError, new_file
 
 from ..cycle import (
     SessionScores,
@@ -39,6 +40,8 @@ from ..cycle import (
     train_stage1,
 )
 from ..retrain import RETRAIN
+from ..scratch_folders import scratch_folder
+from ..user_errors import USER_ERRORS
 from .loop_said import said_of_logs, said_table
 
 Person = Literal["piece", "stretch"]
@@ -367,7 +370,7 @@ def evaluate_loop(
     if settings.rounds < 1 or settings.per_round < 1:
         raise WorkbenchError("--rounds and --per-round must be at least 1")
     t0 = time.monotonic()
-    with tempfile.TemporaryDirectory(prefix="workbench-loop-", dir=workdir) as tmp:
+    with scratch_folder("workbench-loop-", folder=workdir) as tmp, _named_as(session.path, tmp):
         start = session.copy_to(Path(tmp) / "start")
         with Session.open(start) as s:
             if reference is not None:
@@ -393,13 +396,13 @@ def evaluate_loop(
         }
     took = time.monotonic() - t0
     if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
         data = {
             "settings": asdict(settings),
             "family": family,
             "arms": {k: [asdict(r) for r in v] for k, v in arms.items()},
         }
-        out.write_text(json.dumps(data, indent=1))
+        with new_file(out) as tmp:
+            tmp.write_text(json.dumps(data, indent=1))
     first = next(iter(arms.values()))[0]
     names = [x.name for x in new]
     return loop_report(
@@ -412,6 +415,17 @@ def evaluate_loop(
         seconds=took,
         majority=first.majority,
     )
+
+
+@contextlib.contextmanager
+def _named_as(path: Path, copies: Path) -> Iterator[None]:
+    """A person's error raised inside the loop's copies of a session names the session, not a copy in the temporary
+    folder the person never made."""
+    try:
+        yield
+    except USER_ERRORS as exc:
+        copy = re.compile(re.escape(str(copies)) + r"/[^/\s:;,]+")
+        raise WorkbenchError(copy.sub(str(path).replace("\\", "\\\\"), str(exc))) from None
 
 
 def _pct(x: float | None) -> str:

@@ -19,7 +19,9 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from sessions import WorkbenchError
+from sessions import WorkbenchError, check_new_target, rename_new
+
+from ..scratch_folders import held
 
 LOCK_FILE = ".export.lock"
 UNLOCKED_GRACE_S = 60.0
@@ -30,31 +32,16 @@ def staging_folder(out: Path) -> Path:
     return out.with_name(f".{out.name}.partial")
 
 
-def _held(lock: Path) -> bool | None:
-    """Whether a live process holds ``lock``; ``None`` when there is no lock file."""
-    try:
-        fd = os.open(lock, os.O_RDWR)
-    except FileNotFoundError:
-        return None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        return True
-    finally:
-        os.close(fd)  # closing drops the lock taken just now
-    return False
-
-
 def sweep_dead_exports(folder: Path) -> list[Path]:
     """Remove the staging folders in ``folder`` that killed exports left. Returns those removed."""
     removed = []
     with contextlib.suppress(OSError):
         candidates = [p for p in folder.glob(".*.partial") if p.is_dir() and not p.is_symlink()]
         for path in candidates:
-            held = _held(path / LOCK_FILE)
-            if held:
+            held_now = held(path / LOCK_FILE)
+            if held_now:
                 continue
-            if held is None:
+            if held_now is None:
                 young = time.time() - path.stat().st_mtime < UNLOCKED_GRACE_S
                 if young or not (not any(path.iterdir()) or (path / "bundle").is_dir()):
                     continue
@@ -68,14 +55,9 @@ def check_target(out: Path) -> None:
 
     Raises:
         WorkbenchError: ``out`` exists (a dangling symbolic link included: it took 11 s of work to fail on one), or
-            its parent is not a folder.
+            its folder is missing or is not a folder (``sessions.check_new_target``).
     """
-    if os.path.lexists(out):
-        kind = "a symbolic link" if out.is_symlink() else "it"
-        raise WorkbenchError(f"{out}: exists already ({kind}); choose a new folder")
-    parent = out.parent
-    if os.path.lexists(parent) and not parent.is_dir():
-        raise WorkbenchError(f"{out}: {parent} is not a folder")
+    check_new_target(out, what="folder")
 
 
 @contextlib.contextmanager
@@ -87,7 +69,6 @@ def staged(out: Path) -> Iterator[Path]:
         WorkbenchError: ``out`` exists, or another live export is writing to it.
     """
     check_target(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     sweep_dead_exports(out.parent)
     tmp = staging_folder(out)
     try:
@@ -99,7 +80,7 @@ def staged(out: Path) -> Iterator[Path]:
         fcntl.flock(fd, fcntl.LOCK_EX)
         yield tmp
         os.unlink(tmp / LOCK_FILE)  # the lock itself stays held through the rename: the descriptor is open
-        tmp.rename(out)
+        rename_new(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -23,6 +23,7 @@ from sessions import (
     TerrainPredictions,
     WorkbenchError,
     align,
+    check_new_target,
     per_log_paths,
     plan_sources,
     read_source,
@@ -299,9 +300,13 @@ def classify_files(
             f"error: --smooth {smooth_s:g}: the time on a terrain is a number of seconds above 0 and at most "
             f"{MAX_DWELL_S:g} (a day)"
         ]
+    if Path(out).suffix.lower() not in OUTPUT_TYPES:
+        return 2, [f"error: {out}: unknown output type {Path(out).suffix!r}; use {', '.join(OUTPUT_TYPES)}"]
     try:
+        if Path(out).suffix.lower() != ".mcap":  # an MCAP output's names are per log, checked once they are known
+            check_new_target(Path(out))
         bundle = load_bundle(bundle_dir)
-    except BundleError as exc:
+    except (BundleError, WorkbenchError) as exc:
         return 2, [f"error: {exc}"]
     if not bundle.classifiers:
         return 2, [f"error: {bundle_dir}: the bundle has no classifier"]
@@ -311,8 +316,6 @@ def classify_files(
             f"--rate {options.target_rate:g} would feed it another (leave --rate out)"
         ]
     as_mcap = Path(out).suffix.lower() == ".mcap"
-    if Path(out).suffix.lower() not in OUTPUT_TYPES:
-        return 2, [f"error: {out}: unknown output type {Path(out).suffix!r}; use {', '.join(OUTPUT_TYPES)}"]
     checks, lines = _checks_lines(bundle_dir, card_accuracy(bundle.metrics))
     spot = None if checks is None else checks.spot
     names, arrays, starts = [], [], []

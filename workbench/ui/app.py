@@ -6,6 +6,7 @@ from __future__ import annotations
 import signal
 import sqlite3
 import threading
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -55,10 +56,12 @@ class WorkbenchApp:
         self.uploads = UploadBudget()  # what every client together may be sending at once
 
         def connect(client) -> None:
-            if self._stop.is_set():
-                return  # the server is stopping: a page that connects now has nothing to be built from
-            limit_uploads(client, self.uploads, self._upload_refused)  # before its upload button exists
+            with self._building:
+                if self._stop.is_set():
+                    return  # the server is stopping: a page that connects now has nothing to be built from
+                self._pages_building += 1
             try:
+                limit_uploads(client, self.uploads, self._upload_refused)  # before its upload button exists
                 view = ClientView(client, self.state, self.job)
             except sqlite3.ProgrammingError:
                 # the session closed under a page still being built (a stop racing a connect): nothing to show,
@@ -66,6 +69,10 @@ class WorkbenchApp:
                 if self._stop.is_set():
                     return
                 raise
+            finally:
+                with self._building:
+                    self._pages_building -= 1
+                    self._building.notify_all()
             with self._views_lock:
                 self.views[client.client_id] = view
 
@@ -76,9 +83,12 @@ class WorkbenchApp:
             if view is not None:
                 view.close()
 
+        self._stop = threading.Event()
+        # pages being built: a stop waits for them, as a page built over a closed connection is written to nothing
+        self._building = threading.Condition()
+        self._pages_building = 0
         self.server.on_client_connect(connect)
         self.server.on_client_disconnect(disconnect)
-        self._stop = threading.Event()
         self._watch = threading.Thread(target=self._poll, name="session-watch", daemon=True)
         self._watch.start()
 
@@ -124,36 +134,56 @@ class WorkbenchApp:
                 self.state.refresh(scores=True)
             last = now
 
-    def stop(self) -> None:
+    def request_stop(self) -> None:
+        """Ask the server to stop (Ctrl+C, SIGTERM): every worker polls the flag and ends its work where it can, a
+        training run is cancelled, and :meth:`serve_forever` returns once the torch lane's current call is done."""
         self._stop.set()
-        self.gate.stop()
+        self.job.cancel()
+        self.state.request_stop()
+
+    def stop(self) -> None:
+        """Stop everything: the workers first, so no view is sent anything once its connection closes; then the
+        gate and viser."""
+        self.request_stop()
+        with self._building:
+            self._building.wait_for(lambda: self._pages_building == 0, timeout=30.0)
+        self.job.join()
         self.state.stop()
+        self.gate.stop()
         self.server.stop()
         remove_private_socket(self._inner)
 
     def serve_forever(self) -> None:
         """Serve until Ctrl+C or SIGTERM; this thread runs every PyTorch call of the server
         (``workbench.ui.torch_lane``)."""
-        # SIGTERM (systemd, `docker stop`, `kill`, a test harness) stops as Ctrl+C does: without it Python dies
-        # at once and leaves the private socket's folder behind in the temp directory, one per server
-        previous = _stop_on_sigterm()
+        # Ctrl+C and SIGTERM (systemd, `docker stop`, `kill`) set the stop flag the workers poll. Raising
+        # KeyboardInterrupt here, as Python does by default, raised it inside whatever torch call the lane was
+        # running for another thread, which printed that thread's traceback; without a handler SIGTERM killed the
+        # process at once, leaving the private socket's folder behind. A second Ctrl+C stops at once.
+        previous = _on_stop_signals(self.request_stop, again=self._stop.is_set)
         try:
             LANE.serve(stop=self._stop.is_set)
         except KeyboardInterrupt:
             pass
         finally:
             self.stop()
-            if previous is not None:
-                signal.signal(signal.SIGTERM, previous)
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
 
 
-def _stop_on_sigterm() -> Any:
-    """Make SIGTERM raise ``KeyboardInterrupt`` in this (the main) thread; the handler it replaced, or ``None``
-    where signals cannot be set here (not the main thread)."""
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
-    def interrupt(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
+
+def _on_stop_signals(stop: Callable[[], None], *, again: Callable[[], bool]) -> dict[int, Any]:
+    """Make Ctrl+C and SIGTERM call ``stop`` in this (the main) thread, and raise ``KeyboardInterrupt`` when they come
+    while ``again()`` (stopping already); the handlers they replaced, none where signals cannot be set here (not
+    the main thread)."""
+
+    def handler(signum: int, frame: Any) -> None:
+        if again():
+            raise KeyboardInterrupt
+        stop()
 
     if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGTERM, interrupt)
+        return {}
+    return {signum: signal.signal(signum, handler) for signum in STOP_SIGNALS}

@@ -105,6 +105,12 @@ class TrainJob:
     def cancel(self) -> None:
         self._cancel.set()
 
+    def join(self, timeout: float = 30.0) -> None:
+        """Wait for a training run to end (after :meth:`cancel`, at its next poll)."""
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
+
     def _progress(self, stages: tuple[str, ...], started: float):
         last = [0.0]
 

@@ -30,10 +30,8 @@ from ..cycle import (
     suggest_for_session,
 )
 from ..user_errors import USER_ERRORS, one_line
+from .events import Event, Events, Listener
 from .torch_lane import LANE
-
-Event = str  # "labels" | "scores" | "suggestions" | "job" | "models" | "logs"
-Listener = Callable[[Event], None]
 
 
 @dataclass(frozen=True)
@@ -67,7 +65,6 @@ class SharedState:
     def __init__(self, session: Session, *, on_error: Callable[[str], None] | None = None) -> None:
         self.session = session
         self._lock = threading.RLock()
-        self._listeners: list[Listener] = []
         self._logs: list[LogInfo] = session.logs()
         self._terrains: list[Terrain] = session.terrains()
         self.scores = SessionScores()
@@ -88,76 +85,37 @@ class SharedState:
         self.problem = ""  # why the last refresh failed (one line), shown in every page until one succeeds
         self._stretches: tuple[SessionScores, dict[int, list[labeling.PredictedStretch]]] = (self.scores, {})
         self._queue_of: tuple[SessionScores, str] | None = None  # what the queue was ranked from: (scores, key)
-        self._pending: dict[Event, None] = {}  # events not yet delivered, in order
-        self._pending_cv = threading.Condition()
-        self._delivering = False
-        self._dispatcher = threading.Thread(target=self._deliver, name="workbench-events", daemon=True)
-        self._dispatcher.start()
+        self._events = Events(on_error=self._on_error)
         self._worker = threading.Thread(target=self._work, name="workbench-refresh", daemon=True)
         self._dirty.set()
         self._worker.start()
 
     # --------------------------------------------------------------------------------------------- events
     def subscribe(self, fn: Listener) -> Callable[[], None]:
-        with self._lock:
-            self._listeners.append(fn)
-
-        def unsubscribe() -> None:
-            with self._lock:
-                if fn in self._listeners:
-                    self._listeners.remove(fn)
-
-        return unsubscribe
+        """Call ``fn(event)`` for every event from now on; returns what unsubscribes it."""
+        return self._events.subscribe(fn)
 
     def notify(self, event: Event) -> None:
-        """Tell every view that ``event`` happened; returns at once.
-
-        One thread delivers events, never the caller: a view's callback holds that view's lock while it changes the
-        state, and delivering to the other views from there took their locks in turn, so two people saving at the
-        same moment deadlocked. An event already waiting is not queued twice: views redraw from the state as it is
-        when the event is delivered, so under load they redraw once per batch of changes, not once per change.
-        """
-        with self._pending_cv:
-            self._pending[event] = None
-            self._pending_cv.notify()
+        """Tell every view that ``event`` happened; returns at once (``events.Events.notify``)."""
+        self._events.notify(event)
 
     def flush(self, *, timeout: float = 30.0) -> bool:
         """Wait until every event notified so far has been delivered; False on timeout."""
-        with self._pending_cv:
-            return self._pending_cv.wait_for(lambda: not self._pending and not self._delivering, timeout)
+        return self._events.flush(timeout=timeout)
 
-    def _deliver(self) -> None:
-        while True:
-            with self._pending_cv:
-                self._pending_cv.wait_for(lambda: self._pending or self._stop.is_set())
-                if not self._pending:
-                    return
-                events, self._delivering = list(self._pending), True
-                self._pending.clear()
-            with self._lock:
-                listeners = list(self._listeners)
-            for event in events:
-                for fn in listeners:
-                    try:
-                        fn(event)
-                    except USER_ERRORS as exc:  # a damaged session file: one line, as everywhere
-                        self._on_error(f"view update failed on {event!r}: {one_line(exc)}")
-                    except Exception:  # one broken view must not stop the others
-                        self._on_error(f"view update failed on {event!r}:\n{traceback.format_exc()}")
-            with self._pending_cv:
-                self._delivering = False
-                self._pending_cv.notify_all()
+    def request_stop(self) -> None:
+        """Ask the refresh worker to stop at its next poll (between two groups of logs) and the views to be sent
+        nothing more: a page whose connection is closing is not written to."""
+        self._stop.set()
+        self._dirty.set()
+        self._events.stop()
 
     def stop(self, *, timeout: float = 30.0) -> None:
         """Stop the refresh worker, waiting for a scoring in progress so the session can close under it."""
-        self._stop.set()
-        self._dirty.set()
+        self.request_stop()
         if self._worker is not threading.current_thread():
             self._worker.join(timeout)
-        with self._pending_cv:
-            self._pending_cv.notify_all()
-        if self._dispatcher is not threading.current_thread():
-            self._dispatcher.join(timeout)
+        self._events.stop(wait=timeout)
 
     # ----------------------------------------------------------------------------------------------- data
     def logs(self) -> list[LogInfo]:
@@ -441,6 +399,8 @@ class SharedState:
                 self._find_change_points()
                 self.notify("suggestions")
             except USER_ERRORS as exc:
+                if self._stop.is_set():  # the lane stopped under the work ("the server is stopping"): nothing to say
+                    return
                 # a damaged model or session: one line in every page and in the server's output, no traceback
                 self.problem = one_line(exc)
                 self._on_error(f"refresh failed: {self.problem}")

@@ -98,10 +98,11 @@ class TorchLane:
                     continue
                 try:
                     done.set_result(fn(*args, **kwargs))
+                except KeyboardInterrupt:  # a second Ctrl+C: the caller hears that the server stops, in one line
+                    done.set_exception(WorkbenchError("the server is stopping; nothing was changed"))
+                    raise
                 except BaseException as exc:
                     done.set_exception(exc)
-                    if isinstance(exc, KeyboardInterrupt):
-                        raise
         finally:
             with self._lock:
                 self._owner = None

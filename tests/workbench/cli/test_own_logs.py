@@ -263,7 +263,7 @@ def test_classify_reads_files_as_ingest_does(tmp_path: Path, capsys, monkeypatch
     pred = pd.read_csv(tmp_path / "p.csv")
     assert len(pred) > 2900 and set(pred["terrain"]) <= {"soft", "hard"}
     assert (pred["terrain"].iloc[200:] == "hard").mean() > 0.9
-    assert run(*args, "--allow-gaps", "--rate", "50") == 2
+    assert run(*args, "--allow-gaps", "--rate", "50", "--out", tmp_path / "rate.csv") == 2
     assert "the model runs at 100 Hz" in capsys.readouterr().err
     # the optional HMM: the probabilities written are smoothed, and the line says the robot's causal delay
     assert run(*args, "--allow-gaps", "--smooth", "5", "--out", tmp_path / "smooth.csv") == 0

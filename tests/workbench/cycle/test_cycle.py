@@ -194,7 +194,7 @@ def test_label_files_round_trip(trained: Session, tmp_path: Path, demo_logs: lis
     path = trained.export_labels(tmp_path / f"labels{suffix}")
     other = new_session(tmp_path / "other")
     other.ingest(demo_logs)
-    imported = other.import_labels(path, author="x")
+    imported = other.import_labels(path, author="x").segments
     key = [(s.start, s.stop, s.terrain, s.author) for s in trained.segments()]
     assert [(s.start, s.stop, s.terrain, s.author) for s in other.segments()] == key
     assert len(imported) == len(key) and all(s.source == "import" for s in imported)
@@ -291,7 +291,7 @@ def test_terrain_mcap_lies_on_the_source_logs_clock(trained: Session, tmp_path: 
     for target in (out, demo_logs[0]):  # its own output again, and the robot's log itself: both refused, unchanged
         assert main(["classify", bundle, str(demo_logs[0]), "--out", str(target)]) == 2
         err = capsys.readouterr().err.strip()
-        assert err == f"error: {target}: exists already; choose another name (an MCAP output never replaces a file)"
+        assert err == f"error: {target}: exists already (a file); the workbench writes a new file, choose a new name"
     assert demo_logs[0].read_bytes() == source
 
     assert main(["labels", "export", str(trained.path), "--out", str(tmp_path / "labels.mcap")]) == 0

@@ -47,6 +47,12 @@ def loop_session(tmp_path_factory) -> tuple[Path, Path]:
     every log in a reference file."""
     folder = tmp_path_factory.mktemp("loop")
     made = [_walk(folder / f"w{i}.csv", i) for i in range(3)] + [_walk(folder / "odd.csv", 3, gain=4.0)]
+    return walk_session(folder, made)
+
+
+def walk_session(folder: Path, made: list[tuple[Path, list[tuple]]]) -> tuple[Path, Path]:
+    """A session of the walks ``made`` (``_walk``'s), ``w0`` and ``w1`` labelled at 10 % in 5 s pieces, and the truth
+    of every walk in a reference file: ``(session, truth)``."""
     s = new_session(folder / "s", terrains=TERRAINS)
     logs = {x.name: x for x in s.ingest([p for p, _ in made])}
     rows = [row for _, truth in made for row in truth]
