@@ -482,6 +482,8 @@ def writes(tmp: Path) -> list[Case]:
 
         return check
 
+    # one row per kind of target, each through another writer (every writer meets every target in
+    # tests/workbench/cli/test_writes_and_checks.py, in one process)
     cases = [
         (
             "suggest --out a dangling link",
@@ -489,29 +491,15 @@ def writes(tmp: Path) -> list[Case]:
             dangling,
             "a symbolic link",
         ),
-        (
-            "labels export --out a dangling link",
-            ["labels", "export", "{session}", "--out", str(dangling)],
-            dangling,
-            "",
-        ),
-        ("classify --out a dangling link", ["classify", str(good), str(log), "--out", str(dangling)], dangling, ""),
-        ("labels export --out a link to a file", ["labels", "export", "{session}", "--out", str(to_file)], to_file, ""),
+        ("classify --out a link to a file", ["classify", str(good), str(log), "--out", str(to_file)], to_file, "link"),
         ("labels export --out a file", ["labels", "export", "{session}", "--out", str(kept)], kept, "exists already"),
-        ("classify --out a file", ["classify", str(good), str(log), "--out", str(kept)], kept, "exists already"),
         (
             "suggest --out a missing folder",
             ["suggest", "{session}", "--out", str(tmp / "no" / "x.csv")],
             tmp / "no",
             "",
         ),
-        ("suggest --out a folder", ["suggest", "{session}", "--out", str(outside)], outside, "label file type"),
-        (
-            "evaluate loop --out a file",
-            ["evaluate", "loop", "{session}", "--out", str(kept)],
-            kept,
-            "exists already",
-        ),
+        ("evaluate loop --out a file", ["evaluate", "loop", "{session}", "--out", str(kept)], kept, "exists already"),
     ]
     return [Case(name, args, str(target), says) for name, args, target, says in cases] + [
         Case(

@@ -100,15 +100,15 @@ def evaluate(
         reference: With session or loop: a label file (the columns of `workbench labels export`) stored as the
             reference labels of the logs it names before scoring (loop: in its copy of the session only).
     """
-    from ..evaluation import protocols as ev
-
-    check_device(device)
-    if out is not None:
+    if out is not None:  # before anything loads (torch takes seconds): a refused target is told at once
         _check_out(out, dataset=dataset, simulate=simulate)
     if not strategies:
         raise WorkbenchError("--strategies: name at least one (random, combined, entropy, margin, ...)")
     if rounds is not None and rounds < 1:
         raise WorkbenchError(f"--rounds {rounds}: at least one round of labelling")
+    from ..evaluation import protocols as ev
+
+    check_device(device)
     if device == "cpu":
         from training import hide_gpus
 

@@ -127,16 +127,16 @@ def suggest(
         n: How many segments.
         strategy: How they are ranked (combined: the page's).
     """
+    if n < 1:
+        raise WorkbenchError(f"--n {n}: ask for at least one segment")
+    file_format(out)
+    check_new_target(out)  # before torch loads (seconds): a refused target is told at once
     import pandas as pd
 
     from sessions import write_frame
 
     from ..cycle import compute_scores, names_now, signal_change_points, suggest_for_session
 
-    if n < 1:
-        raise WorkbenchError(f"--n {n}: ask for at least one segment")
-    file_format(out)
-    check_new_target(out)
     with Session.open(session) as s:
         scores = compute_scores(s)
         if scores.predictor is None:

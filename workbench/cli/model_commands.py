@@ -385,8 +385,10 @@ def classify(
             (forward-backward over each file; each file's line says how late the robot's causal filter would
             follow a change). Off by default.
     """
-    from sessions import load_mapping
+    from sessions import check_new_target, load_mapping
 
+    if out.suffix.lower() != ".mcap":  # before torch loads (seconds); an MCAP output's names are per log
+        check_new_target(out)
     from ..export import classify_files
 
     options = IngestOptions(

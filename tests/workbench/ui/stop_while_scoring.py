@@ -32,7 +32,7 @@ def scoring_on_the_lane(*args, **kwargs):
     """The real scoring, then a moment on the lane for the signal to land in (the scoring's own time, made sure)."""
     out = REAL(*args, **kwargs)
     SCORING.set()
-    time.sleep(0.5)
+    time.sleep(0.25)
     return out
 
 

@@ -20,7 +20,7 @@ TIMES = 20  # stops in a row, SIGTERM and SIGINT by turns, each while a refresh 
 
 
 def test_a_stop_while_the_refresh_scores_is_quiet_every_time(tmp_path: Path, quick_stage1) -> None:
-    session, _ = walk_session(tmp_path, [_walk(tmp_path / f"w{i}.csv", i, seconds=40.0) for i in range(2)])
+    session, _ = walk_session(tmp_path, [_walk(tmp_path / f"w{i}.csv", i, seconds=30.0) for i in range(2)])
     assert main(["train", str(session)]) == 0
     child = subprocess.run(
         [sys.executable, str(Path(__file__).with_name("stop_while_scoring.py")), str(session), str(TIMES)],
