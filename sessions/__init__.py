@@ -20,7 +20,7 @@ from .ingest import (
     read_source,
     sniff_csv,
 )
-from .label_files import LabelImport, file_format, write_frame
+from .label_files import LabelImport, file_format, read_frame, write_frame
 from .limits import MAX_NAME_CHARS, MAX_RATE_HZ, name_refusal
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import ModelVersion
@@ -81,6 +81,7 @@ __all__ = [
     "new_file",
     "per_log_paths",
     "plan_sources",
+    "read_frame",
     "read_mcap",
     "read_source",
     "refuse_existing",

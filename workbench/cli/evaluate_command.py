@@ -47,6 +47,7 @@ def evaluate(
     stage1: Literal["own", "lstm"] = "own",
     device: Literal["cpu", "cuda"] = "cpu",
     reference: Path | None = None,
+    far: tuple[Path, ...] = (),
 ) -> None:
     """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
 
@@ -99,6 +100,8 @@ def evaluate(
             Retrain does on the CPU, refuse it in one line).
         reference: With session or loop: a label file (the columns of `workbench labels export`) stored as the
             reference labels of the logs it names before scoring (loop: in its copy of the session only).
+        far: loop: log files of runs kept out of the session, their truth in --reference: after every round the
+            bundle the session would export scores them as `workbench classify` does (what ships to the robot).
     """
     if out is not None:  # before anything loads (torch takes seconds): a refused target is told at once
         _check_out(out, dataset=dataset, simulate=simulate)
@@ -106,6 +109,8 @@ def evaluate(
         raise WorkbenchError("--strategies: name at least one (random, combined, entropy, margin, ...)")
     if rounds is not None and rounds < 1:
         raise WorkbenchError(f"--rounds {rounds}: at least one round of labelling")
+    if far and dataset != "loop":
+        raise WorkbenchError(f"--far: evaluate {dataset} has no far runs; --far is for evaluate loop")
     from ..evaluation import protocols as ev
 
     check_device(device)
@@ -134,7 +139,7 @@ def evaluate(
             rounds=4 if rounds is None else rounds, per_round=per_round, person=person, strategies=order, seed=seed
         )
         with Session.open(folder) as s:
-            print(evaluate_loop(s, reference=reference, settings=settings, out=out))
+            print(evaluate_loop(s, reference=reference, settings=settings, out=out, far=far))
         return
     rounds = 8 if rounds is None else rounds
     if dataset == "session":

@@ -26,10 +26,11 @@ from typing import Literal
 import numpy as np
 
 import labeling
-from sessions import LogInfo, Session, WorkbenchError, new_file
+from sessions import LogInfo, Session, WorkbenchError, new_file, read_frame, write_frame
 
 from ..cycle import (
     SessionScores,
+    active_bundle,
     checks_summary,
     classifier_family,
     compute_scores,
@@ -42,7 +43,9 @@ from ..cycle import (
 from ..retrain import RETRAIN
 from ..scratch_folders import scratch_folder
 from ..user_errors import USER_ERRORS
-from .loop_said import said_of_logs, said_table
+from .far_runs import FarRuns, read_far_runs, score_far
+from .loop_report import loop_report
+from .loop_said import said_of_logs
 
 Person = Literal["piece", "stretch"]
 # What a lever is worth, measured by leaving it out: a strategy's name for the loop -> the suggestion strategy, the
@@ -101,6 +104,9 @@ class LoopRound:
         spot: The same over spot checks only.
         majority: Always answering the most common labelled terrain on the same time: its name and accuracy.
         said: Per new log, what the workbench says of it (:func:`.loop_said.said_of_logs`).
+        far: The shipped model on the far runs (runs kept out of the session, ``far_runs``): accuracy and balanced
+            accuracy; ``None`` without far runs.
+        far_per_log: Its accuracy per far run.
     """
 
     round: int
@@ -119,6 +125,8 @@ class LoopRound:
     spot: tuple[int, int] = (0, 0)
     majority: tuple[str, float] = ("", float("nan"))
     said: dict[str, dict] = field(default_factory=dict)
+    far: tuple[float, float] | None = None
+    far_per_log: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -269,8 +277,10 @@ def run_arm(
     settings: LoopSettings,
     *,
     log: Callable[[str], None],
+    far: FarRuns | None = None,
 ) -> list[LoopRound]:
-    """One strategy's rounds on its own copy of ``start`` (made at ``folder``)."""
+    """One strategy's rounds on its own copy of ``start`` (made at ``folder``); with ``far``, the bundle the copy
+    would export scored on those runs after every round."""
     with Session.open(start) as s0:
         s0.copy_to(folder)
     scoring = ABLATIONS.get(strategy, (strategy, {}, {}))[2]
@@ -289,6 +299,7 @@ def run_arm(
             if r > 0:
                 scores = compute_scores(s, **scoring)
             measured = measure(s, scores, new, truth, classes)
+            shipped = None if far is None else score_far(active_bundle(s)[1], far)
             in_new = sum(g.length for g in s.segments() if g.log_id in new_ids and g.author == AUTHOR)
             checked = checks_summary(s, log_ids=new_ids)
             rounds.append(
@@ -309,11 +320,14 @@ def run_arm(
                     (checked.spot.right, checked.spot.n) if checked.spot else (0, 0),
                     measured.majority,
                     said_of_logs(s, scores, new, points, covered=_covered),
+                    None if shipped is None else (shipped.accuracy, shipped.balanced),
+                    {} if shipped is None else shipped.per_log,
                 )
             )
+            far_said = "" if shipped is None else f"; the shipped model on far runs {100 * shipped.accuracy:.1f} %"
             log(
                 f"{strategy} round {r}: {labelled / rate:.0f} s labelled ({in_new / rate:.0f} s in new logs), "
-                f"accuracy {100 * measured.accuracy:.1f} %, balanced {100 * measured.balanced:.1f} %"
+                f"accuracy {100 * measured.accuracy:.1f} %, balanced {100 * measured.balanced:.1f} %{far_said}"
             )
             if r == settings.rounds:
                 break
@@ -348,6 +362,7 @@ def evaluate_loop(
     out: Path | None = None,
     workdir: Path | None = None,
     log: Callable[[str], None] = print,
+    far: Sequence[Path] = (),
 ) -> str:
     """Run the loop for each strategy from the same start; returns a Markdown report.
 
@@ -359,6 +374,8 @@ def evaluate_loop(
         out: Also write every round's figures as JSON here.
         workdir: Where the copies are made (default: the system's temporary folder).
         log: Where progress lines go.
+        far: Log files of runs kept out of the session (their truth in ``reference``): after every round the bundle
+            the session would export scores them as ``classify`` does, the figure of what ships to the robot.
 
     Raises:
         WorkbenchError: No log without labels has reference labels, or the labels cover fewer than two terrains.
@@ -374,7 +391,7 @@ def evaluate_loop(
         start = session.copy_to(Path(tmp) / "start")
         with Session.open(start) as s:
             if reference is not None:
-                n = s.import_reference(reference)
+                n = s.import_reference(_session_rows(reference, s, Path(tmp)) if far else reference)
                 log(f"reference: {n} row(s) from {reference}, in a copy of the session")
             labelled_logs = {g.log_id for g in s.segments()}
             new = [x for x in s.logs() if x.id not in labelled_logs and s.reference(x.id)]
@@ -390,8 +407,16 @@ def evaluate_loop(
             _fit(s)
             family = classifier_family(s)
             total_new = sum(x.duration_s for x in new)
+            far_runs = None
+            if far:
+                if reference is None:
+                    raise WorkbenchError("--far: the far runs' truth comes from --reference FILE; give it")
+                far_runs = read_far_runs(far, reference, active_bundle(s)[1], session_logs=[x.name for x in s.logs()])
+                log(f"far runs: {len(far_runs.names)} kept out of the session ({', '.join(far_runs.names)})")
         arms = {
-            strategy: run_arm(start, Path(tmp) / strategy, strategy, {x.id for x in new}, settings, log=log)
+            strategy: run_arm(
+                start, Path(tmp) / strategy, strategy, {x.id for x in new}, settings, log=log, far=far_runs
+            )
             for strategy in settings.strategies
         }
     took = time.monotonic() - t0
@@ -417,6 +442,16 @@ def evaluate_loop(
     )
 
 
+def _session_rows(reference: Path, session: Session, folder: Path) -> Path:
+    """The rows of ``reference`` that name the session's logs, as a label file in ``folder``: the far runs' rows
+    are their truth, never the session's."""
+    frame = read_frame(reference)
+    if "log" not in frame.columns:
+        raise WorkbenchError(f"{reference}: a reference file needs the column log")
+    mine = frame[frame["log"].astype(str).isin({x.name for x in session.logs()})]
+    return write_frame(mine, folder / "session-reference.csv")
+
+
 @contextlib.contextmanager
 def _named_as(path: Path, copies: Path) -> Iterator[None]:
     """A person's error raised inside the loop's copies of a session names the session, not a copy in the temporary
@@ -426,52 +461,3 @@ def _named_as(path: Path, copies: Path) -> Iterator[None]:
     except USER_ERRORS as exc:
         copy = re.compile(re.escape(str(copies)) + r"/[^/\s:;,]+")
         raise WorkbenchError(copy.sub(str(path).replace("\\", "\\\\"), str(exc))) from None
-
-
-def _pct(x: float | None) -> str:
-    return "–" if x is None or x != x else f"{100 * x:.1f}"
-
-
-def loop_report(
-    name: str,
-    arms: dict[str, list[LoopRound]],
-    settings: LoopSettings,
-    *,
-    family: str,
-    new: Sequence[str],
-    new_s: float,
-    seconds: float,
-    majority: tuple[str, float] = ("–", float("nan")),
-) -> str:
-    """Markdown: per strategy and round, where the labels went and what they did to the new logs."""
-    lines = [
-        f"# Session {name}: the loop on {len(new)} log(s) nobody had labelled ({new_s / 60:.1f} min)",
-        "",
-        f"{settings.rounds} round(s) of {settings.per_round} suggestions, the person labelling each as a "
-        f"`{settings.person}`; after each round stage 2 of the {family} family from scratch on every label (as the "
-        f"Retrain ends). Accuracy on the new logs' time nobody labelled, against the reference. {seconds:.0f} s.",
-        "",
-        f"Always the most common labelled terrain ({majority[0]}) would score {_pct(majority[1])} % on that time "
-        "at the start.",
-        "",
-        "| strategy | round | labelled s (in new logs) | picks in new logs | in the worst new log | accuracy (%) | "
-        "balanced (%) | the model's estimate (%) | checks in new logs right (spot checks) |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
-    ]
-    for strategy, rounds in arms.items():
-        for r in rounds:
-            picks = f"{r.picks_new} of {r.picks}" if r.round else "–"
-            worst = f"{r.picks_worst} ({r.worst})" if r.round else "–"
-            checks = f"{r.checks[0]} of {r.checks[1]} ({r.spot[0]} of {r.spot[1]})" if r.checks[1] else "–"
-            lines.append(
-                f"| {strategy} | {r.round} | {r.labelled_s:.0f} ({r.new_s:.0f}) | {picks} | {worst} | "
-                f"{_pct(r.accuracy)} | {_pct(r.balanced)} | {_pct(r.estimate)} | {checks} |"
-            )
-    lines += ["", "Per new log after the last round (accuracy, %):", ""]
-    names = list(new)
-    lines += ["| strategy | " + " | ".join(names) + " |", "| --- |" + " --- |" * len(names)]
-    for strategy, rounds in arms.items():
-        last = rounds[-1].per_log
-        lines.append(f"| {strategy} | " + " | ".join(_pct(last.get(n)) for n in names) + " |")
-    lines += ["", *said_table({k: [(r.per_log, r.said) for r in v] for k, v in arms.items()})]
-    return "\n".join(lines) + "\n"

@@ -7,15 +7,27 @@ written before it is whole (a locked ``.NAME.partial/``, swept once its export i
 
 from .export_staging import check_target, staged, sweep_dead_exports
 from .model_card import model_card
-from .session_export import OUTPUT_TYPES, classify_files, export_all, prediction_frame, write_labelled_frames
+from .session_export import (
+    OUTPUT_TYPES,
+    ReadLogs,
+    classify_files,
+    export_all,
+    prediction_frame,
+    read_logs,
+    score_arrays,
+    write_labelled_frames,
+)
 
 __all__ = [
     "OUTPUT_TYPES",
+    "ReadLogs",
     "check_target",
     "classify_files",
     "export_all",
     "model_card",
     "prediction_frame",
+    "read_logs",
+    "score_arrays",
     "staged",
     "sweep_dead_exports",
     "write_labelled_frames",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import shutil
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -225,8 +225,21 @@ def _write_mcap(
     return path, f"{log.name}: topics {PREDICTION_TOPIC} and {LABEL_TOPIC} on the log's clock"
 
 
-def _arrays_for(bundle: ModelBundle, files: Sequence[Path], options: IngestOptions):
+@dataclass(frozen=True)
+class ReadLogs:
+    """Log files read for a bundle: per log its name, ``(T, C)`` samples in the bundle's channel order at its rate,
+    and its start on the source's clock; and the files refused, each an error naming it."""
+
+    names: tuple[str, ...]
+    arrays: tuple[np.ndarray, ...]
+    starts: tuple[float, ...]
+    errors: tuple[IngestError, ...]
+
+
+def read_logs(bundle: ModelBundle, files: Sequence[Path], options: IngestOptions) -> ReadLogs:
+    """Read log files as ``workbench ingest`` does, aligned at the bundle's rate, in its channel order."""
     sources, errors = plan_sources(list(files))
+    names, arrays, starts = [], [], []
     for src in sources:
         try:
             parsed, _ = read_source(src, options)
@@ -239,14 +252,31 @@ def _arrays_for(bundle: ModelBundle, files: Sequence[Path], options: IngestOptio
             except IngestError as exc:
                 errors.append(exc)
                 continue
-            names = [c.name for c in a.channels]
-            missing = [c for c in bundle.channels if c not in names]
+            have = [c.name for c in a.channels]
+            missing = [c for c in bundle.channels if c not in have]
             if missing:
                 errors.append(IngestError(src.path, f"lacks channels the model needs: {', '.join(missing[:5])}"))
                 continue
-            yield p.name, (a.data[:, [names.index(c) for c in bundle.channels]], a.t0)
-    for err in errors:
-        yield None, err
+            names.append(p.name)
+            arrays.append(a.data[:, [have.index(c) for c in bundle.channels]])
+            starts.append(a.t0)
+    return ReadLogs(tuple(names), tuple(arrays), tuple(starts), tuple(errors))
+
+
+def score_arrays(bundle: ModelBundle, arrays: Sequence[np.ndarray]) -> list:
+    """Each log scored by the bundle alone, as ``classify`` and the robot score it (no session: no labels, no
+    votes): per log a ``labeling.LogScores`` (probabilities, members' agreement, drift)."""
+    from ..cycle import in_memory_features, score_logs
+
+    if bundle.stage2_family().stage2_inputs in ("frames", "windows"):
+        # the predictions file holds no surprise: these families' stage 2 never reads stage 1, so it is skipped
+        features = in_memory_features(list(arrays), bundle, bundle.spectral)
+        surprise = [np.zeros(len(a), np.float32) for a in arrays]
+    else:
+        outs = run_predictor(bundle.predictor, bundle.normalizer, list(arrays))
+        features = [o.lazy(bundle.feature_mode) for o in outs]
+        surprise = [o.surprise() for o in outs]
+    return score_logs(bundle.classifiers, features, surprise, drift=bundle.drift)
 
 
 def _finite_only(names: list[str], scored: list, lines: list[str]) -> list[int]:
@@ -318,31 +348,18 @@ def classify_files(
     as_mcap = Path(out).suffix.lower() == ".mcap"
     checks, lines = _checks_lines(bundle_dir, card_accuracy(bundle.metrics))
     spot = None if checks is None else checks.spot
-    names, arrays, starts = [], [], []
-    for name, item in _arrays_for(bundle, files, options):
-        if name is None:
-            lines.append(f"error: {item}")
-        else:
-            names.append(name)
-            arrays.append(item[0])
-            starts.append(item[1])
+    read = read_logs(bundle, files, options)
+    lines += [f"error: {e}" for e in read.errors]
+    names, arrays, starts = list(read.names), list(read.arrays), list(read.starts)
     paths = per_log_paths(Path(out), names) if as_mcap else []
     try:
         refuse_existing(paths)
     except WorkbenchError as exc:
         return 2, [*lines, f"error: {exc}"]
     if arrays:
-        from ..cycle import in_memory_features, log_change_points, score_logs
+        from ..cycle import log_change_points
 
-        if bundle.stage2_family().stage2_inputs in ("frames", "windows"):
-            # the predictions file holds no surprise: these families' stage 2 never reads stage 1, so it is skipped
-            features = in_memory_features(arrays, bundle, bundle.spectral)
-            surprise = [np.zeros(len(a), np.float32) for a in arrays]
-        else:
-            outs = run_predictor(bundle.predictor, bundle.normalizer, arrays)
-            features = [o.lazy(bundle.feature_mode) for o in outs]
-            surprise = [o.surprise() for o in outs]
-        scored = score_logs(bundle.classifiers, features, surprise, drift=bundle.drift)
+        scored = score_arrays(bundle, arrays)
         kept = _finite_only(names, scored, lines)
         names, arrays, scored = [names[i] for i in kept], [arrays[i] for i in kept], [scored[i] for i in kept]
         starts, paths = [starts[i] for i in kept], [paths[i] for i in kept] if as_mcap else paths

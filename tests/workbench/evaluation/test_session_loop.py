@@ -177,3 +177,33 @@ def test_the_headless_loop_suggest_fill_in_import_train(
     printed = capsys.readouterr().out
     assert re.search(r"your checks: right on \d of 4 checks", printed), printed  # what the person's checks say
     assert "always the most common terrain" in printed  # the baseline beside the estimate (item 5)
+
+
+def test_far_runs_are_scored_by_the_shipped_bundle_every_round_and_never_enter_the_session(
+    loop_session: tuple[Path, Path], tmp_path: Path, capsys
+) -> None:
+    """Issue 82, item 1: runs kept out of the session copy entirely, scored after each round by the bundle the
+    session would export, as `classify` scores them; the session's reference rows and the far runs' are one file."""
+    session, reference = loop_session
+    (tmp_path / "far").mkdir()
+    far = [_walk(tmp_path / "far" / f"x{i}.csv", 20 + i, gain=1.5) for i in range(2)]
+    both = tmp_path / "truth.csv"
+    rows = pd.read_csv(reference)
+    pd.concat([rows, pd.DataFrame([r for _, t in far for r in t], columns=rows.columns)]).to_csv(both, index=False)
+    out = tmp_path / "loop.json"
+    args = ["evaluate", "loop", str(session), "--reference", str(both), "--rounds", "1", "--per-round", "6"]
+    code = main([*args, "--strategies", "combined", "--out", str(out), "--far", *(str(p) for p, _ in far)])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    arm = json.loads(out.read_text())["arms"]["combined"]
+    assert all(r["far"] is not None and set(r["far_per_log"]) == {"x0", "x1"} for r in arm)
+    assert arm[0]["far"][0] > 0.5, arm[0]  # the bundle reads the far runs: above chance on two terrains
+    assert "the shipped model on far runs (%) (balanced)" in text and "| combined | x0 | x1 |" not in text
+    assert re.search(r"\| combined \| \d+\.\d → \d+\.\d \| \d+\.\d → \d+\.\d \|", text), text
+    with Session.open(session) as s:
+        assert {x.name for x in s.logs()} == {"w0", "w1", "w2", "odd"}
+    # refused in one line: a far run that is a log of the session, far runs without their truth
+    assert main([*args, "--far", str(loop_session[0].parent / "w2.csv")]) == 2
+    assert "w2 is a log of the session" in capsys.readouterr().err
+    assert main(["evaluate", "loop", str(session), "--far", str(far[0][0])]) == 2
+    assert "no log without labels has reference labels" in capsys.readouterr().err
