@@ -23,6 +23,7 @@ from .simulate import (
 )
 from .stretches import PredictedStretch, predicted_stretches, uncovered
 from .suggest import STRATEGIES, Interrupted, MainAnswer, Strategy, candidates, class_weights, suggest
+from .teacher import TEACHER_SURE, taught_terrains
 from .tracks import (
     DRIFT_TRACK_AT_1,
     KINDS,
@@ -46,6 +47,7 @@ __all__ = [
     "DRIFT_TRACK_AT_1",
     "KINDS",
     "STRATEGIES",
+    "TEACHER_SURE",
     "CheckEstimate",
     "CurvePoint",
     "Interrupted",
@@ -94,6 +96,7 @@ __all__ = [
     "stretch_oracle",
     "suggest",
     "table",
+    "taught_terrains",
     "time_to_reach",
     "uncovered",
     "wilson",

@@ -6,12 +6,17 @@ their time, in 5 s pieces) and others have no label at all, as a person's new ru
 
     python benchmarks/studies/loop_borealtc.py new-runs [--per-terrain 1] [--seed S] [--rounds 4] [--person piece]
     python benchmarks/studies/loop_borealtc.py spliced [--changes 26] ...
+    python benchmarks/studies/loop_borealtc.py new-runs --far-per-terrain 2   # + runs kept out of the session
 
 ``new-runs``: ``--per-terrain`` runs of each terrain (drawn with ``--seed``) get no label; every other run is
 labelled at 10 %. ``spliced``: one run of each terrain is cut into ``--changes`` + 1 pieces, shuffled into one new
 run with that many terrain changes (the IMU and the motor channels cut at the same times, on one clock), which
 replaces them; every other run is labelled at 10 %. The reference of the new runs is their folder name (spliced: the
-pieces' own terrains). Skips with a reason when ``../shared/data/borealtc`` is absent.
+pieces' own terrains). ``--far-per-terrain N``: N more runs of each terrain are kept out of the session entirely
+and scored after every round by the bundle the session would export (issue 82's far runs); ``--labelled-per-terrain
+N`` keeps only N labelled runs of each terrain in the session (often one run per terrain, as a robot's first day
+is). Skips with a reason when
+``../shared/data/borealtc`` is absent.
 """
 
 from __future__ import annotations
@@ -73,19 +78,33 @@ def _runs() -> dict[str, dict[str, list[Path]]]:
     return out
 
 
-def build(folder: Path, layout: str, *, per_terrain: int, changes: int, seed: int) -> tuple[Path, Path | None]:
-    """The session and, for ``spliced``, the reference file of the spliced run."""
+def build(
+    folder: Path,
+    layout: str,
+    *,
+    per_terrain: int,
+    changes: int,
+    seed: int,
+    far_per_terrain: int = 0,
+    labelled_per_terrain: int = 0,
+) -> tuple[Path, Path | None, list[Path]]:
+    """The session, the reference file (the spliced run's, and the far runs' truth) and the far runs' files."""
     from sessions import Session
 
     rng = np.random.default_rng(seed)
     runs = _runs()
-    chosen = {  # per terrain, the runs that will not be labelled (spliced: cut into the new run instead)
-        t: [r for r in rng.permutation(sorted(by_run)) if len(by_run[r]) == 2][
-            : 1 if layout == "spliced" else per_terrain
-        ]
-        for t, by_run in runs.items()
+    taken = {  # per terrain, the runs that will not be labelled (spliced: cut into the new run instead), then far
+        t: [r for r in rng.permutation(sorted(by_run)) if len(by_run[r]) == 2] for t, by_run in runs.items()
     }
-    files = [f for t, by_run in runs.items() for r, fs in by_run.items() for f in fs]
+    first = 1 if layout == "spliced" else per_terrain
+    chosen = {t: rs[:first] for t, rs in taken.items()}
+    far_runs = {t: rs[first : first + far_per_terrain] for t, rs in taken.items()}
+    far_files = sorted(f for t, rs in far_runs.items() for r in rs for f in runs[t][r])
+    files = [f for t, by_run in runs.items() for r, fs in by_run.items() for f in fs if f not in far_files]
+    if labelled_per_terrain:  # a small session: that many labelled runs of each terrain, the rest left out entirely
+        end = first + far_per_terrain
+        kept = {(t, r) for t, rs in taken.items() for r in rs[: end + labelled_per_terrain]}
+        files = [f for f in files if (f.parent.name, f.stem.split("_")[1]) in kept or f.parent.name == "MIXED"]
     reference = None
     if layout == "spliced":
         pairs = [tuple(sorted(runs[t][r])) for t in sorted(chosen) for r in chosen[t]]  # (imu, pro)
@@ -114,7 +133,16 @@ def build(folder: Path, layout: str, *, per_terrain: int, changes: int, seed: in
             f"new: {', '.join(x.name for x in new)}",
             flush=True,
         )
-    return folder, reference
+        if far_files:  # the far runs' truth (their folder), beside the session's new runs' reference rows
+            if reference is not None:  # the spliced run's truth is in its file, not in the session
+                rows = list(pd.read_csv(reference).itertuples(index=False, name=None))
+            else:
+                rows = [(x.name, a / x.rate_hz, b / x.rate_hz, t) for x in new for a, b, t in s.reference(x.id)]
+            rows += [(f"{t}_{r}", 0.0, 1e5, t.lower()) for t, rs in far_runs.items() for r in rs]
+            reference = folder.parent / "far-reference.csv"
+            pd.DataFrame(rows, columns=["log", "start_s", "end_s", "terrain"]).to_csv(reference, index=False)
+            print(f"far: {', '.join(f'{t}_{r}' for t, rs in far_runs.items() for r in rs)} (never in the session)")
+    return folder, reference, far_files
 
 
 def main() -> int:
@@ -122,6 +150,10 @@ def main() -> int:
     args.add_argument("layout", nargs="?", default="new-runs", choices=["new-runs", "spliced"])
     args.add_argument("--per-terrain", type=int, default=1)
     args.add_argument("--changes", type=int, default=26)
+    args.add_argument("--far-per-terrain", type=int, default=0, help="runs of each terrain kept out of the session")
+    args.add_argument(
+        "--labelled-per-terrain", type=int, default=0, help="labelled runs of each terrain in the session (0: all)"
+    )
     opts = args.parse_args()
     if not DATA.is_dir():
         print(f"skipped: {DATA} is absent (BorealTC is not shipped with the project)")
@@ -132,11 +164,17 @@ def main() -> int:
 
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory() as tmp:
-        folder, reference = build(
-            Path(tmp) / "s", opts.layout, per_terrain=opts.per_terrain, changes=opts.changes, seed=opts.seed
+        folder, reference, far = build(
+            Path(tmp) / "s",
+            opts.layout,
+            per_terrain=opts.per_terrain,
+            changes=opts.changes,
+            seed=opts.seed,
+            far_per_terrain=opts.far_per_terrain,
+            labelled_per_terrain=opts.labelled_per_terrain,
         )
         with Session.open(folder) as s:
-            print(evaluate_loop(s, reference=reference, settings=loop_settings(opts), workdir=Path(tmp)))
+            print(evaluate_loop(s, reference=reference, settings=loop_settings(opts), workdir=Path(tmp), far=far))
     print(f"{time.monotonic() - t0:.0f} s")
     return 0
 

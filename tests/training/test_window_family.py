@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import threading
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 import pytest
@@ -346,3 +347,21 @@ def test_window_rows_hold_each_segments_frames_once_and_stack_what_features_at_g
     assert rows.nbytes * 3 < dense.nbytes  # each frame once, not once per window that holds it
     empty, ends = window_rows(feats, [], every_row)
     assert len(empty) == 0 and list(ends) == [0]
+
+
+def test_a_stretch_the_session_teaches_takes_its_terrain_whatever_the_fold_model_says(logs) -> None:
+    """The session's blend (the ensemble and the run's label votes) teaches a stretch its terrain; the
+    mixed piece that never agrees alone is taken, with the class taught, and an untaught one is judged as before."""
+    arrays, terrains = logs
+    rng = np.random.default_rng(5)
+    mixed = [np.concatenate([a[:2000], _walk(400, (k + 1) % 3, rng)]) for a, k in zip(arrays, terrains, strict=True)]
+    normalizer = Normalizer.fit(mixed)
+    feats = _features(mixed, normalizer, SpectralConfig.for_log(mixed[0], RATE))
+    segments = [(i, 300, 900, k) for i, k in enumerate(terrains)]
+    stretches = [(i, 1800, 2200) for i in range(len(mixed))]  # half one terrain, half another: never agrees alone
+    settings = WindowFitConfig(k_folds=2, epochs=8, refit_epochs=4, held_out=False, calibrate=False)
+    fit = partial(fit_window_classifier, feats, segments, ("a", "b", "c"), config=settings, stretches=stretches)
+    assert fit().metrics["pseudo_stretches"] == 0
+    taught = fit(taught=[(k + 1) % 3 for k in terrains])
+    assert taught.metrics["pseudo_stretches"] == len(mixed)
+    assert fit(taught=[-1] * len(mixed)).metrics["pseudo_stretches"] == 0

@@ -180,16 +180,20 @@ def _pseudo_labels(
     *,
     units: np.ndarray | None = None,
     unit_agree: float = 0.0,
+    taught: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """The pool rows of the ``stretches`` (indices into ``bounds``) whose rows agree on a class, that class per row,
     and how many stretches were taken. With ``units`` (one id per stretch in ``bounds``) and ``unit_agree``, the
     stretches of a unit whose rows together agree (``unit_agree`` of them) all take the unit's class, whatever
-    each says alone; the others are judged alone."""
+    each says alone; the others are judged alone. With ``taught`` (one class per stretch in ``bounds``, ``-1``:
+    none), a stretch the session teaches takes that class, whatever the model says of it."""
     k = model.config.n_classes
     counts: dict[int, np.ndarray] = {}  # per stretch with rows, its rows' predicted classes counted
     for j in stretches:
         a, b = int(bounds[j]), int(bounds[j + 1])
-        if b > a:
+        if b > a and taught is not None and taught[j] >= 0:
+            counts[j] = np.bincount([int(taught[j])], minlength=k) * (b - a)  # sure by the session's word
+        elif b > a:
             counts[j] = np.bincount(_predict_rows(model, pool[a:b]), minlength=k)
     by_unit: dict[int, np.ndarray] = {}  # the same, summed over each unit's stretches
     if units is not None and unit_agree > 0:
@@ -222,6 +226,7 @@ def fit_window_classifier(
     config: WindowFitConfig | None = None,
     stretches: Sequence[Stretch] = (),
     units: Sequence[int] | None = None,
+    taught: Sequence[int] | None = None,
     groups: Sequence[int] | None = None,
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
@@ -238,6 +243,9 @@ def fit_window_classifier(
         stretches: Unlabelled spans ``(log index, start, stop)`` for self-training (ignored when it is off).
         units: Per stretch, the longer span it is a piece of (no change point or label between them):
             ``config.unit_agree`` judges the pieces of a unit together. Default: each stretch its own.
+        taught: Per stretch, the class the session teaches there (``labeling.taught_terrains``: its blend of the
+            ensemble and the runs' label votes, where sure), ``-1`` where it teaches none: such a stretch takes that
+            class instead of the fold model's own agreement. Default: none taught.
         groups: The recording (run) each log belongs to, for the held-out figures and the calibration; default:
             every log is its own (a session's logs are runs; a protocol that cuts runs into pieces passes the runs).
         progress: Called after each fit, on the calling thread.
@@ -275,6 +283,7 @@ def fit_window_classifier(
     keep = pool_draw(features, used, budget_mib=config.pool_mib, share=config.pool_share, seed=config.seed)
     pool, bounds = stretch_pool(features, used, PSEUDO_STRIDE, keep=keep)
     unit_of = None if units is None else np.asarray(units, np.int64)
+    taught_of = None if taught is None else np.asarray(taught, np.int64)
 
     def fit_on(
         train: Sequence[Segment], skip_logs: set[int], seed: int
@@ -298,7 +307,7 @@ def fit_window_classifier(
         seen = {int(c) for c in np.unique(y)}
         kept = [j for j, s in enumerate(stretches) if s[0] not in skip_logs] if use_stretches else []
         index, py, taken = _pseudo_labels(
-            model, pool, bounds, kept, config.agree, units=unit_of, unit_agree=config.unit_agree
+            model, pool, bounds, kept, config.agree, units=unit_of, unit_agree=config.unit_agree, taught=taught_of
         )
         if taken:  # the pseudo-labelled rows are read in the pool, not copied beside the labelled ones
             y = np.concatenate([y, py])

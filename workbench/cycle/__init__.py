@@ -41,7 +41,7 @@ from .score_store import (
     stored_scores,
 )
 from .scores import EMBEDDING_MODE, SessionScores, compute_scores, score_logs, score_session, stage1_embedding
-from .stage2_fit import STAGE1_FEATURES, train_classifier
+from .stage2_fit import STAGE1_FEATURES, taught_classes, train_classifier
 from .stage_inputs import (
     consistency_pairs,
     log_change_points,
@@ -115,6 +115,7 @@ __all__ = [
     "stretch_units",
     "suggest_for_session",
     "suggestion_lengths",
+    "taught_classes",
     "train_best_classifier",
     "train_classifier",
     "train_frame_predictor",

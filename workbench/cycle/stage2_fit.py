@@ -12,6 +12,7 @@ from functools import partial
 
 import numpy as np
 
+import labeling
 from sessions import LogInfo, ModelVersion, Segment, Session, WorkbenchError
 from training import (
     CancelFn,
@@ -31,8 +32,10 @@ from training import (
 )
 
 from ..retrain import RETRAIN
+from .checks_record import names_now
 from .fold_record import labels_record, new_labels, recorded_pieces
 from .front_end import spectral_features, stretch_units, unlabelled_stretches, window_features, window_sizes
+from .scores import SessionScores
 from .stage_inputs import consistency_pairs, signal_change_points, stage2_features
 from .train_stages import (
     active_predictor,
@@ -72,6 +75,7 @@ def train_classifier(
     warm_epochs: int | None = None,
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
+    teacher: SessionScores | None = None,
 ) -> ModelVersion:
     """Stage 2 on the session's labels over the active predictor's cached features; a new, active version.
 
@@ -95,6 +99,10 @@ def train_classifier(
             quick phase (``RETRAIN.window_steps`` steps per fold model, see :func:`_fine_tune_window`).
         progress: Called after every optimiser step or fold.
         cancel: Polled after every step or fit.
+        teacher: The session's scores as the page shows them (the ensemble blended with each run's label votes): a
+            self-training family's fit from scratch takes the terrain they are sure of over an unlabelled stretch
+            (``labeling.taught_terrains``) instead of its own agreement there, so the model that ships learns what
+            the session knows.
     """
     fam = stage1_family(session, model)
     if fam.stage2_inputs == "stage1":
@@ -115,7 +123,7 @@ def train_classifier(
         if quick is not None:
             return quick
     device = (config or TrainConfig()).device
-    return _train_window(session, fam, settings, progress=progress, cancel=cancel, device=device)
+    return _train_window(session, fam, settings, progress=progress, cancel=cancel, device=device, teacher=teacher)
 
 
 def _train_on_stage1(
@@ -202,10 +210,12 @@ def _train_window(
     progress: ProgressFn | None,
     cancel: CancelFn,
     device: str = "cpu",
+    teacher: SessionScores | None = None,
 ) -> ModelVersion:
     """Stage 2 of a family on the front end's frames or on the samples a window per frame (the default family's
     window network, MiniRocket), with self-training over the unlabelled stretches of every log where the family
-    learns from them; a new, active version (the predictor's bundle with it)."""
+    learns from them (taught by ``teacher`` where it is sure); a new, active version (the predictor's bundle with
+    it)."""
     p_version, bundle = active_predictor(session)
     logs = model_logs(session, bundle.channels)
     classes, used, segments = _labelled(session, logs)
@@ -220,6 +230,8 @@ def _train_window(
         stretches = unlabelled_stretches(logs, used, points, shortest=front.span)
         if settings.unit_agree:  # the pieces of a span judged together (off by default: WindowFitConfig)
             spans = {"units": stretch_units(stretches, lambda i: points(logs[i]))}
+        if teacher is not None:
+            spans["taught"] = taught_classes(session, teacher, logs, classes, stretches)
     params = {"model": fam.name, "window": to_dict(settings), "segments": len(segments)}
     with recorded_run(session, "classifier", params) as result:
         fit = fam.fit(
@@ -248,6 +260,7 @@ def _train_window(
                 "predictor": p_version.id,
                 "warm_start": False,
                 "self_training_stretches": len(stretches),
+                "taught_stretches": int((np.asarray(spans["taught"]) >= 0).sum()) if "taught" in spans else 0,
             },
         )
         result["version"] = version.id
@@ -352,3 +365,22 @@ def _save_classifier(
         **stage2,
     )
     return save_version(session, "classifier", full, {**recipe, "labels": labels_record(fit, used, segments)})
+
+
+def taught_classes(
+    session: Session,
+    teacher: SessionScores,
+    logs: Sequence[LogInfo],
+    classes: Sequence[str],
+    stretches: Sequence[tuple[int, int, int]],
+) -> np.ndarray:
+    """Per stretch, the class (an index into ``classes``) the session's scores are sure of there, ``-1`` elsewhere:
+    the teacher's classes taken by what the session calls those terrains now, a class the fit lacks never taught."""
+    names = names_now(session, teacher)
+    columns = [names.index(c) if c in names else -1 for c in classes]
+
+    def blended(log: LogInfo) -> np.ndarray | None:
+        s = teacher.scores.get(log.id)
+        return None if s is None or s.probs is None or len(s.probs) != log.n_samples else s.probs  # (T, K_teacher)
+
+    return labeling.taught_terrains([blended(x) for x in logs], stretches, columns=columns)

@@ -49,13 +49,14 @@ from .loop_said import said_of_logs
 
 Person = Literal["piece", "stretch"]
 # What a lever is worth, measured by leaving it out: a strategy's name for the loop -> the suggestion strategy, the
-# options it runs with, and the scoring's
-ABLATIONS: dict[str, tuple[str, dict, dict]] = {
-    "combined-no-unchecked": ("combined", {"unchecked_first": False}, {}),  # new runs not checked first (item 2)
-    "combined-no-votes": ("combined", {}, {"votes": False}),  # a run's labels not carried over its frames (item 3)
-    "combined-no-wrong-first": ("combined", {"wrong_first": False}, {}),  # runs checks found wrong not asked again
-    "combined-no-main-answer": ("combined", {"main_answer": "off"}, {}),  # a run's main answer never asked (item 3)
-    "combined-main-answer-new": ("combined", {"main_answer": "new"}, {}),  # every new run's main answer asked first
+# options it runs with, the scoring's and the fit's
+ABLATIONS: dict[str, tuple[str, dict, dict, dict]] = {
+    "combined-no-unchecked": ("combined", {"unchecked_first": False}, {}, {}),  # new runs not checked first (item 2)
+    "combined-no-votes": ("combined", {}, {"votes": False}, {}),  # a run's labels not carried over its frames (item 3)
+    "combined-no-wrong-first": ("combined", {"wrong_first": False}, {}, {}),  # runs checks found wrong not asked again
+    "combined-no-main-answer": ("combined", {"main_answer": "off"}, {}, {}),  # a run's main answer never asked (item 3)
+    "combined-main-answer-new": ("combined", {"main_answer": "new"}, {}, {}),  # every new run's main answer asked first
+    "combined-teacher": ("combined", {}, {}, {"teach": True}),  # the fit taught by the session's scores (RETRAIN.teach)
 }
 AUTHOR = "evaluate loop"
 STRETCH_WINDOW_S, STRETCH_MIN_S = 1.0, 2.0  # the model's stretches as the page draws them (ui.state)
@@ -256,11 +257,13 @@ def _check(
                 record_check(session, scores, log.id, x, y, classes[c], kind=pick.kind, author=AUTHOR)
 
 
-def _fit(session: Session) -> None:
-    """Stage 2 as the Retrain ends: from scratch on every label, the session's family."""
+def _fit(session: Session, *, teach: bool = RETRAIN.teach, scoring: dict | None = None) -> None:
+    """Stage 2 as the Retrain ends: from scratch on every label, the session's family; with ``teach``, taught by
+    the session's scores as they are now (its labels' votes included)."""
     p = session.active_model("predictor")
     hidden = int(p.config.get("hidden", RETRAIN.hidden)) if p is not None else RETRAIN.hidden
-    train_classifier(session, config=RETRAIN.classifier, warm_start=False, hidden=hidden)
+    teacher = compute_scores(session, **(scoring or {})) if teach else None
+    train_classifier(session, config=RETRAIN.classifier, warm_start=False, hidden=hidden, teacher=teacher)
 
 
 def _estimate(session: Session) -> float | None:
@@ -283,7 +286,7 @@ def run_arm(
     would export scored on those runs after every round."""
     with Session.open(start) as s0:
         s0.copy_to(folder)
-    scoring = ABLATIONS.get(strategy, (strategy, {}, {}))[2]
+    _, options, scoring, fitting = ABLATIONS.get(strategy, (strategy, {}, {}, {}))
     with Session.open(folder) as s:
         classes = [t.name for t in s.terrains()]
         scores = compute_scores(s, **scoring)
@@ -333,7 +336,7 @@ def run_arm(
                 break
             t0 = time.monotonic()
             worst = min(measured.per_log, key=measured.per_log.__getitem__) if measured.per_log else None
-            base, options, _ = ABLATIONS.get(strategy, (strategy, {}, {}))
+            base = ABLATIONS.get(strategy, (strategy,))[0]
             picks = suggest_for_session(
                 s,
                 scores,
@@ -350,7 +353,7 @@ def run_arm(
             picks_worst = sum(x.name == worst for x, _ in picks)
             _check(s, scores, picks, truth, classes)
             labelled += _label(s, person_labels(picks, scores, truth, person=settings.person), classes)
-            _fit(s)
+            _fit(s, scoring=scoring, **fitting)
     return rounds
 
 

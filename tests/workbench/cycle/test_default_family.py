@@ -102,6 +102,24 @@ def test_self_training_stretches_hold_no_label_and_no_change_point(session: Sess
     assert len(set(units)) < len(units)  # some spans longer than 5 s were cut into pieces
 
 
+def test_the_session_teaches_stretches_by_its_scores_and_by_what_it_calls_the_terrains_now(session: Session) -> None:
+    """Issue 82: a fit from scratch taught by the session's scores (their classes taken by today's names) records
+    how many stretches were taught; a class the scores do not have is never taught."""
+    if session.active_model("classifier").config["model"] != "default":
+        cycle.train_classifier(session, model="default")
+    scores = cycle.compute_scores(session)
+    taught = cycle.train_classifier(session, warm_start=False, teacher=scores)
+    assert 0 < taught.config["taught_stretches"] <= taught.config["self_training_stretches"]
+    logs = cycle.model_logs(session, cycle.active_predictor(session)[1].channels)
+    stretches = [(0, 0, 400), (0, 400, 800)]
+    classes = list(scores.classes)
+    got = cycle.taught_classes(session, scores, logs, [*reversed(classes), "nowhere"], stretches)
+    said = np.asarray(scores.scores[logs[0].id].probs[0:400]).argmax(axis=1)
+    most = int(np.bincount(said).argmax())
+    assert got[0] in (-1, len(classes) - 1 - most)  # the scores' class counted in the fit's order
+    assert "nowhere" not in [([*reversed(classes), "nowhere"])[g] for g in got if g >= 0]
+
+
 def test_stretch_units_cut_at_logs_gaps_and_change_points() -> None:
     stretches = [(0, 0, 500), (0, 500, 1000), (0, 1000, 1400), (0, 1600, 2000), (1, 2000, 2500), (1, 2500, 2900)]
     points = {0: np.asarray([1000]), 1: np.asarray([], np.int64)}
