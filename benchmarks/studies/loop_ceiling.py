@@ -22,7 +22,7 @@ from loop_borealtc import DATA, build
 import labeling
 from sessions import Session
 from workbench.cycle import active_bundle, train_classifier, train_stage1
-from workbench.evaluation.far_runs import read_far_runs, score_far
+from workbench.evaluation import read_far_runs, score_far
 
 
 def main() -> int:

@@ -28,7 +28,7 @@ from functools import partial
 import numpy as np
 import torch
 
-from ..figures import blocked_folds, classification_metrics, log_folds, terrain_estimate
+from ..figures import blocked_folds, classification_metrics, log_folds, terrain_estimate, unseen_runs_figure
 from ..fitting import ClassifierFit, Segment
 from ..running import INIT_LOCK, CancelFn, Cancelled, Progress, ProgressFn, fit_workers, never, run_fits
 from .class_balance import BalancedLoss, class_shares, epoch_order
@@ -227,6 +227,7 @@ def fit_window_classifier(
     stretches: Sequence[Stretch] = (),
     units: Sequence[int] | None = None,
     taught: Sequence[int] | None = None,
+    known: Sequence[int] | None = None,
     groups: Sequence[int] | None = None,
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
@@ -246,6 +247,8 @@ def fit_window_classifier(
         taught: Per stretch, the class the session teaches there (``labeling.taught_terrains``: its blend of the
             ensemble and the runs' label votes, where sure), ``-1`` where it teaches none: such a stretch takes that
             class instead of the fold model's own agreement. Default: none taught.
+        known: Per stretch, the terrain the session knows there (its scores sure of one, ``-1``: not known): the
+            folds over logs score their held-out runs on it beside their labels, ``metrics["unseen_runs"]``.
         groups: The recording (run) each log belongs to, for the held-out figures and the calibration; default:
             every log is its own (a session's logs are runs; a protocol that cuts runs into pieces passes the runs).
         progress: Called after each fit, on the calling thread.
@@ -262,7 +265,10 @@ def fit_window_classifier(
         fold took as pseudo-labels. ``metrics["held_out_logs"]`` (when a terrain is labelled in two logs or more):
         its steps predicted by a model fitted without any label or stretch of their log, from folds over logs
         (extra fits, not ensemble members). ``metrics["estimate"]``
-        (:func:`training.figures.estimates.terrain_estimate`) says per terrain which of the two exists. ``folds``
+        (:func:`training.figures.estimates.terrain_estimate`) says per terrain which of the two exists.
+        ``metrics["unseen_runs"]`` (:func:`training.figures.unseen_runs.unseen_runs_figure`): the same folds' models
+        on their held-out runs' labels and ``known`` stretches, per run, with a 90 % interval over runs: what the
+        model that ships is expected to score on a run it never saw. ``folds``
         index ``pieces``: the segments cut into blocks. The members' logits are divided by one temperature (folded
         into their heads) fitted on held-out-log predictions where they exist, else on the blocked out-of-fold ones
         (``metrics["calibration"]``); ``drift`` is the ensemble's :class:`.window_drift.DriftReference`.
@@ -284,6 +290,7 @@ def fit_window_classifier(
     pool, bounds = stretch_pool(features, used, PSEUDO_STRIDE, keep=keep)
     unit_of = None if units is None else np.asarray(units, np.int64)
     taught_of = None if taught is None else np.asarray(taught, np.int64)
+    known_of = np.full(len(stretches), -1, np.int64) if known is None else np.asarray(known, np.int64)
 
     def fit_on(
         train: Sequence[Segment], skip_logs: set[int], seed: int
@@ -355,17 +362,35 @@ def fit_window_classifier(
         some = at_most(len(rows), HELD_ROWS, (config.seed, f, 1))  # the drift's figures read a sample
         return model, taken, seen, labelled.take(pick), logits, rows_y, some, rows.take(some), *predict(held, model)
 
-    def log_fit(f_i: int, train_idx: np.ndarray, val_idx: np.ndarray) -> tuple[np.ndarray, ...]:
+    def log_fit(f_i: int, train_idx: np.ndarray, val_idx: np.ndarray) -> tuple:
         """Truth, prediction, logits and classes of a fold over logs' held-out segments, by a model fitted without
-        any label or stretch of their logs (not an ensemble member)."""
+        any label or stretch of their logs (not an ensemble member); and per held-out run, the time it named right
+        and the time scored, over its labels and the stretches whose terrain the session knows."""
         held_groups = {group_of[segments[i][0]] for i in val_idx}
         held_logs = {j for j, g in enumerate(group_of) if g in held_groups}
         model, _, seen, _ = fit_on([segments[i] for i in train_idx], held_logs, config.seed + f_i)
-        true, pred = predict([segments[i] for i in val_idx], model)
         measurable = {c for c in seen if logs_per_class[c] >= 2}  # a one-log terrain has no other log to learn
+        right: dict[int, float] = {}
+        scored: dict[int, float] = {}
+        trues, preds = [], []
+        for i in val_idx:
+            t, p = predict([segments[i]], model)
+            trues.append(t)
+            preds.append(p)
+            if segments[i][3] in measurable:
+                g = group_of[segments[i][0]]
+                right[g] = right.get(g, 0.0) + float((t == p).sum())
+                scored[g] = scored.get(g, 0.0) + float(len(t))
+        for j, (i, a, b) in enumerate(stretches):  # every PSEUDO_STRIDE-th row: a stretch's share right, its time
+            lo, hi = int(bounds[j]), int(bounds[j + 1])
+            if i in held_logs and known_of[j] in measurable and hi > lo:
+                share = float((_predict_rows(model, pool[lo:hi]) == known_of[j]).mean())
+                right[group_of[i]] = right.get(group_of[i], 0.0) + share * (b - a)
+                scored[group_of[i]] = scored.get(group_of[i], 0.0) + float(b - a)
+        true, pred = np.concatenate(trues), np.concatenate(preds)
         keep = np.isin(true, list(measurable))
         rows, rows_y = held_rows([segments[i] for i in val_idx], measurable)
-        return true[keep], pred[keep], row_logits(model, rows), rows_y
+        return true[keep], pred[keep], row_logits(model, rows), rows_y, right, scored
 
     def reported(done: int) -> None:
         if progress:
@@ -422,7 +447,22 @@ def fit_window_classifier(
     held_out = None
     calibration = (np.concatenate(oof_logits), np.concatenate(oof_classes), "same run")
     if by_log:
-        held_true, held_pred, held_logits, held_classes = (list(c) for c in zip(*results[blocked.k :], strict=True))
+        held_true, held_pred, held_logits, held_classes, rights, scoreds = (
+            list(c) for c in zip(*results[blocked.k :], strict=True)
+        )
+        run_right: dict[int, float] = {}  # per run over its folds (one holds it out; summed in case of more)
+        run_scored: dict[int, float] = {}
+        for r, n in zip(rights, scoreds, strict=True):
+            for g in n:
+                run_right[g] = run_right.get(g, 0.0) + r.get(g, 0.0)
+                run_scored[g] = run_scored.get(g, 0.0) + n[g]
+        if (unseen := unseen_runs_figure(run_right, run_scored, seed=config.seed)) is not None:
+            fewest = min((n for n in logs_per_class.values() if n >= 2), default=0)  # runs of a measured terrain
+            metrics["unseen_runs"] = {
+                **unseen.as_dict(),
+                "known_stretches": int((known_of >= 0).sum()),
+                "fewest_runs": fewest,
+            }
         held_out = np.concatenate(held_true), np.concatenate(held_pred)
         if sum(len(c) for c in held_classes):
             calibration = (np.concatenate(held_logits), np.concatenate(held_classes), "held-out logs")

@@ -261,10 +261,12 @@ def _train_classifier(
     if model == "auto":
         _train_auto(s)
         return
+    stored = cycle.stored_scores(s)  # what the session knows of its runs, as the page last scored them
+    known = stored.scores if stored is not None and stored.scores.classifier is not None else None
     bar = _Bar("classifier")
     try:
         v = cycle.train_classifier(
-            s, model=model, config=config, feature_mode=feature_mode, hidden=hidden, progress=bar
+            s, model=model, config=config, feature_mode=feature_mode, hidden=hidden, progress=bar, scores=known
         )
     finally:
         bar.close()
@@ -285,10 +287,17 @@ def _train_auto(s: Session) -> None:
 
 
 def _report_classifier(s: Session, v: ModelVersion) -> None:
+    from training import unseen_words
+
     from .. import cycle
 
     m = v.metrics
     estimate = m.get("estimate")
+    unseen = unseen_words(m.get("unseen_runs"))
+    if unseen:  # the model that ships on a run it never saw: not the session's own accuracy
+        print(f"classifier v{v.id}: on a run it never saw (folds over the session's runs) {unseen}")
+    if fell := cycle.unseen_change(s, v):
+        print(f"warning: {fell}", file=sys.stderr)
     if estimate:
         _print_estimate(v.id, recorded_family(v.config), m, estimate)
         checked = cycle.checks_summary(s)

@@ -10,7 +10,8 @@ frames per log, the unlabelled stretches self-training reads), ``scores`` (the o
 (the last scoring kept in the session), ``change_point_store`` (each log's change points kept per predictor),
 ``suggestions`` (the queue), ``checks_record`` (each label first a check of
 the model: test then train), ``family_choice`` (``--model auto``: every family over the default stage 1 fitted, the one
-the session's held-out evidence favours kept).
+the session's held-out evidence favours kept), ``unseen_change`` (whether a new version's figure for a run it never
+saw fell below the last one's interval).
 """
 
 from .change_point_store import keep_change_points, kept_change_points
@@ -63,6 +64,7 @@ from .train_stages import (
     stage1_family,
     train_predictor,
 )
+from .unseen_change import unseen_change
 
 __all__ = [
     "EMBEDDING_MODE",
@@ -122,6 +124,7 @@ __all__ = [
     "train_predictor",
     "train_stage1",
     "unlabelled_stretches",
+    "unseen_change",
     "window_features",
     "window_sizes",
 ]

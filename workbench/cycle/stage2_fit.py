@@ -75,7 +75,8 @@ def train_classifier(
     warm_epochs: int | None = None,
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
-    teacher: SessionScores | None = None,
+    scores: SessionScores | None = None,
+    teach: bool = RETRAIN.teach,
 ) -> ModelVersion:
     """Stage 2 on the session's labels over the active predictor's cached features; a new, active version.
 
@@ -99,10 +100,13 @@ def train_classifier(
             quick phase (``RETRAIN.window_steps`` steps per fold model, see :func:`_fine_tune_window`).
         progress: Called after every optimiser step or fold.
         cancel: Polled after every step or fit.
-        teacher: The session's scores as the page shows them (the ensemble blended with each run's label votes): a
-            self-training family's fit from scratch takes the terrain they are sure of over an unlabelled stretch
-            (``labeling.taught_terrains``) instead of its own agreement there, so the model that ships learns what
-            the session knows.
+        scores: The session's scores as the page shows them (the ensemble blended with each run's label votes):
+            over an unlabelled stretch where they are sure of one terrain (``labeling.taught_terrains``), that
+            terrain is what the session knows there. A self-training family's fit from scratch scores its held-out
+            runs on it beside their labels: the version's ``unseen_runs``, what the model that ships is expected to
+            score on a run it never saw. Without them, on the labels alone.
+        teach: With ``scores``, the fit also takes the terrain the session knows over a stretch as its pseudo-label
+            instead of its own agreement there (``RETRAIN.teach``: off, a screen not kept).
     """
     fam = stage1_family(session, model)
     if fam.stage2_inputs == "stage1":
@@ -123,7 +127,9 @@ def train_classifier(
         if quick is not None:
             return quick
     device = (config or TrainConfig()).device
-    return _train_window(session, fam, settings, progress=progress, cancel=cancel, device=device, teacher=teacher)
+    return _train_window(
+        session, fam, settings, progress=progress, cancel=cancel, device=device, scores=scores, teach=teach
+    )
 
 
 def _train_on_stage1(
@@ -210,12 +216,13 @@ def _train_window(
     progress: ProgressFn | None,
     cancel: CancelFn,
     device: str = "cpu",
-    teacher: SessionScores | None = None,
+    scores: SessionScores | None = None,
+    teach: bool = False,
 ) -> ModelVersion:
     """Stage 2 of a family on the front end's frames or on the samples a window per frame (the default family's
     window network, MiniRocket), with self-training over the unlabelled stretches of every log where the family
-    learns from them (taught by ``teacher`` where it is sure); a new, active version (the predictor's bundle with
-    it)."""
+    learns from them (its held-out runs judged, and with ``teach`` it taught, by ``scores`` where they are sure); a
+    new, active version (the predictor's bundle with it)."""
     p_version, bundle = active_predictor(session)
     logs = model_logs(session, bundle.channels)
     classes, used, segments = _labelled(session, logs)
@@ -230,8 +237,10 @@ def _train_window(
         stretches = unlabelled_stretches(logs, used, points, shortest=front.span)
         if settings.unit_agree:  # the pieces of a span judged together (off by default: WindowFitConfig)
             spans = {"units": stretch_units(stretches, lambda i: points(logs[i]))}
-        if teacher is not None:
-            spans["taught"] = taught_classes(session, teacher, logs, classes, stretches)
+        if scores is not None:
+            spans["known"] = taught_classes(session, scores, logs, classes, stretches)
+            if teach:
+                spans["taught"] = spans["known"]
     params = {"model": fam.name, "window": to_dict(settings), "segments": len(segments)}
     with recorded_run(session, "classifier", params) as result:
         fit = fam.fit(
@@ -245,6 +254,8 @@ def _train_window(
             **spans,
             **({} if device == "cpu" else {"device": device}),  # a family without a CUDA path is refused before
         )
+        if unseen := fit.metrics.get("unseen_runs"):  # the fit's runs are the logs' indices: named as the page does
+            unseen["per_run"] = {logs[int(k)].name: v for k, v in unseen["per_run"].items()}
         version = _save_classifier(
             session,
             bundle,
@@ -260,7 +271,8 @@ def _train_window(
                 "predictor": p_version.id,
                 "warm_start": False,
                 "self_training_stretches": len(stretches),
-                "taught_stretches": int((np.asarray(spans["taught"]) >= 0).sum()) if "taught" in spans else 0,
+                "known_stretches": int((np.asarray(spans["known"]) >= 0).sum()) if "known" in spans else 0,
+                "taught": "taught" in spans,
             },
         )
         result["version"] = version.id
@@ -369,18 +381,18 @@ def _save_classifier(
 
 def taught_classes(
     session: Session,
-    teacher: SessionScores,
+    scores: SessionScores,
     logs: Sequence[LogInfo],
     classes: Sequence[str],
     stretches: Sequence[tuple[int, int, int]],
 ) -> np.ndarray:
     """Per stretch, the class (an index into ``classes``) the session's scores are sure of there, ``-1`` elsewhere:
-    the teacher's classes taken by what the session calls those terrains now, a class the fit lacks never taught."""
-    names = names_now(session, teacher)
+    the scores' classes taken by what the session calls those terrains now, a class the fit lacks never taught."""
+    names = names_now(session, scores)
     columns = [names.index(c) if c in names else -1 for c in classes]
 
     def blended(log: LogInfo) -> np.ndarray | None:
-        s = teacher.scores.get(log.id)
+        s = scores.scores.get(log.id)
         return None if s is None or s.probs is None or len(s.probs) != log.n_samples else s.probs  # (T, K_teacher)
 
     return labeling.taught_terrains([blended(x) for x in logs], stretches, columns=columns)

@@ -15,6 +15,7 @@ from .evaluate_windows import (
     partitions,
     windows,
 )
+from .far_runs import FarRuns, read_far_runs, score_far
 from .label_efficiency import SimSettings, report, simulate_logs, simulate_partitions
 from .protocol_members import FoldData, Member, RocketMember, cut_windows
 from .protocols import (
@@ -32,6 +33,7 @@ from .session_loop import LoopRound, LoopSettings, evaluate_loop
 
 __all__ = [
     "BOREALTC_PUBLISHED",
+    "FarRuns",
     "FoldData",
     "FoldResult",
     "LoopRound",
@@ -56,7 +58,9 @@ __all__ = [
     "outer_folds",
     "partitions",
     "qcat_protocol",
+    "read_far_runs",
     "report",
+    "score_far",
     "simulate",
     "simulate_logs",
     "simulate_partitions",

@@ -40,8 +40,8 @@ def loop_report(
         "",
         "| strategy | round | labelled s (in new logs) | picks in new logs | in the worst new log | accuracy (%) | "
         "balanced (%) | the model's estimate (%) | checks in new logs right (spot checks) | the shipped model on "
-        "far runs (%) (balanced) |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "far runs (%) (balanced) | its figure for runs it never saw (%) (90 % interval) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for strategy, rounds in arms.items():
         for r in rounds:
@@ -49,9 +49,11 @@ def loop_report(
             worst = f"{r.picks_worst} ({r.worst})" if r.round else "–"
             checks = f"{r.checks[0]} of {r.checks[1]} ({r.spot[0]} of {r.spot[1]})" if r.checks[1] else "–"
             far = "–" if r.far is None else f"{_pct(r.far[0])} ({_pct(r.far[1])})"
+            acc, low, high = r.unseen
+            unseen = "–" if acc is None else _pct(acc) + ("" if low is None else f" ({_pct(low)}–{_pct(high)})")
             lines.append(
                 f"| {strategy} | {r.round} | {r.labelled_s:.0f} ({r.new_s:.0f}) | {picks} | {worst} | "
-                f"{_pct(r.accuracy)} | {_pct(r.balanced)} | {_pct(r.estimate)} | {checks} | {far} |"
+                f"{_pct(r.accuracy)} | {_pct(r.balanced)} | {_pct(r.estimate)} | {checks} | {far} | {unseen} |"
             )
     lines += ["", "Per new log after the last round (accuracy, %):", ""]
     names = list(new)

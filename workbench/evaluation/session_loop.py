@@ -108,6 +108,9 @@ class LoopRound:
         far: The shipped model on the far runs (runs kept out of the session, ``far_runs``): accuracy and balanced
             accuracy; ``None`` without far runs.
         far_per_log: Its accuracy per far run.
+        unseen: The fitted model's figure for a run it never saw (its folds over runs, judged on what the session
+            knows of them: ``metrics["unseen_runs"]``): accuracy and the 90 % interval's bounds (``None`` each
+            where it has none).
     """
 
     round: int
@@ -128,6 +131,7 @@ class LoopRound:
     said: dict[str, dict] = field(default_factory=dict)
     far: tuple[float, float] | None = None
     far_per_log: dict[str, float] = field(default_factory=dict)
+    unseen: tuple[float | None, float | None, float | None] = (None, None, None)
 
 
 @dataclass(frozen=True)
@@ -257,19 +261,29 @@ def _check(
                 record_check(session, scores, log.id, x, y, classes[c], kind=pick.kind, author=AUTHOR)
 
 
-def _fit(session: Session, *, teach: bool = RETRAIN.teach, scoring: dict | None = None) -> None:
-    """Stage 2 as the Retrain ends: from scratch on every label, the session's family; with ``teach``, taught by
-    the session's scores as they are now (its labels' votes included)."""
+def _fit(
+    session: Session, *, scores: SessionScores | None = None, teach: bool = RETRAIN.teach, scoring: dict | None = None
+) -> None:
+    """Stage 2 as the Retrain ends: from scratch on every label, the session's family, its held-out runs judged on
+    what ``scores`` (the round's, as the page showed them) knew of their unlabelled time; with ``teach``, taught by
+    the session's scores made again with the round's labels (their votes included), as the screen measured it."""
+    if teach:
+        scores = compute_scores(session, **(scoring or {}))
     p = session.active_model("predictor")
     hidden = int(p.config.get("hidden", RETRAIN.hidden)) if p is not None else RETRAIN.hidden
-    teacher = compute_scores(session, **(scoring or {})) if teach else None
-    train_classifier(session, config=RETRAIN.classifier, warm_start=False, hidden=hidden, teacher=teacher)
+    train_classifier(session, config=RETRAIN.classifier, warm_start=False, hidden=hidden, scores=scores, teach=teach)
 
 
 def _estimate(session: Session) -> float | None:
     version = session.active_model("classifier")
     value = ((version.metrics if version is not None else {}).get("estimate") or {}).get("accuracy")
     return None if value is None or value != value else float(value)
+
+
+def _unseen(session: Session) -> tuple[float | None, float | None, float | None]:
+    version = session.active_model("classifier")
+    got = (version.metrics if version is not None else {}).get("unseen_runs") or {}
+    return got.get("accuracy"), got.get("low"), got.get("high")
 
 
 def run_arm(
@@ -325,6 +339,7 @@ def run_arm(
                     said_of_logs(s, scores, new, points, covered=_covered),
                     None if shipped is None else (shipped.accuracy, shipped.balanced),
                     {} if shipped is None else shipped.per_log,
+                    _unseen(s),
                 )
             )
             far_said = "" if shipped is None else f"; the shipped model on far runs {100 * shipped.accuracy:.1f} %"
@@ -353,7 +368,7 @@ def run_arm(
             picks_worst = sum(x.name == worst for x, _ in picks)
             _check(s, scores, picks, truth, classes)
             labelled += _label(s, person_labels(picks, scores, truth, person=settings.person), classes)
-            _fit(s, scoring=scoring, **fitting)
+            _fit(s, scores=scores, scoring=scoring, **fitting)
     return rounds
 
 

@@ -13,6 +13,7 @@ from training import (
     estimate_table,
     majority_words,
     parameter_count,
+    unseen_words,
 )
 
 from ..cycle import ChecksSummary, estimate_disagrees
@@ -43,6 +44,29 @@ def _estimate_section(m: dict) -> list[str]:
         "will score: its surface, speed and mounting were in training.",
         "",
         *estimate_table(estimate),
+        "",
+    ]
+
+
+def _unseen_section(m: dict) -> list[str]:
+    """What the model that ships is expected to score on a run it never saw (``training.figures.unseen_runs``)."""
+    got = m.get("unseen_runs")
+    words = unseen_words(got)
+    if words is None:
+        return []
+    per_run = got.get("per_run") or {}
+    spread = (
+        f" Per held-out run: {min(per_run.values()):.0%} to {max(per_run.values()):.0%}." if len(per_run) > 1 else ""
+    )
+    return [
+        "## On the robot's next run",
+        "",
+        f"**{words}**.{spread}",
+        "",
+        "Each run with labels held out in turn: a model fitted without any label or stretch of it predicted it, "
+        "scored on its labels and on the terrain the session's scores were sure of over its unlabelled time. This is "
+        "what to expect of this bundle on a run it never saw; the figures below describe the session's labels. The "
+        "interval resamples runs: one run that looks like another terrain is wrong all through.",
         "",
     ]
 
@@ -205,6 +229,7 @@ def model_card(
         f"- stage 2: {m.get('n_segments', '?')} labelled segments, {m.get('labelled_seconds', 0):.0f} s "
         f"({m.get('labelled_fraction', 0):.1%} of the time)",
         "",
+        *_unseen_section(m),
         *_estimate_section(m),
         *_checks_section(checks, m),
         *_drift_section(bundle, drifted, unlabelled, unlabelled_agreement, unlabelled_members),

@@ -39,6 +39,7 @@ from training import (
     TerrainFilter,
     load_bundle,
     run_predictor,
+    unseen_words,
 )
 
 from ..cycle import ChecksSummary, estimate_disagrees
@@ -347,6 +348,8 @@ def classify_files(
         ]
     as_mcap = Path(out).suffix.lower() == ".mcap"
     checks, lines = _checks_lines(bundle_dir, card_accuracy(bundle.metrics))
+    if unseen := unseen_words(bundle.metrics.get("unseen_runs")):
+        lines.append(f"this bundle on a run it never saw (folds over the session's runs): {unseen}")
     spot = None if checks is None else checks.spot
     read = read_logs(bundle, files, options)
     lines += [f"error: {e}" for e in read.errors]

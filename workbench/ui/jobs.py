@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 from sessions import WorkbenchError
 from training import Cancelled, Progress, TrainConfig
 
-from ..cycle import train_classifier, train_stage1
+from ..cycle import SessionScores, train_classifier, train_stage1, unseen_change
 from ..retrain import RETRAIN
 from ..user_errors import USER_ERRORS, one_line
 from .state import SharedState
@@ -145,6 +145,7 @@ class TrainJob:
         progress = self._progress(stages, started)
         predictor_run = "predictor" in stages  # new features: the classifier starts afresh anyway
         quick = None  # the version a warm fine-tune saved: the refining phase follows it
+        fell = None  # a line when the model that ships fell on runs it never saw
         hidden = self.hidden
         # a classifier's scores come next and the queue is ranked from them; a new stage 1 takes minutes, during
         # which the queue keeps following the person's labels
@@ -172,16 +173,18 @@ class TrainJob:
                     hidden=hidden,
                     progress=progress,
                     cancel=self._cancel.is_set,
+                    scores=self._known(),
                 )
                 if warm_epochs is not None and version.config.get("warm_start"):
                     quick = version
+                fell = unseen_change(self.state.session, version)
             took = time.monotonic() - started
             self.status = replace(
                 self.status,
                 state="done",
                 fraction=1.0,
                 eta_s=0.0,
-                message=f"done in {took:.0f} s; refreshing highlights",
+                message=f"done in {took:.0f} s; refreshing highlights" + (f"; {fell}" if fell else ""),
             )
         except Cancelled:
             self.status = replace(self.status, state="cancelled", message="cancelled; nothing was saved")
@@ -200,6 +203,12 @@ class TrainJob:
                 self._refine(quick.id, hidden)
         else:  # nothing new to score: the queue held back meanwhile is ranked now
             self.state.refresh(scores=False)
+
+    def _known(self) -> SessionScores | None:
+        """The scores the page shows (a classifier's, blended with the runs' label votes): what the session knows
+        of its runs' unlabelled time, on which a fit from scratch judges the runs it holds out."""
+        scores = self.state.scores
+        return scores if scores.classifier is not None else None
 
     def _refine(self, quick: int, hidden: int) -> None:
         """Stage 2 from scratch on every label once the quick models' highlights are up; its models replace them."""
@@ -228,16 +237,18 @@ class TrainJob:
                 hidden=hidden,
                 progress=self._progress(("classifier",), started),
                 cancel=self._cancel.is_set,
+                scores=self._known(),
             )
             took = time.monotonic() - started
             replaced = True
+            fell = unseen_change(self.state.session, version)
             self.status = replace(
                 self.status,
                 state="done",
                 fraction=1.0,
                 eta_s=0.0,
                 message=f"v{version.id}, trained from scratch in {took:.0f} s, replaced the quick v{quick}; "
-                "refreshing highlights",
+                "refreshing highlights" + (f"; {fell}" if fell else ""),
             )
         except Cancelled:
             self.status = replace(

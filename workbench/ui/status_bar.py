@@ -7,7 +7,7 @@ import html
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from training import HELD_OUT, estimate_headline, missed_terrains, missed_words, recorded_family
+from training import HELD_OUT, estimate_headline, missed_terrains, missed_words, recorded_family, runs_low, unseen_words
 
 from ..cycle import ChecksSummary, checks_summary, estimate_disagrees
 from ..expectations import card_accuracy
@@ -56,7 +56,29 @@ def status_html(host: PanelHost) -> str:
 
 def figure_html(m: dict) -> str:
     """The active classifier's estimate, saying which it is; a same-run figure carries its caution, in full on hover
-    (the person deciding whether to label more reads it here)."""
+    (the person deciding whether to label more reads it here); then what the model that ships is expected to score
+    on a run it never saw, named apart from the session's figures."""
+    return _estimate_html(m) + unseen_html(m)
+
+
+def unseen_html(m: dict) -> str:
+    """``" · shipped, on a new run: ≈ 72 % (61–80 %)"``, the whole of it on hover; empty without the figure."""
+    got = m.get("unseen_runs") or {}
+    words = unseen_words(got)
+    if words is None:
+        return ""
+    span = "" if got.get("low") is None else f" ({100 * got['low']:.0f}–{100 * got['high']:.0f} %)"
+    title = html.escape(
+        f"the model that ships, on a run it never saw: {words}. Each held-out run scored by a model fitted without "
+        "it, on its labels and the terrain the session's scores are sure of: what the exported bundle is expected "
+        "to do on the robot's next run, not the session's own accuracy",
+        quote=True,
+    )
+    low = " <b style='color:#b26a00'>(runs low: few runs)</b>" if runs_low(got) else ""
+    return f" · <span title='{title}'>shipped, on a new run: ≈ {100 * got['accuracy']:.0f} %{span}{low}</span>"
+
+
+def _estimate_html(m: dict) -> str:
     estimate = m.get("estimate")
     if estimate:
         words = estimate_headline(estimate)

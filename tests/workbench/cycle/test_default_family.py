@@ -102,14 +102,22 @@ def test_self_training_stretches_hold_no_label_and_no_change_point(session: Sess
     assert len(set(units)) < len(units)  # some spans longer than 5 s were cut into pieces
 
 
-def test_the_session_teaches_stretches_by_its_scores_and_by_what_it_calls_the_terrains_now(session: Session) -> None:
-    """Issue 82: a fit from scratch taught by the session's scores (their classes taken by today's names) records
-    how many stretches were taught; a class the scores do not have is never taught."""
+def test_the_session_knows_stretches_by_its_scores_and_by_what_it_calls_the_terrains_now(session: Session) -> None:
+    """A fit from scratch given the session's scores (their classes taken by today's names) records how many
+    stretches the session knows and judges its held-out runs on them (``unseen_runs``, with an interval over runs),
+    without being taught them (``RETRAIN.teach`` off); a class the scores do not have is never known."""
     if session.active_model("classifier").config["model"] != "default":
         cycle.train_classifier(session, model="default")
     scores = cycle.compute_scores(session)
-    taught = cycle.train_classifier(session, warm_start=False, teacher=scores)
-    assert 0 < taught.config["taught_stretches"] <= taught.config["self_training_stretches"]
+    plain = cycle.train_classifier(session, warm_start=False)
+    judged = cycle.train_classifier(session, warm_start=False, scores=scores)
+    assert 0 < judged.config["known_stretches"] <= judged.config["self_training_stretches"]
+    assert not judged.config["taught"] and plain.config["known_stretches"] == 0
+    with_known, labels_only = judged.metrics["unseen_runs"], plain.metrics["unseen_runs"]
+    assert with_known["samples"] > labels_only["samples"]  # the known stretches scored beside the labels
+    assert with_known["runs"] >= 2 and with_known["low"] <= with_known["accuracy"] <= with_known["high"]
+    assert with_known["known_stretches"] == judged.config["known_stretches"]
+    assert set(with_known["per_run"]) <= {x.name for x in session.logs()}  # by the names the page shows
     logs = cycle.model_logs(session, cycle.active_predictor(session)[1].channels)
     stretches = [(0, 0, 400), (0, 400, 800)]
     classes = list(scores.classes)

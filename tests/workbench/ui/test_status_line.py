@@ -30,3 +30,14 @@ def test_the_status_line_names_a_terrain_the_model_misses_in_red() -> None:
 def test_no_terrain_is_named_when_every_recall_is_half_or_more() -> None:
     fine = terrain_estimate(CLASSES, {0: 2, 1: 2, 2: 2}, _steps((0.9, 0.9, 0.9)), _steps((0.9, 0.5, 0.6)))
     assert "misses" not in figure_html({"estimate": fine})
+
+
+def test_the_model_that_ships_is_named_apart_from_the_estimate_with_its_interval() -> None:
+    held = terrain_estimate(CLASSES, {0: 2, 1: 2, 2: 2}, _steps((0.9, 0.9, 0.9)), _steps((0.9, 0.9, 0.9)))
+    unseen = {"accuracy": 0.72, "low": 0.612, "high": 0.8, "runs": 6, "samples": 1e5, "per_run": {}}
+    line = figure_html({"estimate": held, "unseen_runs": unseen})
+    assert "on held-out logs" in line and "shipped, on a new run: ≈ 72 % (61–80 %)</span>" in line
+    assert "6 runs held out" in line  # the whole figure on hover
+    assert "shipped" not in figure_html({"estimate": held})  # a quick fine-tune states none
+    one = figure_html({"estimate": held, "unseen_runs": {**unseen, "low": None, "high": None, "runs": 1}})
+    assert "shipped, on a new run: ≈ 72 %</span>" in one and "no interval" in one
