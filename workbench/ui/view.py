@@ -12,6 +12,7 @@ import html
 import threading
 import traceback
 from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -50,6 +51,10 @@ class ClientView:
         # synchronously in the thread that moved the widget, while another person's click runs in another thread
         # and must not be dropped (a view-wide flag lost clicks that came during a refresh).
         self._quiet = threading.local()
+        # viser runs each key's callback on a pool thread as it arrives, so "2" then Shift+Y could run out of order
+        # and label the stretch with the terrain chosen before (seen under load in the browser test): the keys are
+        # handed, in the order they arrive, to one thread of the view's own
+        self._keys = ThreadPoolExecutor(max_workers=1, thread_name_prefix="workbench-keys")
         # Widgets are live as soon as they are added, and a fast client acts before the view is whole (a label
         # saved mid-build met a view without its robot panel): callbacks take this lock, held until the end.
         with self._lock:
@@ -187,7 +192,12 @@ class ClientView:
 
         def bind(label: str, key: str, fn: Callable[[], None], *, modifier: str | None = None, desc: str = "") -> None:
             cmd = gui.add_command(label, description=desc or None, hotkey=key, modifier=modifier)  # type: ignore[arg-type]
-            cmd.on_trigger(lambda _: self.guard(fn))
+
+            async def in_order(_) -> None:  # awaited on viser's event loop, one message after another
+                with contextlib.suppress(RuntimeError):  # the view closed: its keys thread takes no more
+                    self._keys.submit(self.guard, fn).add_done_callback(_raised)
+
+            cmd.on_trigger(in_order)
 
         bind("Cursor left", "arrowleft", lambda: self.step(-0.05))
         bind("Cursor right", "arrowright", lambda: self.step(0.05))
@@ -403,6 +413,14 @@ class ClientView:
         self.state.set_viewed(self.author, None)
         self._unsubscribe()
         self.robot.close()
+        self._keys.shutdown(wait=False, cancel_futures=True)
+
+
+def _raised(done: Future) -> None:
+    """A key's callback that raised past ``guard`` (which reports errors in the page) is printed, as viser's pool
+    prints it."""
+    if not done.cancelled() and done.exception() is not None:
+        traceback.print_exception(done.exception())
 
 
 def _fmt_width(seconds: float) -> str:
