@@ -151,6 +151,11 @@ def test_the_data_tab_shows_each_logs_expected_accuracy_in_red_when_far_under_th
     )
     html = logs_table_html(s, {a.id: 0.0, b.id: 0.0}, {a.id: expected[a.id], b.id: flips})
     assert f"<b style=color:{MISSED}>{flips.expected:.0%}</b>" in html and "at most 50% by its stretches" in html
+    # the model that ships on a log it never saw is a column of its own, named apart from the session's figures
+    html = logs_table_html(s, {a.id: 0.0, b.id: 0.0}, expected, held_out={a.name: 0.42})
+    assert ">held out</th>" in html and "not the session&#39;s own accuracy" in html
+    assert html.count("<td class='n'>42%</td>") == 1 and html.count("<td class='n'>–</td>") >= 1  # b never held out
+    assert ">held out</th>" not in logs_table_html(s, {a.id: 0.0, b.id: 0.0}, expected)
     s.close()
 
 

@@ -42,6 +42,7 @@ def logs_table_html(
     drifted: Mapping[int, float | None] | None = None,
     expected: Mapping[int, FileExpectation | None] | None = None,
     checks: Mapping[int, labeling.CheckEstimate] | None = None,
+    held_out: Mapping[str, float] | None = None,
 ) -> str:
     """An HTML table of the session's logs (name, format, duration, rate, channels, labelled time and, once the
     model gives a drift score, the share of each log unlike anything labelled and the accuracy expected at its
@@ -53,6 +54,8 @@ def logs_table_html(
         expected: Per log id, its expectation (:func:`workbench.expectations.file_expectation`).
         checks: Per log id, what the person's checks there say (``cycle.checks_summary``): right on X of N, the 95 %
             interval on hover.
+        held_out: Per log name, what the model that ships scored on it when a fit without it held it out (the
+            active classifier's ``unseen_runs``): a run it never saw, not the session's figure for the log.
     """
     logs = session.logs()
     if not logs:
@@ -76,6 +79,9 @@ def logs_table_html(
             cell += _expected_cell(expected.get(log.id))  # type: ignore[union-attr]
         if checks:
             cell += _checks_cell(checks.get(log.id))
+        if held_out:
+            share = held_out.get(log.name)
+            cell += f"<td class='n'>{'–' if share is None else f'{share:.0%}'}</td>"
         rows.append(
             f"<tr><td class='n'>{log.id}</td><td title='{title}'>{html.escape(log.name)}</td>"
             f"<td class='n'>{_duration(log.duration_s)}</td><td class='n'>{log.rate_hz:g}</td>"
@@ -103,6 +109,13 @@ def logs_table_html(
             "<th class='n' title='your checks in the log: how often the model named your terrain before your "
             "label there trained it (95 % interval on hover); suggestions are where the model was doubted, so "
             "these run low'>✓</th>"
+        )
+    if held_out:
+        head += (
+            "<th class='n' title='the model that ships, on this log as a run it never saw: a fit without any "
+            "label or stretch of it, scored on its labels and the terrain the session is sure of there (the status "
+            "line&#39;s &quot;shipped, on a new run&quot; over all such runs); not the session&#39;s own accuracy "
+            "for the log'>held out</th>"
         )
     total = sum(log.duration_s for log in logs)
     return (
@@ -177,7 +190,8 @@ class DataPanel:
             )
             for i, s in scores.items()
         }
-        self.logs.content = logs_table_html(session, drifted, expected, checks)
+        held_out = (metrics.get("unseen_runs") or {}).get("per_run")
+        self.logs.content = logs_table_html(session, drifted, expected, checks, held_out)
 
     def _take_upload(self) -> None:
         refused: str | None = None
