@@ -98,7 +98,7 @@ def unseen_runs_figure(
 def runs_low(got: Mapping | None) -> bool:
     """Whether the figure is known to run low: a measured terrain is in two runs only, so the model that held one
     out learnt that terrain from half of what the model that ships did (BorealTC with one labelled run per terrain:
-    18-29 % stated against 65-67 % on runs never in the session, benchmarks/results/loop.md)."""
+    18-43 % stated against 64-75 % on runs never in the session, benchmarks/results/loop.md)."""
     return bool(got) and 0 < int(got.get("fewest_runs", 0)) <= FEW_RUNS
 
 
