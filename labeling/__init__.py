@@ -6,6 +6,7 @@ NumPy in, NumPy out: no torch, no UI, no session (``workbench`` wires it to the 
 from .changepoints import Snap, block_summary, change_points, coarser_points, snap_range, spans, stretch_agreement
 from .check_estimates import CheckEstimate, check_estimate, wilson
 from .placed_picks import Suggestion, coverage
+from .powered_accuracy import PoweredAccuracy, powered_accuracy
 from .propagate import RunVotes, blend_votes, run_trust, run_votes
 from .simulate import (
     CurvePoint,
@@ -57,6 +58,7 @@ __all__ = [
     "Learner",
     "LogScores",
     "MainAnswer",
+    "PoweredAccuracy",
     "PredictedStretch",
     "Round",
     "RunVotes",
@@ -83,6 +85,7 @@ __all__ = [
     "mutual_information",
     "normalised_tracks",
     "oracle",
+    "powered_accuracy",
     "predicted_stretches",
     "run_trust",
     "run_votes",
