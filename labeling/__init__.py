@@ -6,7 +6,7 @@ NumPy in, NumPy out: no torch, no UI, no session (``workbench`` wires it to the 
 from .changepoints import Snap, block_summary, change_points, coarser_points, snap_range, spans, stretch_agreement
 from .check_estimates import CheckEstimate, check_estimate, wilson
 from .placed_picks import Suggestion, coverage
-from .powered_accuracy import PoweredAccuracy, powered_accuracy
+from .ppi_accuracy import MAX_GAIN, Z90, PoweredAccuracy, powered_accuracy
 from .propagate import RunVotes, blend_votes, run_trust, run_votes
 from .simulate import (
     CurvePoint,
@@ -47,8 +47,10 @@ from .tracks import (
 __all__ = [
     "DRIFT_TRACK_AT_1",
     "KINDS",
+    "MAX_GAIN",
     "STRATEGIES",
     "TEACHER_SURE",
+    "Z90",
     "CheckEstimate",
     "CurvePoint",
     "Interrupted",

@@ -32,13 +32,14 @@ def label_runs(session, logs, *, seed: int) -> None:
 
 def loop_arguments(description: str) -> argparse.ArgumentParser:
     """The options every loop benchmark takes: ``--seed``, ``--rounds``, ``--per-round``, ``--person``,
-    ``--strategies``."""
+    ``--strategies``, ``--verify``."""
     args = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
     args.add_argument("--seed", type=int, default=0)
     args.add_argument("--rounds", type=int, default=4)
     args.add_argument("--per-round", type=int, default=12)
     args.add_argument("--person", default="piece", choices=["piece", "stretch"])
     args.add_argument("--strategies", nargs="+", default=["combined", "random"])
+    args.add_argument("--verify", type=int, default=0, help="verification checks after the last round")
     return args
 
 
@@ -52,6 +53,7 @@ def loop_settings(opts: argparse.Namespace):
         person=opts.person,
         strategies=tuple(opts.strategies),
         seed=opts.seed,
+        verify=opts.verify,
     )
 
 

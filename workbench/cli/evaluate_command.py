@@ -48,6 +48,7 @@ def evaluate(
     device: Literal["cpu", "cuda"] = "cpu",
     reference: Path | None = None,
     far: tuple[Path, ...] = (),
+    verify: int = 0,
 ) -> None:
     """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
 
@@ -102,6 +103,9 @@ def evaluate(
             reference labels of the logs it names before scoring (loop: in its copy of the session only).
         far: loop: log files of runs kept out of the session, their truth in --reference: after every round the
             bundle the session would export scores them as `workbench classify` does (what ships to the robot).
+        verify: loop: after the last round, this many verification checks (uniform pieces of the new logs' time
+            nobody labelled, by log, never labelled, counted apart from the rounds'): the session's accuracy with
+            its 90 % interval, and whether it covers the truth.
     """
     if out is not None:  # before anything loads (torch takes seconds): a refused target is told at once
         _check_out(out, dataset=dataset, simulate=simulate)
@@ -111,6 +115,10 @@ def evaluate(
         raise WorkbenchError(f"--rounds {rounds}: at least one round of labelling")
     if far and dataset != "loop":
         raise WorkbenchError(f"--far: evaluate {dataset} has no far runs; --far is for evaluate loop")
+    if verify and dataset != "loop":
+        raise WorkbenchError(f"--verify: evaluate {dataset} checks nothing; --verify is for evaluate loop")
+    if verify < 0:
+        raise WorkbenchError(f"--verify {verify}: a number of checks, 0 or more")
     from ..evaluation import protocols as ev
 
     check_device(device)
@@ -136,7 +144,12 @@ def evaluate(
 
         order = strategies if strategies != ("random", "combined") else ("combined", "random")
         settings = LoopSettings(
-            rounds=4 if rounds is None else rounds, per_round=per_round, person=person, strategies=order, seed=seed
+            rounds=4 if rounds is None else rounds,
+            per_round=per_round,
+            person=person,
+            strategies=order,
+            seed=seed,
+            verify=verify,
         )
         with Session.open(folder) as s:
             print(evaluate_loop(s, reference=reference, settings=settings, out=out, far=far))

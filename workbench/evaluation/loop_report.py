@@ -69,5 +69,21 @@ def loop_report(
             first, last = rounds[0].far_per_log, rounds[-1].far_per_log
             cells = [f"{_pct(first.get(n))} → {_pct(last.get(n))}" for n in far_names]
             lines.append(f"| {strategy} | " + " | ".join(cells) + " |")
+    verified = {k: v[-1].verified for k, v in arms.items() if v[-1].verified is not None}
+    if verified:
+        lines += [
+            "",
+            "The session's accuracy after the last round from verification checks (uniform pieces of the new logs' "
+            "time nobody labelled, stratified by log, checked and never labelled, counted apart from the rounds'), "
+            "narrowed by the final model's confidence (`labeling.powered_accuracy`):",
+            "",
+            "| strategy | checks | the checks alone right (%) | estimate (%) (90 % interval) | truth (%) | covers |",
+            "| --- | --- | --- | --- | --- | --- |",
+        ]
+        for strategy, v in verified.items():
+            lines.append(
+                f"| {strategy} | {v.checks} | {_pct(v.checks_right)} | {_pct(v.accuracy)} ({_pct(v.low)}–"
+                f"{_pct(v.high)}) | {_pct(v.truth)} | {'yes' if v.covers else '**no**'} |"
+            )
     lines += ["", *said_table({k: [(r.per_log, r.said) for r in v] for k, v in arms.items()})]
     return "\n".join(lines) + "\n"

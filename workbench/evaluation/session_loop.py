@@ -46,6 +46,7 @@ from ..user_errors import USER_ERRORS
 from .far_runs import FarRuns, read_far_runs, score_far
 from .loop_report import loop_report
 from .loop_said import said_of_logs
+from .loop_verify import Verified, verify_session
 
 Person = Literal["piece", "stretch"]
 # What a lever is worth, measured by leaving it out: a strategy's name for the loop -> the suggestion strategy, the
@@ -74,6 +75,8 @@ class LoopSettings:
         strategies: Suggestion strategies compared, each from the same start (``labeling.STRATEGIES``, and the
             ablations of ``ABLATIONS``: a lever left out).
         seed: Seed of the ``random`` strategy (each round draws anew).
+        verify: Verification checks after the last round (:mod:`.loop_verify`): uniform pieces of the new runs' time
+            nobody labelled, checked and never labelled, counted apart from the rounds'; 0: none.
     """
 
     rounds: int = 4
@@ -81,6 +84,7 @@ class LoopSettings:
     person: Person = "piece"
     strategies: tuple[str, ...] = ("combined", "random")
     seed: int = 0
+    verify: int = 0
 
 
 @dataclass(frozen=True)
@@ -108,6 +112,8 @@ class LoopRound:
         far: The shipped model on the far runs (runs kept out of the session, ``far_runs``): accuracy and balanced
             accuracy; ``None`` without far runs.
         far_per_log: Its accuracy per far run.
+        verified: After the last round with ``LoopSettings.verify``: the session's accuracy from that many uniform
+            checks of the final model and its confidence, with a 90 % interval and the truth (``None``: not asked).
         unseen: The fitted model's figure for a run it never saw (its folds over runs, judged on what the session
             knows of them: ``metrics["unseen_runs"]``): accuracy and the 90 % interval's bounds (``None`` each
             where it has none).
@@ -132,6 +138,7 @@ class LoopRound:
     far: tuple[float, float] | None = None
     far_per_log: dict[str, float] = field(default_factory=dict)
     unseen: tuple[float | None, float | None, float | None] = (None, None, None)
+    verified: Verified | None = None
 
 
 @dataclass(frozen=True)
@@ -340,6 +347,11 @@ def run_arm(
                     None if shipped is None else (shipped.accuracy, shipped.balanced),
                     {} if shipped is None else shipped.per_log,
                     _unseen(s),
+                    verify_session(
+                        s, scores, new, truth, classes, _covered, k=settings.verify, seed=settings.seed * 1000 + 999
+                    )
+                    if settings.verify and r == settings.rounds
+                    else None,
                 )
             )
             far_said = "" if shipped is None else f"; the shipped model on far runs {100 * shipped.accuracy:.1f} %"

@@ -192,11 +192,18 @@ def test_far_runs_are_scored_by_the_shipped_bundle_every_round_and_never_enter_t
     pd.concat([rows, pd.DataFrame([r for _, t in far for r in t], columns=rows.columns)]).to_csv(both, index=False)
     out = tmp_path / "loop.json"
     args = ["evaluate", "loop", str(session), "--reference", str(both), "--rounds", "1", "--per-round", "6"]
-    code = main([*args, "--strategies", "combined", "--out", str(out), "--far", *(str(p) for p, _ in far)])
+    far_args = ["--far", *(str(p) for p, _ in far)]
+    code = main([*args, "--strategies", "combined", "--out", str(out), *far_args, "--verify", "6"])
     text = capsys.readouterr().out
     assert code == 0, text
     arm = json.loads(out.read_text())["arms"]["combined"]
     assert all(r["far"] is not None and set(r["far_per_log"]) == {"x0", "x1"} for r in arm)
+    # six verification checks of the final model after the last round, counted apart and never labelled
+    verified = arm[-1]["verified"]
+    assert arm[0]["verified"] is None and verified["checks"] == 6
+    assert verified["low"] <= verified["accuracy"] <= verified["high"]
+    assert verified["truth"] == pytest.approx(arm[-1]["accuracy"])  # the same time the loop's figure is on
+    assert "| combined | 6 |" in text and "truth (%) | covers |" in text
     assert arm[0]["far"][0] > 0.5, arm[0]  # the bundle reads the far runs: above chance on two terrains
     assert "the shipped model on far runs (%) (balanced)" in text and "| combined | x0 | x1 |" not in text
     assert re.search(r"\| combined \| \d+\.\d → \d+\.\d \| \d+\.\d → \d+\.\d \|", text), text
@@ -207,3 +214,18 @@ def test_far_runs_are_scored_by_the_shipped_bundle_every_round_and_never_enter_t
     assert "w2 is a log of the session" in capsys.readouterr().err
     assert main(["evaluate", "loop", str(session), "--far", str(far[0][0])]) == 2
     assert "no log without labels has reference labels" in capsys.readouterr().err
+
+
+def test_verification_checks_are_dealt_to_runs_by_their_unlabelled_time() -> None:
+    from workbench.evaluation.loop_verify import _allocate
+
+    assert _allocate([100, 300, 600], 10) == [1, 3, 6]
+    assert _allocate([1, 1, 1], 2) in ([1, 1, 0], [1, 0, 1], [0, 1, 1])
+    assert sum(_allocate([7, 13, 29, 2], 24)) == 24 and _allocate([0, 0], 5) == [0, 0]
+
+
+def test_verify_is_for_the_loop_and_a_count(tmp_path: Path, capsys) -> None:
+    assert main(["evaluate", "borealtc", str(tmp_path), "--verify", "4"]) == 2
+    assert "--verify is for evaluate loop" in capsys.readouterr().err
+    assert main(["evaluate", "loop", str(tmp_path), "--verify", "-1"]) == 2
+    assert "--verify -1: a number of checks" in capsys.readouterr().err

@@ -63,7 +63,12 @@ def _wilson(p: float, n: float, z: float) -> tuple[float, float]:
 
 
 def powered_accuracy(
-    right: np.ndarray, sure_checked: np.ndarray, sure_all: np.ndarray, *, z: float = Z90
+    right: np.ndarray,
+    sure_checked: np.ndarray,
+    sure_all: np.ndarray,
+    *,
+    z: float = Z90,
+    max_gain: float = MAX_GAIN,
 ) -> PoweredAccuracy | None:
     """The share of the time nobody labelled that the model names right, from uniform checks and its confidence.
 
@@ -72,6 +77,7 @@ def powered_accuracy(
         sure_checked: ``(n,)`` the model's confidence at those checks (its probability of the terrain it named).
         sure_all: ``(N,)`` the same over the time nobody labelled (the checks' time may be among it).
         z: The normal quantile of the interval (90 %: ``Z90``).
+        max_gain: The most the confidence may multiply the checks' count by (``MAX_GAIN``).
 
     Returns:
         The estimate, or ``None`` without checks.
@@ -87,7 +93,7 @@ def powered_accuracy(
         # PPI++: the weight that minimises the estimate's variance, clipped to [0, 1] (at 1: plain PPI)
         lam = float(np.clip(np.cov(y, f)[0, 1] / ((1 + n / big) * f.var(ddof=1)), 0.0, 1.0))
         rest = (y - lam * f).var(ddof=1) / n + lam * lam * g.var() / big  # the estimate's variance
-        effective = float(min(y.var(ddof=1) / max(rest, 1e-12), MAX_GAIN * n))
+        effective = float(min(y.var(ddof=1) / max(rest, 1e-12), max_gain * n))
         effective = max(effective, float(n))  # clipped lam never adds variance over the checks alone
     estimate = float(y.mean() + lam * (g.mean() - f.mean())) if big else float(y.mean())
     estimate = min(1.0, max(0.0, estimate))

@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from labeling import powered_accuracy, wilson
-from labeling.powered_accuracy import Z90
+from labeling import Z90, powered_accuracy, wilson
 
 
 def _session(kind: str, rng: np.random.Generator, n_steps: int = 3000) -> tuple[np.ndarray, np.ndarray]:
