@@ -6,7 +6,7 @@ NumPy in, NumPy out: no torch, no UI, no session (``workbench`` wires it to the 
 from .changepoints import Snap, block_summary, change_points, coarser_points, snap_range, spans, stretch_agreement
 from .check_estimates import CheckEstimate, check_estimate, wilson
 from .placed_picks import Suggestion, coverage
-from .ppi_accuracy import MAX_GAIN, Z90, PoweredAccuracy, powered_accuracy
+from .ppi_accuracy import MAX_GAIN, Z90, Moments, PoweredAccuracy, powered_accuracy, wilson_bounds
 from .propagate import RunVotes, blend_votes, run_trust, run_votes
 from .simulate import (
     CurvePoint,
@@ -43,13 +43,16 @@ from .tracks import (
     session_normaliser,
     smooth,
 )
+from .verification import MOST_CHECKS, VERIFY_REASON, checks_needed, interval_width, proportional, verification_checks
 
 __all__ = [
     "DRIFT_TRACK_AT_1",
     "KINDS",
     "MAX_GAIN",
+    "MOST_CHECKS",
     "STRATEGIES",
     "TEACHER_SURE",
+    "VERIFY_REASON",
     "Z90",
     "CheckEstimate",
     "CurvePoint",
@@ -60,6 +63,7 @@ __all__ = [
     "Learner",
     "LogScores",
     "MainAnswer",
+    "Moments",
     "PoweredAccuracy",
     "PredictedStretch",
     "Round",
@@ -73,6 +77,7 @@ __all__ = [
     "candidates",
     "change_points",
     "check_estimate",
+    "checks_needed",
     "class_weights",
     "coarser_points",
     "coverage",
@@ -80,6 +85,7 @@ __all__ = [
     "drifted_share",
     "entropy",
     "highlight_intervals",
+    "interval_width",
     "intervals",
     "margin_uncertainty",
     "mean_curve",
@@ -89,6 +95,7 @@ __all__ = [
     "oracle",
     "powered_accuracy",
     "predicted_stretches",
+    "proportional",
     "run_trust",
     "run_votes",
     "savings",
@@ -104,5 +111,7 @@ __all__ = [
     "taught_terrains",
     "time_to_reach",
     "uncovered",
+    "verification_checks",
     "wilson",
+    "wilson_bounds",
 ]

@@ -16,6 +16,7 @@ install pulls numba, statsmodels and a downloader for one mean.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,16 +57,50 @@ class PoweredAccuracy:
         )
 
 
-def _wilson(p: float, n: float, z: float) -> tuple[float, float]:
+@dataclass(frozen=True)
+class Moments:
+    """The mean, variance and count of the model's confidence over a stretch of time: all the estimate needs of it,
+    so a fleet's hours are summed log by log, never held together.
+
+    Attributes:
+        mean: The mean.
+        var: The variance (over ``n``, not ``n - 1``).
+        n: How many steps.
+    """
+
+    mean: float
+    var: float
+    n: int
+
+    @staticmethod
+    def of(values: np.ndarray) -> Moments:
+        """The moments of ``(N,)`` values."""
+        v = np.asarray(values, np.float64)
+        return Moments(float(v.mean()), float(v.var()), len(v)) if len(v) else Moments(0.0, 0.0, 0)
+
+    @staticmethod
+    def pooled(parts: Sequence[Moments]) -> Moments:
+        """The moments of the parts' values taken together."""
+        n = sum(p.n for p in parts)
+        if n == 0:
+            return Moments(0.0, 0.0, 0)
+        mean = sum(p.mean * p.n for p in parts) / n
+        second = sum((p.var + p.mean * p.mean) * p.n for p in parts) / n
+        return Moments(mean, max(0.0, second - mean * mean), n)
+
+
+def wilson_bounds(p: float, n: float, z: float = Z90) -> tuple[float, float]:
+    """Wilson's score interval of a share ``p`` over ``n`` (possibly effective, not whole) trials."""
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
+    # at a share of 0 or 1 the bound is that share exactly (in floating point centre + half falls short of 1)
+    return (0.0 if p <= 0 else max(0.0, centre - half)), (1.0 if p >= 1 else min(1.0, centre + half))
 
 
 def powered_accuracy(
     right: np.ndarray,
     sure_checked: np.ndarray,
-    sure_all: np.ndarray,
+    sure_all: np.ndarray | Moments,
     *,
     z: float = Z90,
     max_gain: float = MAX_GAIN,
@@ -75,7 +110,8 @@ def powered_accuracy(
     Args:
         right: ``(n,)`` 1 where the model named the person's terrain at a uniform check, 0 where not.
         sure_checked: ``(n,)`` the model's confidence at those checks (its probability of the terrain it named).
-        sure_all: ``(N,)`` the same over the time nobody labelled (the checks' time may be among it).
+        sure_all: ``(N,)`` the same over the time nobody labelled (the checks' time may be among it), or its
+            ``Moments``.
         z: The normal quantile of the interval (90 %: ``Z90``).
         max_gain: The most the confidence may multiply the checks' count by (``MAX_GAIN``).
 
@@ -84,18 +120,18 @@ def powered_accuracy(
     """
     y = np.asarray(right, np.float64)  # (n,)
     f = np.asarray(sure_checked, np.float64)  # (n,)
-    g = np.asarray(sure_all, np.float64)  # (N,)
-    n, big = len(y), len(g)
+    g = sure_all if isinstance(sure_all, Moments) else Moments.of(sure_all)  # of the (N,) confidences
+    n, big = len(y), g.n
     if n == 0:
         return None
     lam, effective = 0.0, float(n)
     if n >= 2 and big > 0 and f.var() > 0 and y.var() > 0:
         # PPI++: the weight that minimises the estimate's variance, clipped to [0, 1] (at 1: plain PPI)
         lam = float(np.clip(np.cov(y, f)[0, 1] / ((1 + n / big) * f.var(ddof=1)), 0.0, 1.0))
-        rest = (y - lam * f).var(ddof=1) / n + lam * lam * g.var() / big  # the estimate's variance
+        rest = (y - lam * f).var(ddof=1) / n + lam * lam * g.var / big  # the estimate's variance
         effective = float(min(y.var(ddof=1) / max(rest, 1e-12), max_gain * n))
         effective = max(effective, float(n))  # clipped lam never adds variance over the checks alone
-    estimate = float(y.mean() + lam * (g.mean() - f.mean())) if big else float(y.mean())
+    estimate = float(y.mean() + lam * (g.mean - f.mean())) if big else float(y.mean())
     estimate = min(1.0, max(0.0, estimate))
-    low, high = _wilson(estimate, effective, z)
+    low, high = wilson_bounds(estimate, effective, z)
     return PoweredAccuracy(estimate, low, high, n, lam, effective)

@@ -174,7 +174,11 @@ def main() -> int:
             labelled_per_terrain=opts.labelled_per_terrain,
         )
         with Session.open(folder) as s:
-            print(evaluate_loop(s, reference=reference, settings=loop_settings(opts), workdir=Path(tmp), far=far))
+            print(
+                evaluate_loop(
+                    s, reference=reference, settings=loop_settings(opts), workdir=Path(tmp), far=far, out=opts.out
+                )
+            )
     print(f"{time.monotonic() - t0:.0f} s")
     return 0
 

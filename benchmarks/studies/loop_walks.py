@@ -65,7 +65,11 @@ def main() -> int:
             print(f"{len(logs)} walks, {opts.walks // 2} labelled at 10 % in 5 s pieces", flush=True)
             if far:
                 print(f"far: {len(far)} walks never in the session", flush=True)
-            print(evaluate_loop(s, settings=loop_settings(opts), workdir=Path(tmp), reference=reference, far=far))
+            print(
+                evaluate_loop(
+                    s, settings=loop_settings(opts), workdir=Path(tmp), reference=reference, far=far, out=opts.out
+                )
+            )
     print(f"{time.monotonic() - t0:.0f} s")
     return 0
 

@@ -32,7 +32,7 @@ def label_runs(session, logs, *, seed: int) -> None:
 
 def loop_arguments(description: str) -> argparse.ArgumentParser:
     """The options every loop benchmark takes: ``--seed``, ``--rounds``, ``--per-round``, ``--person``,
-    ``--strategies``, ``--verify``."""
+    ``--strategies``, ``--verify``, ``--out``."""
     args = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
     args.add_argument("--seed", type=int, default=0)
     args.add_argument("--rounds", type=int, default=4)
@@ -40,6 +40,7 @@ def loop_arguments(description: str) -> argparse.ArgumentParser:
     args.add_argument("--person", default="piece", choices=["piece", "stretch"])
     args.add_argument("--strategies", nargs="+", default=["combined", "random"])
     args.add_argument("--verify", type=int, default=0, help="verification checks after the last round")
+    args.add_argument("--out", type=Path, default=None, help="also write every round's figures as JSON here")
     return args
 
 

@@ -198,6 +198,26 @@ def test_label_with_hotkeys_retrain_suggest_and_download(workbench: Workbench) -
     ((_, start, stop, _, _),) = rows(session_path, "s.source = 'suggestion'")
     assert 50 <= stop - start <= 100
 
+    # V: the queue becomes this version's verification checks, the plan said before the person starts; a label
+    # there is a spot check of the active version, and the status line's session figure rests on it
+    blur(page)
+    page.keyboard.press("v")
+    page.get_by_text("verification checks: uniform pieces").wait_for(timeout=60_000)
+    page.get_by_text(re.compile(r"verifying: the session: .* would bring it to ±5 points")).wait_for(timeout=UI_WAIT_MS)
+    blur(page)
+    page.keyboard.press("n")
+    page.get_by_text("verification: a piece drawn at random").first.wait_for(timeout=UI_WAIT_MS)
+    page.keyboard.press("a")
+    version = Session.open(session_path).active_model("classifier").id
+    wait_until(
+        lambda: [c for c in Session.open(session_path).checks() if c.kind == "spot check" and c.classifier == version],
+        what="the verification check in SQLite",
+    )
+    page.get_by_text(re.compile(r"the session: ≈ \d+ % \(90 % interval .*from 1 check of this version")).first.wait_for(
+        timeout=60_000
+    )
+    save_screenshot(page, "workbench-verify")
+
     # download the label file through the browser
     open_tab(page, "Data")
     with page.expect_download(timeout=30_000) as info:

@@ -141,10 +141,10 @@ def test_the_data_tab_shows_each_logs_expected_accuracy_in_red_when_far_under_th
         b.id: file_expectation(b.name, np.full(50, 1.9), m),
     }
     html = logs_table_html(s, {a.id: 0.0, b.id: 1.0}, expected)
-    assert ">expect</th>" in html and "the card&#39;s 82%" in html
+    assert ">its guess</th>" in html and "the card&#39;s 82%" in html
     assert f">{expected[a.id].expected:.0%}</td>" in html and f">{expected[a.id].expected:.0%}</b>" not in html
     assert f"<b style=color:{MISSED}>{expected[b.id].expected:.0%}</b>" in html
-    assert ">expect</th>" not in logs_table_html(s, {a.id: 0.0, b.id: 1.0})  # no relation: no column
+    assert ">its guess</th>" not in logs_table_html(s, {a.id: 0.0, b.id: 1.0})  # no relation: no column
     # with the worker's change points, a log whose predictions flip within a stretch is red too (the bound on hover)
     flips = file_expectation(
         b.name, np.full(50, 0.3), m, predicted=np.arange(50) % 2, change_points=np.asarray([]), rate_hz=b.rate_hz

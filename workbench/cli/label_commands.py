@@ -110,10 +110,16 @@ def import_line(done: LabelImport, file: str) -> str:
 def suggest(
     session: Pos[Path],
     out: Path,
-    n: int = 12,
+    n: int | None = None,
     strategy: Literal["combined", "random", "entropy", "margin", "disagreement", "surprise"] = "combined",
+    verify: bool = False,
+    width: float = 10.0,
 ) -> None:
     """Write the next segments to label, the page's suggestion queue, as a label file whose terrain column is empty.
+
+    With ``--verify``, the verification checks instead: uniform pieces of the time nobody labelled, stratified by
+    log, as many as bring the session's 90 % interval to ``--width`` points (the page's Verify). After a Retrain the
+    earlier checks tested an older model; these test the active one, and the session's figure rests on them.
 
     Fill in the terrain of the rows you label (leave the others empty) and `workbench labels import SESSION OUT`
     takes them as labels, each also a check of the model that suggested it, as a label made in the page is; then
@@ -124,26 +130,52 @@ def suggest(
         out: The file to write: .csv, .parquet or .json, with columns log, start_s, end_s (seconds from the log's
             start, as label files give them), terrain (empty), reason, guess, kind (suggestion, main answer or spot
             check) and classifier (the version that guessed).
-        n: How many segments.
+        n: How many segments (default 12; with ``--verify``, as many as ``--width`` needs).
         strategy: How they are ranked (combined: the page's).
+        verify: Uniform checks of the active classifier instead of ranked suggestions.
+        width: With ``--verify``: the width, in points, the session's interval should come down to (10: ±5).
     """
-    if n < 1:
+    if n is not None and n < 1:
         raise WorkbenchError(f"--n {n}: ask for at least one segment")
+    if not 0 < width < 100:
+        raise WorkbenchError(f"--width {width:g}: a width in points, above 0 and under 100")
     file_format(out)
     check_new_target(out)  # before torch loads (seconds): a refused target is told at once
     import pandas as pd
 
     from sessions import write_frame
 
-    from ..cycle import compute_scores, names_now, signal_change_points, suggest_for_session
+    from ..cycle import (
+        answer_change,
+        compute_scores,
+        keep_answers,
+        names_now,
+        session_figures,
+        signal_change_points,
+        suggest_for_session,
+        verification_queue,
+    )
 
     with Session.open(session) as s:
         scores = compute_scores(s)
         if scores.predictor is None:
             raise WorkbenchError(f"{s.path}: no model yet; run `workbench train {s.path}` first")
         logs = [x for x in s.logs() if x.id in scores.scores]
-        points = {x.id: signal_change_points(s, x) for x in logs}
-        picks = suggest_for_session(s, scores, points, logs=logs, n=n, strategy=strategy)
+        keep_answers(s, scores)
+        if (change := answer_change(s, scores)) is not None:  # whether another round is worth it
+            print(change.words())
+        if verify:
+            if scores.classifier is None:
+                raise WorkbenchError(f"{s.path}: no classifier to verify; label two terrains and train it first")
+            figure = session_figures(s, scores).session
+            print(f"the session: {figure.words()}; {figure.plan_words(width=width / 100)}")
+            picks = verification_queue(s, scores, logs=logs, width=width / 100, n=n)
+            if not picks:
+                print("nothing written: no verification check is needed for that width")
+                return
+        else:
+            points = {x.id: signal_change_points(s, x) for x in logs}
+            picks = suggest_for_session(s, scores, points, logs=logs, n=n or 12, strategy=strategy)
         classes = names_now(s, scores)  # a guess names its terrain as the session does now
         rows = [
             (
@@ -162,8 +194,8 @@ def suggest(
     frame = pd.DataFrame(rows, columns=columns).astype({"terrain": "string", "guess": "string"})
     write_frame(frame, out)
     print(f"wrote {len(rows)} segment(s) to {shown(out)}: fill in their terrain, then `workbench labels import`")
-    if len(rows) < n:
+    if not verify and len(rows) < (n or 12):
         print(
-            f"asked for {n:,}: the session holds {len(rows)} piece(s) to suggest (unlabelled pieces cut at change "
-            "points, none overlapping another or a label)"
+            f"asked for {n or 12:,}: the session holds {len(rows)} piece(s) to suggest (unlabelled pieces cut at "
+            "change points, none overlapping another or a label)"
         )

@@ -304,6 +304,10 @@ def _report_classifier(s: Session, v: ModelVersion) -> None:
         if checked.all is not None:  # the person's own held-out evidence: each label first tested the model
             spot = f"; spot checks: {checked.spot.words('spot checks')}" if checked.spot else ""
             print(f"  your checks: {checked.all.words()}{spot}")
+        print(
+            f"  the session: not checked since this Retrain (a check tests the version it was made with); "
+            f"`workbench suggest {shown(s.path)} --verify --out FILE` writes the uniform checks that measure v{v.id}"
+        )
         return
     held = m.get("held_out_logs")
     if held:
@@ -326,7 +330,7 @@ def _print_estimate(version: int, model: str, m: dict, estimate: dict) -> None:
     balanced = estimate.get("balanced_accuracy")
     baseline = majority_words(estimate)
     print(
-        f"classifier v{version} ({model} family): {words}"
+        f"classifier v{version} ({model} family): {words} on the labelled pieces"
         + (f", balanced {100 * balanced:.1f} %" if balanced is not None else "")
         + (f" ({baseline})" if baseline else "")
         + f", on {m['n_segments']} segments ({m['labelled_seconds']:.0f} s labelled)"

@@ -1,19 +1,20 @@
-"""The human-in-the-loop cycle without a UI: train the stages and save versions, cache what stage 2 reads, score
-every log along one path, keep the last scoring, rank what to label next. The UI, the CLI, the export and the
-evaluation call it; it composes ``sessions`` (data, labels, versions), ``training`` (models, arrays only) and
-``labeling`` (suggestions).
+"""The human-in-the-loop cycle without a UI: train the stages and save versions, cache what stage 2 reads, score every
+log along one path, keep the last scoring, rank what to label next. The UI, the CLI, the export and the evaluation call
+it; it composes ``sessions`` (data, labels, versions), ``training`` (models, arrays only) and ``labeling``
+(suggestions).
 
 Modules: ``train_stages`` (stage 1 and stage 2 of any family, versions, the active models), ``frame_stage1`` (the
-default family's stage 1, and which stage 1 a family trains), ``stage_inputs`` (stage
-1's cache per predictor version, the paper family's stage-2 features, change points), ``front_end`` (the spectral
-frames per log, the unlabelled stretches self-training reads), ``scores`` (the one scoring path), ``score_store``
-(the last scoring kept in the session), ``change_point_store`` (each log's change points kept per predictor),
-``suggestions`` (the queue), ``checks_record`` (each label first a check of
-the model: test then train), ``family_choice`` (``--model auto``: every family over the default stage 1 fitted, the one
-the session's held-out evidence favours kept), ``unseen_change`` (whether a new version's figure for a run it never
-saw fell below the last one's interval).
+default family's stage 1, and which stage 1 a family trains), ``stage_inputs`` (stage 1's cache per predictor version,
+the paper family's stage-2 features, change points), ``front_end`` (the spectral frames per log, the unlabelled
+stretches self-training reads), ``scores`` (the one scoring path), ``score_store`` (the last scoring kept in the
+session), ``change_point_store`` (each log's change points kept per predictor), ``suggestions`` (the queue),
+``checks_record`` (each label first a check of the model: test then train), ``family_choice`` (``--model auto``: every
+family over the default stage 1 fitted, the one the session's held-out evidence favours kept), ``session_figure`` (how
+right the session is now: the active version's spot checks narrowed by its confidence), ``unseen_change`` (whether a new
+version's figure for a run it never saw fell below the last one's interval).
 """
 
+from .answer_change import AnswerChange, answer_change, keep_answers
 from .change_point_store import keep_change_points, kept_change_points
 from .checks_record import ChecksSummary, checks_summary, estimate_disagrees, names_now, record_check
 from .family_choice import FamilyChoice, auto_families, train_best_classifier
@@ -42,6 +43,7 @@ from .score_store import (
     stored_scores,
 )
 from .scores import EMBEDDING_MODE, SessionScores, compute_scores, score_logs, score_session, stage1_embedding
+from .session_figure import DEFAULT_WIDTH, FigureTally, SessionFigure, SessionFigures, session_figures
 from .stage2_fit import STAGE1_FEATURES, taught_classes, train_classifier
 from .stage_inputs import (
     consistency_pairs,
@@ -51,7 +53,7 @@ from .stage_inputs import (
     stage1_outputs,
     stage2_features,
 )
-from .suggestions import SUGGESTION_S, suggest_for_session, suggestion_lengths
+from .suggestions import QUEUE_MODES, SUGGESTION_S, VERIFY, suggest_for_session, suggestion_lengths, verification_queue
 from .train_stages import (
     MODEL_FAMILIES,
     active_bundle,
@@ -67,18 +69,26 @@ from .train_stages import (
 from .unseen_change import unseen_change
 
 __all__ = [
+    "DEFAULT_WIDTH",
     "EMBEDDING_MODE",
     "GROUP_STEPS",
     "MODEL_FAMILIES",
+    "QUEUE_MODES",
     "STAGE1_FEATURES",
     "STRETCH_S",
     "SUGGESTION_S",
+    "VERIFY",
+    "AnswerChange",
     "ChecksSummary",
     "FamilyChoice",
+    "FigureTally",
+    "SessionFigure",
+    "SessionFigures",
     "SessionScores",
     "StoredScores",
     "active_bundle",
     "active_predictor",
+    "answer_change",
     "auto_families",
     "checks_summary",
     "choose_front_end",
@@ -90,6 +100,7 @@ __all__ = [
     "free_stretches",
     "front_end_of",
     "in_memory_features",
+    "keep_answers",
     "keep_change_points",
     "kept_change_points",
     "log_change_points",
@@ -103,6 +114,7 @@ __all__ = [
     "score_and_store",
     "score_logs",
     "score_session",
+    "session_figures",
     "signal_change_points",
     "spectral_features",
     "stage1_cached",
@@ -125,6 +137,7 @@ __all__ = [
     "train_stage1",
     "unlabelled_stretches",
     "unseen_change",
+    "verification_queue",
     "window_features",
     "window_sizes",
 ]

@@ -12,6 +12,7 @@ from training import terrain_recalls
 
 from .checks_record import names_now
 from .scores import SessionScores
+from .session_figure import DEFAULT_WIDTH, session_figures
 
 # Suggestions are short: a labelled second from many places teaches stage 2 more than the same seconds in a few
 # longer stretches. On the demo logs, 140 s labelled at random reached 80-81 % held-out accuracy as 1 s pieces and
@@ -26,6 +27,68 @@ SPOT_CHECKS = 1
 # whose terrain changes every 5-36 s, 95.5 -> 94.0 % and 93.9 -> 91.3 % (random: 92.7 and 86.3 %). Asking every
 # new log first ("new") gained as much on BorealTC (92.7 %) and lost 4.9 points on the walks.
 MAIN_ANSWER: labeling.MainAnswer = "checked-right"
+
+
+VERIFY = "verify"  # the queue of verification checks, beside the ranking strategies
+QUEUE_MODES: tuple[str, ...] = (*labeling.STRATEGIES, VERIFY)
+
+
+def verification_queue(
+    session: Session,
+    scores: SessionScores,
+    *,
+    logs: list[LogInfo],
+    width: float = DEFAULT_WIDTH,
+    n: int | None = None,
+    seed: int = 0,
+) -> list[tuple[LogInfo, labeling.Suggestion]]:
+    """Uniform checks of the scores' classifier over the time nobody labelled, stratified by log in proportion to
+    it (``labeling.verification_checks``): ``n`` more, or as many more as bring the session's interval to ``width``
+    (``SessionFigure.plan``; none once it is there, at most ``labeling.MOST_CHECKS``). Each carries the model's
+    guess; labelled, each is a spot check of this version.
+
+    The draw is the version's: made over the time nobody had labelled when its checks began, so labelling one piece
+    leaves the others where they were and the queue only shrinks (each log's draws come in one seeded order, so
+    asking for more adds pieces after the ones drawn before).
+    """
+    logs = [x for x in logs if x.id in scores.scores]
+    if not logs or scores.classifier is None:
+        return []
+    figure = session_figures(session, scores).session
+    have = 0 if figure.figure is None else figure.figure.checks
+    more = n if n is not None else min(figure.plan(width=width), labeling.MOST_CHECKS)
+    if more <= 0:
+        return []
+    index = {x.id: i for i, x in enumerate(logs)}
+    mine = [
+        (index[c.log_id], c.start, c.stop)
+        for c in session.checks()
+        if c.kind == "spot check" and c.classifier == scores.classifier and c.log_id in index
+    ]
+
+    def overlaps(g: int, a: int, b: int) -> bool:
+        return any(g == h and a < d and c < b for h, c, d in mine)
+
+    now = [(index[g.log_id], g.start, g.stop) for g in session.segments() if g.log_id in index]
+    before = [x for x in now if not overlaps(*x)]  # the labels but those this version's checks made
+    max_len, min_len = suggestion_lengths(logs[0].rate_hz)
+    picks = labeling.verification_checks(
+        [x.n_samples for x in logs],
+        before,
+        have + more,
+        max_len=max_len,
+        min_len=min_len,
+        seed=seed * 100_003 + scores.classifier,
+    )
+    covered = labeling.coverage([x.n_samples for x in logs], now)
+    out = []
+    for p in picks:
+        if overlaps(p.log, p.start, p.stop) or covered[p.log][p.start : p.stop].any():
+            continue  # checked already, or labelled since
+        probs = scores.scores[logs[p.log].id].probs
+        guess = None if probs is None else int(np.asarray(probs[p.start : p.stop]).mean(axis=0).argmax())
+        out.append((logs[p.log], labeling.Suggestion(p.log, p.start, p.stop, 0.0, p.reason, guess, len(out), p.kind)))
+    return out[:more]
 
 
 def suggestion_lengths(rate_hz: float, *, seconds: float = SUGGESTION_S) -> tuple[int, int]:

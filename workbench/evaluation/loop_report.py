@@ -39,9 +39,10 @@ def loop_report(
         "at the start.",
         "",
         "| strategy | round | labelled s (in new logs) | picks in new logs | in the worst new log | accuracy (%) | "
-        "balanced (%) | the model's estimate (%) | checks in new logs right (spot checks) | the shipped model on "
-        "far runs (%) (balanced) | its figure for runs it never saw (%) (90 % interval) |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "balanced (%) | the fit's figure on the labelled pieces (%) | checks in new logs right (spot checks) | the "
+        "shipped model on far runs (%) (balanced) | its figure for runs it never saw (%) (90 % interval) | answers "
+        "changed (%): the most the round moved it |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for strategy, rounds in arms.items():
         for r in rounds:
@@ -53,7 +54,8 @@ def loop_report(
             unseen = "–" if acc is None else _pct(acc) + ("" if low is None else f" ({_pct(low)}–{_pct(high)})")
             lines.append(
                 f"| {strategy} | {r.round} | {r.labelled_s:.0f} ({r.new_s:.0f}) | {picks} | {worst} | "
-                f"{_pct(r.accuracy)} | {_pct(r.balanced)} | {_pct(r.estimate)} | {checks} | {far} | {unseen} |"
+                f"{_pct(r.accuracy)} | {_pct(r.balanced)} | {_pct(r.estimate)} | {checks} | {far} | {unseen} | "
+                f"{_pct(r.changed)} |"
             )
     lines += ["", "Per new log after the last round (accuracy, %):", ""]
     names = list(new)
@@ -73,9 +75,10 @@ def loop_report(
     if verified:
         lines += [
             "",
-            "The session's accuracy after the last round from verification checks (uniform pieces of the new logs' "
-            "time nobody labelled, stratified by log, checked and never labelled, counted apart from the rounds'), "
-            "narrowed by the final model's confidence (`labeling.powered_accuracy`):",
+            "The workbench's figure for the session after the last round, from verification checks (uniform pieces "
+            "of the new logs' time nobody labelled, stratified by log, recorded as spot checks of the final model and "
+            "never labelled, counted apart from the rounds'), narrowed by its confidence (`cycle.session_figures`, "
+            "the status line's figure):",
             "",
             "| strategy | checks | the checks alone right (%) | estimate (%) (90 % interval) | truth (%) | covers |",
             "| --- | --- | --- | --- | --- | --- |",
@@ -85,5 +88,24 @@ def loop_report(
                 f"| {strategy} | {v.checks} | {_pct(v.checks_right)} | {_pct(v.accuracy)} ({_pct(v.low)}–"
                 f"{_pct(v.high)}) | {_pct(v.truth)} | {'yes' if v.covers else '**no**'} |"
             )
+        lines += [
+            "",
+            "Per new log, the Data tab's figure from the same checks (those that fell in it):",
+            "",
+            "| strategy | log | checks | estimate (%) (90 % interval) | truth (%) | covers | misses by (points) |",
+            "| --- | --- | --- | --- | --- | --- | --- |",
+        ]
+        for strategy, v in verified.items():
+            for name, (acc, low, high, n, truth) in v.per_run.items():
+                if acc is None:
+                    lines.append(f"| {strategy} | {name} | 0 | not checked | {_pct(truth)} | – | – |")
+                    continue
+                miss = max(0.0, low - truth, truth - high)  # type: ignore[operator]
+                lines.append(
+                    f"| {strategy} | {name} | {n} | {_pct(acc)} ({_pct(low)}–{_pct(high)}) | {_pct(truth)} | "
+                    f"{'yes' if miss < 1e-9 else '**no**'} | {100 * miss:.1f} |"
+                )
+            covered, checked = v.runs_covered()
+            lines.append(f"| {strategy} | all | | {covered} of {checked} runs' intervals cover the truth | | | |")
     lines += ["", *said_table({k: [(r.per_log, r.said) for r in v] for k, v in arms.items()})]
     return "\n".join(lines) + "\n"

@@ -1,37 +1,38 @@
-"""Verification checks after the loop's last round: uniform pieces of the new runs' time nobody labelled, checked
-by the reference as a person would, counted apart from the rounds' suggestions and never labelled.
+"""Verification checks after the loop's last round: uniform pieces of the new runs' time nobody labelled, drawn as
+``workbench suggest --verify`` draws them (stratified by run), checked by the reference as a person would, recorded
+as that person's spot checks of the final model, never labelled, and counted apart from the rounds' suggestions.
 
-They test the model the session ends with (a check tests the model that was active when it was made; the rounds'
-checks tested earlier ones). ``labeling.powered_accuracy`` turns them, with the model's confidence over all that
-time, into the session's accuracy with a 90 % interval; the loop's report says whether it covers the truth.
+The figures are then what the workbench itself shows (``cycle.session_figures``: the status line's for the session,
+the Data tab's per run), set beside the truth over the same time: whether each 90 % interval covers it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 import labeling
 from sessions import LogInfo, Session
 
-from ..cycle import SessionScores
+from ..cycle import SessionFigure, SessionScores, record_check, session_figures, suggestion_lengths
 
-PIECE_S = 1.0  # a verification check's length: a suggestion's
+AUTHOR = "verify"
 
 
 @dataclass(frozen=True)
 class Verified:
-    """The session's accuracy from the verification checks.
+    """The workbench's figures after the verification checks, beside the truth.
 
     Attributes:
-        accuracy: The estimate.
-        low: The 90 % interval's lower bound.
+        accuracy: The session's estimate.
+        low: Its 90 % interval's lower bound.
         high: Its upper bound.
         checks: How many checks it rests on.
         truth: The accuracy the reference gives the same time.
         checks_right: The checks' mean share of steps named right (the checks alone).
+        per_run: Per new run's name, ``(estimate, low, high, checks, truth)`` (``None`` figures: not checked).
     """
 
     accuracy: float
@@ -40,23 +41,24 @@ class Verified:
     checks: int
     truth: float
     checks_right: float
+    per_run: dict[str, tuple[float | None, float | None, float | None, int, float]] = field(default_factory=dict)
 
     @property
     def covers(self) -> bool:
         """Whether the interval holds the truth."""
-        return self.low <= self.truth <= self.high
+        return self.low - 1e-9 <= self.truth <= self.high + 1e-9
+
+    def runs_covered(self) -> tuple[int, int]:
+        """``(covered, checked)`` over the runs with a figure."""
+        got = [r for r in self.per_run.values() if r[0] is not None]
+        return sum(r[1] - 1e-9 <= r[4] <= r[2] + 1e-9 for r in got), len(got)  # type: ignore[operator]
 
 
-def _allocate(sizes: Sequence[int], k: int) -> list[int]:
-    """``k`` checks over strata of ``sizes`` steps, in proportion (largest remainders first)."""
-    total = sum(sizes)
-    if total == 0:
-        return [0] * len(sizes)
-    exact = [k * s / total for s in sizes]
-    got = [int(e) for e in exact]
-    for i in sorted(range(len(sizes)), key=lambda i: exact[i] - got[i], reverse=True)[: k - sum(got)]:
-        got[i] += 1
-    return got
+def _truth_share(scores: SessionScores, x: LogInfo, truth: np.ndarray, free: np.ndarray, classes: Sequence[str]):
+    index = np.array([classes.index(c) for c in scores.classes])  # the model's class -> the session's
+    keep = free & (truth >= 0)
+    right = index[np.asarray(scores.scores[x.id].probs).argmax(axis=1)][keep] == truth[keep]
+    return right, int(keep.sum())
 
 
 def verify_session(
@@ -70,7 +72,8 @@ def verify_session(
     k: int,
     seed: int,
 ) -> Verified | None:
-    """``k`` uniform checks of the new runs' time nobody labelled, stratified by run in proportion to that time.
+    """``k`` uniform checks of the new runs' time nobody labelled, stratified by run in proportion to that time,
+    recorded in ``session`` as spot checks of ``scores``' classifier (never labelled).
 
     Args:
         session: The working copy after the last round.
@@ -83,29 +86,44 @@ def verify_session(
         seed: Seed of the pieces' places.
 
     Returns:
-        The estimate, or ``None`` when there is no such time.
+        The figures beside the truth, or ``None`` when there is no such time or no check could be made.
     """
-    rng = np.random.default_rng(seed)
-    index = np.array([classes.index(c) for c in scores.classes])  # the model's class -> the session's
-    rights, sures, kept = [], [], []
+    free = {x.id: ~covered(session, x) for x in new}
+    rights = {x.id: _truth_share(scores, x, truth[x.id], free[x.id], classes)[0] for x in new}
+    if not sum(len(r) for r in rights.values()):
+        return None
+    max_len, min_len = suggestion_lengths(new[0].rate_hz)
+    labelled = [(i, g.start, g.stop) for i, x in enumerate(new) for g in session.segments(x.id)]
+    pieces = labeling.verification_checks(
+        [x.n_samples for x in new], labelled, k, max_len=max_len, min_len=min_len, seed=seed
+    )
+    ys = []
+    for p in pieces:
+        x = new[p.log]
+        ref = truth[x.id][p.start : p.stop]
+        ref = ref[ref >= 0]
+        if not len(ref):
+            continue  # no reference there: a person would skip it
+        terrain = classes[int(np.bincount(ref).argmax())]
+        check = record_check(session, scores, x.id, p.start, p.stop, terrain, kind="spot check", author=AUTHOR)
+        if check is not None:
+            ys.append(check.agreement)
+    figures = session_figures(session, scores, log_ids={x.id for x in new})
+    whole: SessionFigure = figures.session
+    if whole.figure is None:
+        return None
+    per_run = {}
     for x in new:
-        probs = scores.scores[x.id].probs
-        keep = np.flatnonzero((truth[x.id] >= 0) & ~covered(session, x))
-        right = index[probs.argmax(axis=1)][keep] == truth[x.id][keep]  # (K,) per step left to check
-        rights.append(right.astype(np.float64))
-        sures.append(np.asarray(probs.max(axis=1), np.float64)[keep])  # the model's confidence there
-        kept.append(keep)
-    if not sum(len(r) for r in rights):
-        return None
-    y, f = [], []
-    for right, sure, keep, x, m in zip(rights, sures, kept, new, _allocate([len(r) for r in rights], k), strict=True):
-        half = max(1, round(PIECE_S * x.rate_hz / 2))
-        for centre in rng.choice(len(keep), size=min(m, len(keep)), replace=False):
-            near = np.abs(keep - keep[centre]) < half  # the piece: kept steps within half a piece of its centre
-            y.append(float(right[near].mean()))  # the share of the piece the model named right, as a check records
-            f.append(float(sure[near].mean()))
-    got = labeling.powered_accuracy(np.asarray(y), np.asarray(f), np.concatenate(sures))
-    if got is None:
-        return None
-    truth_share = float(np.concatenate(rights).mean())
-    return Verified(got.accuracy, got.low, got.high, got.checks, truth_share, float(np.mean(y)))
+        f = figures.per_log.get(x.id)
+        got = None if f is None else f.figure
+        share = float(rights[x.id].mean()) if len(rights[x.id]) else float("nan")
+        per_run[x.name] = (
+            None if got is None else got.accuracy,
+            None if got is None else got.low,
+            None if got is None else got.high,
+            0 if got is None else got.checks,
+            share,
+        )
+    f = whole.figure
+    truth_share = float(np.concatenate(list(rights.values())).mean())
+    return Verified(f.accuracy, f.low, f.high, f.checks, truth_share, float(np.mean(ys)), per_run)

@@ -31,9 +31,11 @@ from sessions import LogInfo, Session, WorkbenchError, new_file, read_frame, wri
 from ..cycle import (
     SessionScores,
     active_bundle,
+    answer_change,
     checks_summary,
     classifier_family,
     compute_scores,
+    keep_answers,
     record_check,
     signal_change_points,
     suggest_for_session,
@@ -117,6 +119,7 @@ class LoopRound:
         unseen: The fitted model's figure for a run it never saw (its folds over runs, judged on what the session
             knows of them: ``metrics["unseen_runs"]``): accuracy and the 90 % interval's bounds (``None`` each
             where it has none).
+        changed: The share of the new logs' unlabelled time whose answer changed this round (``answer_change``).
     """
 
     round: int
@@ -139,6 +142,7 @@ class LoopRound:
     far_per_log: dict[str, float] = field(default_factory=dict)
     unseen: tuple[float | None, float | None, float | None] = (None, None, None)
     verified: Verified | None = None
+    changed: float | None = None
 
 
 @dataclass(frozen=True)
@@ -322,6 +326,8 @@ def run_arm(
         for r in range(settings.rounds + 1):
             if r > 0:
                 scores = compute_scores(s, **scoring)
+            keep_answers(s, scores)
+            change = answer_change(s, scores, log_ids=new_ids) if r > 0 else None
             measured = measure(s, scores, new, truth, classes)
             shipped = None if far is None else score_far(active_bundle(s)[1], far)
             in_new = sum(g.length for g in s.segments() if g.log_id in new_ids and g.author == AUTHOR)
@@ -352,6 +358,7 @@ def run_arm(
                     )
                     if settings.verify and r == settings.rounds
                     else None,
+                    changed=None if change is None else change.changed,
                 )
             )
             far_said = "" if shipped is None else f"; the shipped model on far runs {100 * shipped.accuracy:.1f} %"

@@ -16,7 +16,7 @@ from training import (
     unseen_words,
 )
 
-from ..cycle import ChecksSummary, estimate_disagrees
+from ..cycle import ChecksSummary, SessionFigure, estimate_disagrees
 from ..expectations import SHORTEST_STRETCH_S, card_accuracy
 
 
@@ -29,7 +29,11 @@ def _estimate_section(m: dict) -> list[str]:
     words = estimate_headline(estimate) or "not measurable"
     balanced = estimate.get("balanced_accuracy")
     return [
-        "## What to expect on new runs",
+        "## On the labelled pieces, held out",
+        "",
+        "What the fit measured on the labels themselves, each predicted by a model fitted without it. It describes "
+        "where the labels are: suggestions place them where the model was unsure, so after a few rounds it runs far "
+        "below the session's accuracy above; the per-terrain table shows which terrains those places confuse.",
         "",
         f"**{words}**" + (f", balanced accuracy {balanced:.1%}" if balanced is not None else "") + ".",
         "",
@@ -46,6 +50,27 @@ def _estimate_section(m: dict) -> list[str]:
         *estimate_table(estimate),
         "",
     ]
+
+
+def _session_section(figure: SessionFigure | None, logs: int) -> list[str]:
+    """How right the session is at export, from the person's uniform checks of this version
+    (``cycle.session_figures``)."""
+    if figure is None or figure.version is None:
+        return []
+    how = (
+        "measured by the person's spot checks of this version (pieces drawn at random from the time nobody "
+        "labelled, each a test before it trained anything), narrowed by the model's confidence over all that time "
+        "(prediction-powered inference; `labeling.powered_accuracy`). It is the session's figure, not the robot's: "
+        "the next section is."
+    )
+    if figure.figure is not None:
+        head = f"**{figure.words()}** of the time nobody labelled in the session's {logs} logs is named right, {how}"
+    else:
+        head = (
+            f"**{figure.words()}**: no spot check of this version yet, so no figure for the session. "
+            f"`workbench suggest SESSION --verify --out FILE` writes uniform checks to label ({figure.plan_words()})."
+        )
+    return ["## How right the session is", "", head, ""]
 
 
 def _unseen_section(m: dict) -> list[str]:
@@ -204,13 +229,16 @@ def model_card(
     unlabelled_agreement: float | None = None,
     unlabelled_members: tuple[float, int] | None = None,
     checks: ChecksSummary | None = None,
+    figure: SessionFigure | None = None,
+    logs: int = 0,
 ) -> str:
     """A Markdown description of a bundle: what it is, what it was trained on, how well it does, and where it does
     not know (``drifted``: per log name, the share of its time with a drift score above 1; ``unlabelled``: per log
     with no label, the accuracy expected at its drift and its steps; ``unlabelled_agreement``: the share of those
     logs' steps predicted as their stretch's most predicted terrain; ``unlabelled_members``: the mean of the
     steps' members' agreement over the logs with no label (``labeling.member_agreement``) and how many they are;
-    ``checks``: what the person's checks said, test then train)."""
+    ``checks``: what the person's checks said, test then train; ``figure``: how right the session is, from the
+    spot checks of this version, over its ``logs`` logs)."""
     m, family = bundle.metrics, bundle.stage2_family()
     lines = [
         f"# Terrain classifier v{version}",
@@ -229,6 +257,7 @@ def model_card(
         f"- stage 2: {m.get('n_segments', '?')} labelled segments, {m.get('labelled_seconds', 0):.0f} s "
         f"({m.get('labelled_fraction', 0):.1%} of the time)",
         "",
+        *_session_section(figure, logs),
         *_unseen_section(m),
         *_estimate_section(m),
         *_checks_section(checks, m),

@@ -114,7 +114,7 @@ def _write_export(
 ) -> list[tuple[Path, str]]:
     from training import check_onnx, export_onnx
 
-    from ..cycle import checks_summary, model_logs, score_session, signal_change_points
+    from ..cycle import FigureTally, checks_summary, model_logs, score_session, signal_change_points
 
     written: list[tuple[Path, str]] = []
     streamed: list[tuple[Path, str]] = []  # the predictions, then each log's MCAP: listed after the bundle's files
@@ -125,6 +125,7 @@ def _write_export(
     agree, agree_steps = 0.0, 0  # their steps predicted as their stretch's most predicted terrain
     members, members_steps, members_logs = 0.0, 0, 0  # their steps' members' agreement (the Data tab's figure)
     logs = model_logs(session, bundle.channels)
+    tally = FigureTally(session, version.id)  # how right the session is, from the spot checks of this version
     if predictions or mcap or bundle.drift is not None:  # every log scored, a group at a time, handed on per log
         table = PredictionsWriter(out / "predictions.parquet") if predictions else None
         if mcap:
@@ -137,6 +138,8 @@ def _write_export(
                 )
             )
         for log, s in scored_logs(logs, lambda ids: score_session(session, ids)):
+            if s.probs is not None:
+                tally.add(log.id, s.probs)
             if (share := labeling.drifted_share(s.drift)) is not None:
                 drifted[log.name] = share
             if log.id not in labelled_logs and bundle.drift is not None:
@@ -170,6 +173,8 @@ def _write_export(
         unlabelled_agreement=agreement,
         unlabelled_members=(members / members_steps, members_logs) if members_steps else None,
         checks=(checks := checks_summary(session)),
+        figure=tally.figures().session if predictions or mcap or bundle.drift is not None else None,
+        logs=len(logs),
     )
     (out / "bundle" / "MODEL_CARD.md").write_text(card)
     write_checks(out / "bundle", checks)

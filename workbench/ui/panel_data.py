@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import labeling
 from sessions import IngestError, Session, WorkbenchError
 
-from ..cycle import checks_summary
+from ..cycle import SessionFigure, checks_summary, session_figures
 from ..expectations import FileExpectation, file_expectation
 from .charts import DRIFT
 from .status_bar import MISSED
@@ -43,6 +43,7 @@ def logs_table_html(
     expected: Mapping[int, FileExpectation | None] | None = None,
     checks: Mapping[int, labeling.CheckEstimate] | None = None,
     held_out: Mapping[str, float] | None = None,
+    figures: Mapping[int, SessionFigure] | None = None,
 ) -> str:
     """An HTML table of the session's logs (name, format, duration, rate, channels, labelled time and, once the
     model gives a drift score, the share of each log unlike anything labelled and the accuracy expected at its
@@ -56,6 +57,8 @@ def logs_table_html(
             interval on hover.
         held_out: Per log name, what the model that ships scored on it when a fit without it held it out (the
             active classifier's ``unseen_runs``): a run it never saw, not the session's figure for the log.
+        figures: Per log id, how right the active version is on the log's time nobody labelled, from its spot
+            checks there (``cycle.session_figures``): "≈ 97 % (93–99)" or "not checked".
     """
     logs = session.logs()
     if not logs:
@@ -75,6 +78,8 @@ def logs_table_html(
             strong = share is not None and share > 0.5
             text = "–" if share is None else f"{share:.0%}"
             cell = f"<td class='n'>{f'<b style=color:{DRIFT}>{text}</b>' if strong else text}</td>"
+        if figures:
+            cell += _figure_cell(figures.get(log.id))
         if expect_column:
             cell += _expected_cell(expected.get(log.id))  # type: ignore[union-attr]
         if checks:
@@ -94,6 +99,13 @@ def logs_table_html(
         if drift_column
         else ""
     )
+    if figures:
+        head += (
+            "<th class='n' title='how right this version is on the log&#39;s time nobody labelled: from your spot "
+            "checks of it there (drawn at random), narrowed by its confidence; 90 % interval. Not checked: no spot "
+            "check of this version in the log since the last Retrain (Verify, in the Suggest tab, asks for them)'>"
+            "this version</th>"
+        )
     if expect_column:
         card = next((e.card for e in expected.values() if e is not None and e.card is not None), None)  # type: ignore[union-attr]
         red = [] if card is None else [f"10 points or more below the card&#39;s {card:.0%}"]
@@ -102,7 +114,7 @@ def logs_table_html(
             "<th class='n' title='accuracy expected on the log: how often the model&#39;s members name the same "
             "terrain there, else its expected accuracy at its drift, else the share of its steps predicted as their "
             "stretch&#39;s most predicted terrain (stretches between change points; each on hover)"
-            f"{below}'>expect</th>"
+            f"{below}; the model&#39;s own guess, not a test'>its guess</th>"
         )
     if checks:
         head += (
@@ -137,6 +149,14 @@ def _expected_cell(e: FileExpectation | None) -> str:
     both = html.escape(" ".join(filter(None, [e.figures(), e.warning() if e.checks_disagree else None])), quote=True)
     strong = e.below_card or e.disagrees or e.checks_disagree
     return f"<td class='n' title='{both}'>{f'<b style=color:{MISSED}>{text}</b>' if strong else text}</td>"
+
+
+def _figure_cell(f: SessionFigure | None) -> str:
+    if f is None:
+        return "<td class='n'>–</td>"
+    title = html.escape(f"{f.words()}; {f.plan_words()}", quote=True)
+    text = html.escape(f.short())
+    return f"<td class='n' title='{title}'>{text if f.figure is not None else f'<i>{text}</i>'}</td>"
 
 
 def _checks_cell(est: labeling.CheckEstimate | None) -> str:
@@ -191,7 +211,8 @@ class DataPanel:
             for i, s in scores.items()
         }
         held_out = (metrics.get("unseen_runs") or {}).get("per_run")
-        self.logs.content = logs_table_html(session, drifted, expected, checks, held_out)
+        now = session_figures(session, state.scores).per_log if state.scores.classifier is not None else None
+        self.logs.content = logs_table_html(session, drifted, expected, checks, held_out, now)
 
     def _take_upload(self) -> None:
         refused: str | None = None

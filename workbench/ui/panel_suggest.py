@@ -7,9 +7,9 @@ import base64
 import html
 from typing import TYPE_CHECKING
 
-import labeling
 from sessions import WorkbenchError
 
+from ..cycle import QUEUE_MODES, VERIFY, AnswerChange, answer_change, session_figures
 from ..user_errors import USER_ERRORS
 
 if TYPE_CHECKING:
@@ -27,6 +27,7 @@ class SuggestPanel:
         gui = host.client.gui
         self.current: Queued | None = None
         self._skipped: set[tuple[int, int, int]] = set()
+        self._change: tuple[object, AnswerChange | None] | None = None
         self.info = gui.add_html("")
         self.next_button = gui.add_button("Next suggestion (N)", icon="arrow-right", color="teal")
         self.next_button.on_click(lambda _: host.guard(self.next))
@@ -34,16 +35,43 @@ class SuggestPanel:
         self.accept_button.on_click(lambda _: host.guard(self.accept))
         self.skip_button = gui.add_button("Skip (X)", icon="player-skip-forward", disabled=True)
         self.skip_button.on_click(lambda _: host.guard(self.skip))
+        self.verify_button = gui.add_button("Verify this version (V)", icon="checklist")
+        self.verify_button.on_click(lambda _: host.guard(self.verify))
         self.table = gui.add_html("")
         self.strategy = gui.add_dropdown(
             "Rank by",
-            labeling.STRATEGIES,
+            QUEUE_MODES,
             initial_value=host.state.strategy,
             hint="How the shared queue is ranked (for everyone): combined mixes uncertainty, disagreement, surprise "
-            "and diversity; the others use one score alone; random is the baseline",
+            "and diversity; the others use one score alone; random is the baseline; verify: uniform checks of this "
+            "version, as many as bring the session's interval to ±5 points",
         )
         self.strategy.on_update(lambda _: host.guard(lambda: host.state.set_strategy(self.strategy.value)))
         self.refresh()
+
+    def verify(self) -> None:
+        """Make the shared queue the verification checks of the active version (V): uniform pieces of the time
+        nobody labelled, stratified by log, as many as bring the session's 90 % interval to ±5 points."""
+        state = self.host.state
+        if state.scores.classifier is None:
+            raise WorkbenchError("nothing to verify before a classifier exists: label two terrains and Retrain (R)")
+        self.current = None  # the ranked suggestion on screen is not one of the checks
+        state.set_strategy(VERIFY)
+        self.refresh()
+
+    def verify_words(self) -> str:
+        """What a verification would take: ``"the session: not checked since the last Retrain; 26 checks would
+        bring it to ±5 points"``; empty before a classifier has scored the logs."""
+        scores = self.host.state.scores
+        if scores.classifier is None:
+            return ""
+        session = self.host.state.session
+        figure = session_figures(session, scores).session
+        if self._change is None or self._change[0] is not scores:  # read once per scoring: it reads the cache
+            self._change = (scores, answer_change(session, scores))
+        change = self._change[1]
+        moved = f". {change.words()[:1].upper()}{change.words()[1:]}" if change is not None else ""
+        return f"the session: {figure.words()}; {figure.plan_words()}{moved}"
 
     def visible_queue(self) -> list[Queued]:
         return [q for q in self.host.state.queue if q.key not in self._skipped]
@@ -99,6 +127,11 @@ class SuggestPanel:
             return f"no suggestions: {state.problem}"
         if state.scores.predictor is None:
             return "no suggestions before a predictor exists: press Retrain (R) to train it on all logs"
+        if state.strategy == VERIFY:
+            return (
+                f"nothing left to verify ({self.verify_words()}); choose a ranking under Rank by to label on, "
+                "or skip fewer"
+            )
         return "no suggestions left (everything worth labelling is labelled, or all were skipped)"
 
     def refresh(self) -> None:
@@ -127,6 +160,12 @@ class SuggestPanel:
             )
         else:
             self.info.content = f"<small style='color:#666'>{html.escape(self._hint(queue))}</small>"
+        plan = self.verify_words()
+        if plan:
+            mode = "<b>verifying</b>: " if self.host.state.strategy == VERIFY else ""
+            self.info.content += (
+                f"<div style='font-size:0.8em;color:#555;padding:2px 4px'>{mode}{html.escape(plan)}</div>"
+            )
         shown = queue[:TABLE_ROWS]
         pictures = self._thumbnails(shown)
         rows = []
@@ -173,6 +212,11 @@ class SuggestPanel:
         return out
 
     def _hint(self, queue: list[Queued]) -> str:
+        if queue and self.host.state.strategy == VERIFY:
+            return (
+                f"{len(queue)} verification checks: uniform pieces of the time nobody labelled. Label each with the "
+                "terrain you see (N for the first); each tests this version before it trains anything."
+            )
         if queue:
             return f"{len(queue)} segments suggested. Press N to see the first."
         try:

@@ -16,8 +16,11 @@ import labeling
 from sessions import LogInfo, Segment, Session, Terrain, WorkbenchError
 
 from ..cycle import (
+    QUEUE_MODES,
+    VERIFY,
     SessionScores,
     compute_scores,
+    keep_answers,
     keep_change_points,
     kept_change_points,
     log_change_points,
@@ -28,6 +31,7 @@ from ..cycle import (
     stored_queue,
     stored_scores,
     suggest_for_session,
+    verification_queue,
 )
 from ..user_errors import USER_ERRORS, one_line
 from .events import Event, Events, Listener
@@ -71,7 +75,7 @@ class SharedState:
         self.scored = False  # the first scoring has finished
         self._change_points: dict[tuple[int, int | None], np.ndarray] = {}
         self.queue: list[Queued] = []
-        self.strategy: labeling.Strategy = "combined"  # shared: everyone works from one queue
+        self.strategy: str = "combined"  # shared: everyone works from one queue (a ranking, or "verify")
         self._dirty = threading.Event()
         self._scores_wanted = True
         self._first: set[int] = set()  # logs to score before the rest (on screen when a retrain finished)
@@ -278,11 +282,14 @@ class SharedState:
             return set(self._viewed.values())
 
     def set_strategy(self, strategy: str) -> None:
-        """Rank the shared queue with another strategy (``labeling.STRATEGIES``); every view hears of it."""
-        if strategy not in labeling.STRATEGIES:
-            raise WorkbenchError(f"unknown strategy {strategy!r}; choose from {', '.join(labeling.STRATEGIES)}")
+        """Rank the shared queue with another strategy (``labeling.STRATEGIES``), or make it the verification checks
+        (``"verify"``); every view hears of it."""
+        if strategy not in QUEUE_MODES:
+            raise WorkbenchError(f"unknown strategy {strategy!r}; choose from {', '.join(QUEUE_MODES)}")
         with self._lock:
-            self.strategy = strategy  # type: ignore[assignment]
+            if (strategy == VERIFY) != (self.strategy == VERIFY):
+                self.queue = []  # ranked suggestions are no checks, nor checks suggestions: none shown meanwhile
+            self.strategy = strategy
         self.refresh(scores=False)
 
     def change_points(self, log_id: int) -> np.ndarray:
@@ -382,6 +389,7 @@ class SharedState:
                         continue
                     self.scores = scores
                     self.scored = True
+                    self._keep(keep_answers, self.session, scores)  # what the next Retrain changed is told from it
                     self.notify("scores")
                 key = queue_key(self.session, self.strategy, self.terrains())
                 if self._queue_of is None or self._queue_of[0] is not self.scores or self._queue_of[1] != key:
@@ -451,7 +459,11 @@ class SharedState:
             cps[x.id] = self.change_points(x.id)
         out = []
         try:
-            ranked = suggest_for_session(self.session, scores, cps, logs=logs, strategy=self.strategy, stop=newer)
+            if self.strategy == VERIFY:
+                ranked = verification_queue(self.session, scores, logs=logs)
+            else:
+                strategy: labeling.Strategy = self.strategy  # type: ignore[assignment]
+                ranked = suggest_for_session(self.session, scores, cps, logs=logs, strategy=strategy, stop=newer)
         except labeling.Interrupted:
             return None
         for log, s in ranked:

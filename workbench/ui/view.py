@@ -217,6 +217,12 @@ class ClientView:
         bind("Next suggestion", "N", self.suggest_panel.next, desc="N: show the next suggested segment")
         bind("Accept guess", "A", self.suggest_panel.accept, desc="A: label the suggestion with the model's guess")
         bind("Skip suggestion", "X", self.suggest_panel.skip)
+        bind(
+            "Verify this version",
+            "V",
+            self.suggest_panel.verify,
+            desc="V: uniform checks of the active version until the session's interval is ±5 points",
+        )
         bind("Next stretch", "J", lambda: self.review_panel.step(1), desc="J: the model's next predicted stretch")
         bind("Previous stretch", "K", lambda: self.review_panel.step(-1), desc="K: the model's previous stretch")
         bind("Accept stretch", "Y", self.review_panel.accept, desc="Y: label the stretch as the model predicts")

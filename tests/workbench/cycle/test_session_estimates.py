@@ -49,7 +49,7 @@ def test_one_run_per_terrain_is_a_same_run_figure_in_the_cli_and_the_card(
         assert estimate["kind"] == SAME_RUN and estimate["accuracy"] > 0.5, estimate  # not 17 %, not 0 %
         export_all(s, tmp_path / "export")
     card = (tmp_path / "export" / "bundle" / "MODEL_CARD.md").read_text()
-    assert "## What to expect on new runs" in card and "| same run | 1 |" in card
+    assert "## On the labelled pieces, held out" in card and "| same run | 1 |" in card
 
 
 def test_a_terrain_labelled_in_a_second_log_is_measured_on_held_out_logs(one_run_per_terrain: Path, capsys) -> None:

@@ -179,6 +179,61 @@ def test_the_headless_loop_suggest_fill_in_import_train(
     assert "always the most common terrain" in printed  # the baseline beside the estimate (item 5)
 
 
+def test_suggest_verify_writes_the_checks_the_width_needs_and_the_session_figure_rests_on_them(
+    loop_session: tuple[Path, Path], tmp_path: Path, capsys
+) -> None:
+    """`suggest --verify`: uniform pieces of the time nobody labelled, as many as the plan says, each a spot check
+    of the active version once filled in; the session's figure then rests on them, and a Retrain makes it "not
+    checked since the last Retrain" again."""
+    import shutil
+
+    from workbench.cycle import compute_scores, session_figures
+
+    session = tmp_path / "s"
+    shutil.copytree(loop_session[0], session)
+    assert main(["train", str(session)]) == 0
+    assert "the session: not checked since this Retrain" in capsys.readouterr().out
+    out = tmp_path / "verify.csv"
+    assert main(["suggest", str(session), "--out", str(out), "--verify", "--width", "30"]) == 0
+    said = capsys.readouterr().out
+    plan = re.search(r"the session: not checked yet; (\d+) checks would bring it to ±15 points", said)
+    assert plan, said
+    rows = pd.read_csv(out, keep_default_na=False)
+    assert len(rows) == int(plan.group(1)) and set(rows["kind"]) == {"spot check"}
+    assert rows["reason"].str.startswith("verification").all()
+    truth = pd.read_csv(loop_session[1])
+    for i in range(len(rows)):
+        mid = (rows.loc[i, "start_s"] + rows.loc[i, "end_s"]) / 2
+        hit = truth[(truth["log"] == rows.loc[i, "log"]) & (truth["start_s"] <= mid) & (mid < truth["end_s"])]
+        rows.loc[i, "terrain"] = hit["terrain"].iloc[0]
+    rows.to_csv(out, index=False)
+    assert main(["labels", "import", str(session), str(out)]) == 0
+    capsys.readouterr()
+    again = tmp_path / "verify2.csv"
+    assert main(["suggest", str(session), "--out", str(again), "--verify", "--width", "30"]) == 0
+    said = capsys.readouterr().out
+    assert re.search(
+        rf"the session: ≈ \d+ % \(90 % interval \d+–\d+ %, from {len(rows)} checks of this version\)", said
+    )
+    with Session.open(session) as s:
+        figure = session_figures(s, compute_scores(s)).session
+        assert figure.figure is not None and figure.figure.checks == len(rows)
+    assert main(["train", str(session), "--stage", "classifier"]) == 0
+    capsys.readouterr()
+    with Session.open(session) as s:
+        stale = session_figures(s, compute_scores(s)).session
+    assert stale.figure is None and stale.words().startswith("not checked since the last Retrain (v")
+    # what the Retrain changed: the answers of the version before it were kept when `suggest` scored it
+    assert main(["suggest", str(session), "--out", str(tmp_path / "v3.csv"), "--verify", "--width", "30"]) == 0
+    moved = re.search(
+        rf"the last Retrain \(v\d+ → v\d+, {len(rows)} labels\) changed the model's answer on (\d+\.\d) % of the "
+        r"time nobody labelled: the session moved by at most \1 points either way",
+        capsys.readouterr().out,
+    )
+    assert moved and 0 <= float(moved.group(1)) <= 100
+    assert main(["suggest", str(session), "--out", str(tmp_path / "x.csv"), "--verify", "--width", "0"]) == 2
+
+
 def test_far_runs_are_scored_by_the_shipped_bundle_every_round_and_never_enter_the_session(
     loop_session: tuple[Path, Path], tmp_path: Path, capsys
 ) -> None:
@@ -217,11 +272,9 @@ def test_far_runs_are_scored_by_the_shipped_bundle_every_round_and_never_enter_t
 
 
 def test_verification_checks_are_dealt_to_runs_by_their_unlabelled_time() -> None:
-    from workbench.evaluation.loop_verify import _allocate
-
-    assert _allocate([100, 300, 600], 10) == [1, 3, 6]
-    assert _allocate([1, 1, 1], 2) in ([1, 1, 0], [1, 0, 1], [0, 1, 1])
-    assert sum(_allocate([7, 13, 29, 2], 24)) == 24 and _allocate([0, 0], 5) == [0, 0]
+    assert labeling.proportional([100, 300, 600], 10) == [1, 3, 6]
+    assert labeling.proportional([1, 1, 1], 2) in ([1, 1, 0], [1, 0, 1], [0, 1, 1])
+    assert sum(labeling.proportional([7, 13, 29, 2], 24)) == 24 and labeling.proportional([0, 0], 5) == [0, 0]
 
 
 def test_verify_is_for_the_loop_and_a_count(tmp_path: Path, capsys) -> None:

@@ -97,7 +97,13 @@ class _Session:
 
 def _panel(queue: list[Queued], session: _Session | None = None) -> tuple[SuggestPanel, _Host]:
     state = SimpleNamespace(
-        queue=queue, strategy="combined", busy=None, scored=True, problem=None, session=session or _Session()
+        queue=queue,
+        strategy="combined",
+        busy=None,
+        scored=True,
+        problem=None,
+        session=session or _Session(),
+        scores=SimpleNamespace(classifier=None),  # no classifier: no verification plan to say
     )
     host = _Host(state=state)
     return SuggestPanel(host), host

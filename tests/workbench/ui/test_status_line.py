@@ -1,4 +1,5 @@
-"""The status line's model figure: the estimate, its caution, and the terrains the model misses (issue 54)."""
+"""The status line's figures: the session's from the checks of this version, the shipped model's on a new run, and
+the fit's on the labelled pieces in grey, the terrains it misses there on hover."""
 
 from __future__ import annotations
 
@@ -18,10 +19,12 @@ def _steps(recalls: tuple[float, ...], n: int = 100) -> tuple[np.ndarray, np.nda
     return true, pred
 
 
-def test_the_status_line_names_a_terrain_the_model_misses_in_red() -> None:
+def test_the_fits_figure_on_the_labelled_pieces_is_grey_and_names_what_it_misses_on_hover() -> None:
     held = terrain_estimate(CLASSES, {0: 2, 1: 2, 2: 2}, _steps((0.9, 0.9, 0.9)), _steps((0.95, 0.9, 0.2)))
     line = figure_html({"estimate": held})
-    assert "on held-out logs" in line and "<b style='color:#c62828'>misses sand (20 % recall)</b>" in line
+    assert "labelled pieces: " in line and "on held-out logs" in line and "color:#666" in line
+    assert "on those pieces it misses sand (20 % recall)" in line  # on hover: a loop drives these pieces' recall down
+    assert "#c62828" not in line  # never the session's headline in red
     same = terrain_estimate(CLASSES, {0: 1, 1: 1, 2: 1}, _steps((0.9, 0.4, 0.9)))  # same-run figures miss too
     line = figure_html({"estimate": same})
     assert "new runs may score lower" in line and "misses grass (40 % recall)" in line
