@@ -103,9 +103,9 @@ def evaluate(
             reference labels of the logs it names before scoring (loop: in its copy of the session only).
         far: loop: log files of runs kept out of the session, their truth in --reference: after every round the
             bundle the session would export scores them as `workbench classify` does (what ships to the robot).
-        verify: loop: after the last round, this many verification checks (uniform pieces of the new logs' time
-            nobody labelled, by log, never labelled, counted apart from the rounds'): the session's accuracy with
-            its 90 % interval, and whether it covers the truth.
+        verify: loop: before the first round and after each, this many verification checks (uniform pieces of the
+            new logs' time nobody labelled, by log, never labelled, counted apart from the rounds'): the session's
+            accuracy with its 90 % interval as the page shows it, and whether it covers the truth.
     """
     if out is not None:  # before anything loads (torch takes seconds): a refused target is told at once
         _check_out(out, dataset=dataset, simulate=simulate)

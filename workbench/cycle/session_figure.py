@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import threading
 import weakref
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -106,12 +106,12 @@ class FigureTally:
     """The figures summed a log at a time, for a pass that never holds every log's scores (the export's).
 
     ``add`` each log's probabilities under ``version``; ``figures`` then gives the same as :func:`session_figures`
-    over those logs.
+    over those logs. ``checks``: these instead of the session's (an evaluation's checks, never recorded).
     """
 
-    def __init__(self, session: Session, version: int) -> None:
+    def __init__(self, session: Session, version: int, *, checks: Sequence[Check] | None = None) -> None:
         self.version = version
-        self.checks = session.checks()
+        self.checks = list(session.checks() if checks is None else checks)
         self._mine = _spot(self.checks, version)
         self._spans: dict[int, list[tuple[int, int]]] = {}
         for g in session.segments():

@@ -75,22 +75,27 @@ def loop_report(
     if verified:
         lines += [
             "",
-            "The workbench's figure for the session after the last round, from verification checks (uniform pieces "
-            "of the new logs' time nobody labelled, stratified by log, recorded as spot checks of the final model and "
-            "never labelled, counted apart from the rounds'), narrowed by its confidence (`cycle.session_figures`, "
-            "the status line's figure):",
+            "The workbench's figure for the session before the first round and after each, from verification checks "
+            "(uniform pieces of the new logs' time nobody labelled, stratified by log, as spot checks of that round's "
+            "model; never labelled, counted apart from the rounds'), narrowed by its confidence (the status line's "
+            "figure):",
             "",
-            "| strategy | checks | the checks alone right (%) | estimate (%) (90 % interval) | truth (%) | covers |",
-            "| --- | --- | --- | --- | --- | --- |",
+            "| strategy | round | checks | the checks alone right (%) | estimate (%) (90 % interval) | truth (%) | "
+            "covers |",
+            "| --- | --- | --- | --- | --- | --- | --- |",
         ]
-        for strategy, v in verified.items():
-            lines.append(
-                f"| {strategy} | {v.checks} | {_pct(v.checks_right)} | {_pct(v.accuracy)} ({_pct(v.low)}–"
-                f"{_pct(v.high)}) | {_pct(v.truth)} | {'yes' if v.covers else '**no**'} |"
-            )
+        for strategy, rounds in arms.items():
+            for r in rounds:
+                v = r.verified
+                if v is None:
+                    continue
+                lines.append(
+                    f"| {strategy} | {r.round} | {v.checks} | {_pct(v.checks_right)} | {_pct(v.accuracy)} "
+                    f"({_pct(v.low)}–{_pct(v.high)}) | {_pct(v.truth)} | {'yes' if v.covers else '**no**'} |"
+                )
         lines += [
             "",
-            "Per new log, the Data tab's figure from the same checks (those that fell in it):",
+            "Per new log after the last round, the Data tab's figure from the same checks (those that fell in it):",
             "",
             "| strategy | log | checks | estimate (%) (90 % interval) | truth (%) | covers | misses by (points) |",
             "| --- | --- | --- | --- | --- | --- | --- |",

@@ -1,9 +1,11 @@
-"""Verification checks after the loop's last round: uniform pieces of the new runs' time nobody labelled, drawn as
-``workbench suggest --verify`` draws them (stratified by run), checked by the reference as a person would, recorded
-as that person's spot checks of the final model, never labelled, and counted apart from the rounds' suggestions.
+"""Verification checks in the loop, before the first round and after each: uniform pieces of the new runs' time
+nobody labelled, drawn as ``workbench suggest --verify`` draws them (stratified by run), checked by the reference as
+a person would, as spot checks of that round's model; never labelled, never recorded (the rounds' suggestions read
+the session's checks), counted apart from the rounds' suggestions.
 
-The figures are then what the workbench itself shows (``cycle.session_figures``: the status line's for the session,
-the Data tab's per run), set beside the truth over the same time: whether each 90 % interval covers it.
+The figures are then what the workbench itself shows (``cycle.FigureTally``, the path of the status line's figure
+for the session and the Data tab's per run), set beside the truth over the same time: whether each 90 % interval
+covers it.
 """
 
 from __future__ import annotations
@@ -14,9 +16,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import labeling
-from sessions import LogInfo, Session
+from sessions import Check, LogInfo, Session
 
-from ..cycle import SessionFigure, SessionScores, record_check, session_figures, suggestion_lengths
+from ..cycle import FigureTally, SessionFigure, SessionScores, names_now, suggestion_lengths
 
 AUTHOR = "verify"
 
@@ -72,8 +74,8 @@ def verify_session(
     k: int,
     seed: int,
 ) -> Verified | None:
-    """``k`` uniform checks of the new runs' time nobody labelled, stratified by run in proportion to that time,
-    recorded in ``session`` as spot checks of ``scores``' classifier (never labelled).
+    """``k`` uniform checks of the new runs' time nobody labelled, stratified by run in proportion to that time, as
+    spot checks of ``scores``' classifier (in memory only: nothing is recorded or labelled).
 
     Args:
         session: The working copy after the last round.
@@ -97,7 +99,8 @@ def verify_session(
     pieces = labeling.verification_checks(
         [x.n_samples for x in new], labelled, k, max_len=max_len, min_len=min_len, seed=seed
     )
-    ys = []
+    names = names_now(session, scores)
+    checks, ys = [], []
     for p in pieces:
         x = new[p.log]
         ref = truth[x.id][p.start : p.stop]
@@ -105,10 +108,19 @@ def verify_session(
         if not len(ref):
             continue  # no reference there: a person would skip it
         terrain = classes[int(np.bincount(ref).argmax())]
-        check = record_check(session, scores, x.id, p.start, p.stop, terrain, kind="spot check", author=AUTHOR)
-        if check is not None:
-            ys.append(check.agreement)
-    figures = session_figures(session, scores, log_ids={x.id for x in new})
+        said = np.asarray(scores.scores[x.id].probs[p.start : p.stop]).argmax(axis=1)  # (L,) as record_check reads
+        agreement = float((said == names.index(terrain)).mean()) if terrain in names else 0.0
+        most = names[int(np.bincount(said, minlength=len(names)).argmax())]
+        checks.append(
+            Check(0, x.id, p.start, p.stop, terrain, most, agreement, scores.classifier, "spot check", AUTHOR, "")
+        )
+        ys.append(agreement)
+    if scores.classifier is None or not checks:
+        return None
+    tally = FigureTally(session, scores.classifier, checks=checks)
+    for x in new:
+        tally.add(x.id, scores.scores[x.id].probs)
+    figures = tally.figures()
     whole: SessionFigure = figures.session
     if whole.figure is None:
         return None

@@ -77,8 +77,8 @@ class LoopSettings:
         strategies: Suggestion strategies compared, each from the same start (``labeling.STRATEGIES``, and the
             ablations of ``ABLATIONS``: a lever left out).
         seed: Seed of the ``random`` strategy (each round draws anew).
-        verify: Verification checks after the last round (:mod:`.loop_verify`): uniform pieces of the new runs' time
-            nobody labelled, checked and never labelled, counted apart from the rounds'; 0: none.
+        verify: Verification checks before the first round and after each (:mod:`.loop_verify`): uniform pieces of
+            the new runs' time nobody labelled, checked and never labelled, counted apart from the rounds'; 0: none.
     """
 
     rounds: int = 4
@@ -114,8 +114,8 @@ class LoopRound:
         far: The shipped model on the far runs (runs kept out of the session, ``far_runs``): accuracy and balanced
             accuracy; ``None`` without far runs.
         far_per_log: Its accuracy per far run.
-        verified: After the last round with ``LoopSettings.verify``: the session's accuracy from that many uniform
-            checks of the final model and its confidence, with a 90 % interval and the truth (``None``: not asked).
+        verified: With ``LoopSettings.verify``: the session's accuracy from that many uniform checks of the round's
+            model and its confidence, with a 90 % interval and the truth (``None``: not asked).
         unseen: The fitted model's figure for a run it never saw (its folds over runs, judged on what the session
             knows of them: ``metrics["unseen_runs"]``): accuracy and the 90 % interval's bounds (``None`` each
             where it has none).
@@ -354,9 +354,9 @@ def run_arm(
                     {} if shipped is None else shipped.per_log,
                     _unseen(s),
                     verify_session(
-                        s, scores, new, truth, classes, _covered, k=settings.verify, seed=settings.seed * 1000 + 999
+                        s, scores, new, truth, classes, _covered, k=settings.verify, seed=settings.seed * 1000 + 900 + r
                     )
-                    if settings.verify and r == settings.rounds
+                    if settings.verify
                     else None,
                     changed=None if change is None else change.changed,
                 )

@@ -253,12 +253,15 @@ def test_far_runs_are_scored_by_the_shipped_bundle_every_round_and_never_enter_t
     assert code == 0, text
     arm = json.loads(out.read_text())["arms"]["combined"]
     assert all(r["far"] is not None and set(r["far_per_log"]) == {"x0", "x1"} for r in arm)
-    # six verification checks of the final model after the last round, counted apart and never labelled
+    # six verification checks of each round's model, counted apart, never labelled and never recorded
     verified = arm[-1]["verified"]
-    assert arm[0]["verified"] is None and verified["checks"] == 6
+    assert all(r["verified"]["checks"] == 6 for r in arm)  # before the first round and after each
     assert verified["low"] <= verified["accuracy"] <= verified["high"]
     assert verified["truth"] == pytest.approx(arm[-1]["accuracy"])  # the same time the loop's figure is on
-    assert "| combined | 6 |" in text and "truth (%) | covers |" in text
+    assert "| combined | 0 | 6 |" in text and "| combined | 1 | 6 |" in text and "truth (%) | covers |" in text
+    per_run = verified["per_run"]  # the Data tab's figure per new log, beside its truth
+    assert set(per_run) == {"w2", "odd"} and sum(r[3] for r in per_run.values()) == 6
+    assert "runs' intervals cover the truth" in text
     assert arm[0]["far"][0] > 0.5, arm[0]  # the bundle reads the far runs: above chance on two terrains
     assert "the shipped model on far runs (%) (balanced)" in text and "| combined | x0 | x1 |" not in text
     assert re.search(r"\| combined \| \d+\.\d → \d+\.\d \| \d+\.\d → \d+\.\d \|", text), text
