@@ -56,6 +56,7 @@ bench: install
 # the studies: paper-scale evaluation runs (about an hour each on 2 cores); reports in benchmarks/results/
 paper: install
 	$(PY) benchmarks/studies/paper_borealtc.py all
+	$(PY) benchmarks/studies/interval_coverage.py
 
 # the README's picture (docs/workbench.png), taken by the first-screen browser test
 screenshot: install browser
