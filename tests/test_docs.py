@@ -44,3 +44,18 @@ def test_the_architecture_page_is_short_and_names_files_that_exist() -> None:
     ]
     assert not missing, missing
     assert len(named) > 20  # the page names the code it describes
+
+
+def test_every_path_the_pages_name_exists() -> None:
+    """A path in a code span of README or docs/ (one of the project's folders, a file with its suffix) is there: a
+    renamed module or a room made of a file leaves no stale name behind. A script named "at" a commit is of that
+    commit (kept by git, not the tree); the architecture page's worked example names files a newcomer creates."""
+    span = re.compile(r"`((?:sessions|training|labeling|workbench|tests|benchmarks|docs)/[\w/.-]*)`(?! at [0-9a-f]{7})")
+    to_create = ("training/spectral_logreg", "tests/training/test_logreg_family.py")
+    missing = [
+        f"{page.relative_to(REPO)}: {p}"
+        for page in PAGES
+        for p in sorted(set(span.findall(page.read_text())))
+        if not p.startswith(to_create) and not (REPO / p.rstrip("/")).exists()
+    ]
+    assert not missing, missing
