@@ -48,36 +48,42 @@ def _pct(x: float) -> str:
     return f"{100 * x:.1f}"
 
 
+def _runs(verified: list[dict]) -> list[list]:
+    """The checked runs' figures ``[estimate, low, high, checks, truth]`` of some rounds."""
+    return [r for v in verified for r in v["per_run"].values() if r[0] is not None]
+
+
+def _miss(r: list) -> float:
+    return max(0.0, r[1] - r[4], r[4] - r[2])
+
+
 def table(results: dict[str, list[list[dict]]]) -> list[str]:
-    """Markdown: per stand-in, the session's figures covered (every round's), the runs' (after the last round),
-    mean widths, the largest miss."""
+    """Markdown: per stand-in, the session's figures covered (every round's), the runs' (after the last round, and
+    every round's), mean widths, the largest miss."""
     lines = [
-        "| stand-in | session figures covered (every round) | mean width (points) | run figures covered | mean width "
-        "(points) | largest miss (points) | runs not checked |",
-        "| --- | --- | --- | --- | --- | --- | --- |",
+        "| stand-in | loops | session figures covered (every round) | mean width (points) | run figures covered "
+        "(last round) | mean width (points) | run figures covered (every round) | mean width (points) | largest "
+        "miss (points) | runs not checked (last round) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
-    every_s, every_r = [], []
-    for name, got in results.items():
-        sessions = [
-            (v["low"] - TOL <= v["truth"] <= v["high"] + TOL, v["high"] - v["low"]) for loop in got for v in loop
-        ]
-        runs = [r for loop in got for r in loop[-1]["per_run"].values() if r[0] is not None]
+    rows = []
+    every_loop = [loop for loops in results.values() for loop in loops]
+    for name, got in [*results.items(), ("all", every_loop)]:
+        every_round = [v for loop in got for v in loop]
+        sessions = [(v["low"] - TOL <= v["truth"] <= v["high"] + TOL, v["high"] - v["low"]) for v in every_round]
+        last = _runs([loop[-1] for loop in got])
+        every = _runs(every_round)
         unchecked = sum(r[0] is None for loop in got for r in loop[-1]["per_run"].values())
-        misses = [max(0.0, r[1] - r[4], r[4] - r[2]) for r in runs]
-        every_s += sessions
-        every_r += [(m <= TOL, r[2] - r[1]) for m, r in zip(misses, runs, strict=True)]
-        lines.append(
-            f"| {PLAN[name][2]} | {sum(c for c, _ in sessions)} of {len(sessions)} | "
-            f"{_pct(sum(w for _, w in sessions) / max(len(sessions), 1))} | {sum(m <= TOL for m in misses)} of "
-            f"{len(runs)} | {_pct(sum(r[2] - r[1] for r in runs) / max(len(runs), 1))} | "
-            f"{_pct(max(misses, default=0.0))} | {unchecked} |"
+        rows.append(
+            f"| {PLAN[name][2] if name in PLAN else name} | {len(got)} | {sum(c for c, _ in sessions)} of "
+            f"{len(sessions)} | {_pct(sum(w for _, w in sessions) / max(len(sessions), 1))} | "
+            f"{sum(_miss(r) <= TOL for r in last)} of {len(last)} | "
+            f"{_pct(sum(r[2] - r[1] for r in last) / max(len(last), 1))} | "
+            f"{sum(_miss(r) <= TOL for r in every)} of {len(every)} | "
+            f"{_pct(sum(r[2] - r[1] for r in every) / max(len(every), 1))} | "
+            f"{_pct(max((_miss(r) for r in every), default=0.0))} | {unchecked} |"
         )
-    lines.append(
-        f"| all | {sum(c for c, _ in every_s)} of {len(every_s)} | "
-        f"{_pct(sum(w for _, w in every_s) / max(len(every_s), 1))} | {sum(c for c, _ in every_r)} of "
-        f"{len(every_r)} | {_pct(sum(w for _, w in every_r) / max(len(every_r), 1))} | | |"
-    )
-    return lines
+    return lines + rows
 
 
 def main() -> int:
