@@ -178,13 +178,11 @@ def session_figures(
         return SessionFigures(SessionFigure(None, None))
     segments = session.segments()
     checks = session.checks()
-    key = (
+    key = (  # what the figures read: the labels' spans, the spot checks' answers (a check made again updates its row)
         version,
         None if log_ids is None else tuple(sorted(log_ids)),
-        len(segments),
-        max((g.id for g in segments), default=0),
-        len(checks),
-        max((c.id for c in checks), default=0),
+        hash(tuple((g.id, g.log_id, g.start, g.stop) for g in segments)),
+        tuple((c.id, c.agreement, c.classifier) for c in checks if c.kind == "spot check"),
     )
     with _KEPT_LOCK:
         kept = next((k for k in _KEPT if k[0]() is scores and k[1] == key), None)
