@@ -20,6 +20,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 RAW = ROOT / "benchmarks" / "results" / "raw" / "estimates"
+sys.path.insert(0, str(ROOT))
 TOL = 1e-9  # a bound of 1.0 computed as 0.99999999 still holds a truth of 1.0
 PLAN = {
     "walks": ("loop_walks.py", [], "demo walks (C)"),
@@ -48,9 +49,23 @@ def _pct(x: float) -> str:
     return f"{100 * x:.1f}"
 
 
+def _interval(estimate: float, checks: int) -> tuple[float, float]:
+    """The workbench's interval at an estimate: Wilson's with the checks' count (``labeling.MAX_GAIN`` 1). Loops run
+    before that cap stored intervals the confidence had narrowed; every figure is put on today's rule from its
+    estimate, which the cap does not change."""
+    import labeling
+
+    return labeling.wilson_bounds(estimate, checks * labeling.MAX_GAIN)
+
+
+def _session_figures(verified: list[dict]) -> list[dict]:
+    return [{**v, **dict(zip(("low", "high"), _interval(v["accuracy"], v["checks"]), strict=True))} for v in verified]
+
+
 def _runs(verified: list[dict]) -> list[list]:
     """The checked runs' figures ``[estimate, low, high, checks, truth]`` of some rounds."""
-    return [r for v in verified for r in v["per_run"].values() if r[0] is not None]
+    got = [r for v in verified for r in v["per_run"].values() if r[0] is not None]
+    return [[r[0], *_interval(r[0], r[3]), r[3], r[4]] for r in got]
 
 
 def _miss(r: list) -> float:
@@ -69,7 +84,7 @@ def table(results: dict[str, list[list[dict]]]) -> list[str]:
     rows = []
     every_loop = [loop for loops in results.values() for loop in loops]
     for name, got in [*results.items(), ("all", every_loop)]:
-        every_round = [v for loop in got for v in loop]
+        every_round = _session_figures([v for loop in got for v in loop])
         sessions = [(v["low"] - TOL <= v["truth"] <= v["high"] + TOL, v["high"] - v["low"]) for v in every_round]
         last = _runs([loop[-1] for loop in got])
         every = _runs(every_round)

@@ -4,6 +4,7 @@ Retrain" after a new version, the plan that says how many checks a verification 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import labeling
 from tests.conftest import new_session
@@ -59,7 +60,7 @@ def test_the_figure_rests_on_this_versions_spot_checks_only(tmp_path) -> None:
     s.close()
 
 
-def test_a_confidence_that_tracks_the_mistakes_narrows_the_interval_and_labels_do_not_move_it(tmp_path) -> None:
+def test_a_confidence_that_tracks_the_mistakes_moves_the_estimate_and_labels_do_not_move_it(tmp_path) -> None:
     s = _session(tmp_path)
     one, two = s.logs()
     scores = _scores([one, two], 3, sure=0.95)
@@ -73,9 +74,9 @@ def test_a_confidence_that_tracks_the_mistakes_narrows_the_interval_and_labels_d
                     agreement=0.0 if wrong else 1.0, classifier=3, kind="spot check", author="t")  # fmt: skip
     f = session_figures(s, scores).session.figure
     share = float(np.mean([c.agreement for c in s.checks()]))
-    low, high = labeling.wilson_bounds(share, 24)  # the checks alone
-    assert f is not None and f.lam > 0 and f.effective > f.checks and 0 < share < 1
-    assert f.low <= f.accuracy <= f.high and f.high - f.low < 0.9 * (high - low)
+    assert f is not None and f.lam > 0 and 0 < share < 1 and f.accuracy != share  # the confidence moves the estimate
+    # and the width is Wilson's at that estimate with the checks' count (labeling.MAX_GAIN)
+    assert (f.low, f.high) == pytest.approx(labeling.wilson_bounds(f.accuracy, 24 * labeling.MAX_GAIN))
     # the checked pieces become labels: the time the figure speaks for still holds them, so nothing moves
     for c in s.checks():
         s.add_segment(c.log_id, c.start, c.stop, c.terrain, author="t", source="suggestion")
