@@ -22,6 +22,7 @@ is). Skips with a reason when
 from __future__ import annotations
 
 import itertools
+import shutil
 import sys
 import tempfile
 import time
@@ -35,17 +36,32 @@ ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT.parent / "shared" / "data" / "borealtc"
 
 
-def _splice(runs: list[tuple[Path, Path]], terrains: list[str], out: Path, *, changes: int, seed: int) -> list:
-    """One BorealTC-shaped run (``out/MIXED/imu_90.csv``, ``pro_90.csv``) from pieces of ``runs``, shuffled so that
-    neighbours differ: ``changes`` terrain changes. Returns its reference rows ``(start_s, end_s, terrain)``."""
+def _splice(
+    runs: list[tuple[Path, ...]],
+    terrains: list[str],
+    out: Path,
+    *,
+    changes: int,
+    seed: int,
+    piece_s: tuple[float, float] | None = None,
+) -> list:
+    """One BorealTC-shaped run (``out/MIXED/imu_90.csv``, ``pro_90.csv``: the files each run has) from pieces of
+    ``runs``, shuffled so that neighbours differ: ``changes`` terrain changes. Each run is cut in equal pieces, or
+    with ``piece_s`` in pieces of lengths drawn between those seconds. Returns its reference rows ``(start_s, end_s,
+    terrain)``."""
     rng = np.random.default_rng(seed)
     per_run = (changes + 1) // len(runs) + 1
     pieces = []
-    for (imu, pro), terrain in zip(runs, terrains, strict=True):
-        a, b = pd.read_csv(imu), pd.read_csv(pro)
-        end = min(a["time"].iloc[-1], b["time"].iloc[-1])
-        cuts = np.linspace(0.0, end, per_run + 1)
-        pieces += [(terrain, a, b, lo, hi) for lo, hi in itertools.pairwise(cuts)]
+    for files, terrain in zip(runs, terrains, strict=True):
+        frames = [pd.read_csv(f) for f in files]
+        end = min(f["time"].iloc[-1] for f in frames)
+        if piece_s is None:
+            cuts = np.linspace(0.0, end, per_run + 1)
+        else:  # lengths between piece_s, as many as the run holds
+            lengths = rng.uniform(*piece_s, size=int(end // piece_s[0]) + 1)
+            cuts = np.concatenate([[0.0], np.cumsum(lengths)])
+            cuts = cuts[cuts <= end]
+        pieces += [(terrain, frames, lo, hi) for lo, hi in itertools.pairwise(cuts)]
     order: list[int] = []
     left = list(rng.permutation(len(pieces)))
     while left and len(order) < changes + 1:  # neighbours of different terrains: every joint is a change
@@ -54,10 +70,12 @@ def _splice(runs: list[tuple[Path, Path]], terrains: list[str], out: Path, *, ch
             break
         order.append(pick)
         left.remove(pick)
-    imus, pros, rows, t = [], [], [], 0.0
+    names = [f.name.split("_")[0] for f in runs[0]]  # imu, pro
+    parts: list[list[pd.DataFrame]] = [[] for _ in names]
+    rows, t = [], 0.0
     for i in order:
-        terrain, a, b, lo, hi = pieces[i]
-        for frame, into in ((a, imus), (b, pros)):
+        terrain, frames, lo, hi = pieces[i]
+        for frame, into in zip(frames, parts, strict=True):
             part = frame[(frame["time"] >= lo) & (frame["time"] < hi)].copy()
             part["time"] = part["time"] - lo + t
             into.append(part)
@@ -65,8 +83,8 @@ def _splice(runs: list[tuple[Path, Path]], terrains: list[str], out: Path, *, ch
         t += hi - lo
     folder = out / "MIXED"
     folder.mkdir(parents=True)
-    pd.concat(imus).to_csv(folder / "imu_90.csv", index=False)
-    pd.concat(pros).to_csv(folder / "pro_90.csv", index=False)
+    for name, got in zip(names, parts, strict=True):
+        pd.concat(got).to_csv(folder / f"{name}_90.csv", index=False)
     return rows
 
 
@@ -87,29 +105,47 @@ def build(
     seed: int,
     far_per_terrain: int = 0,
     labelled_per_terrain: int = 0,
+    motor_only: bool = False,
+    piece_s: tuple[float, float] | None = None,
 ) -> tuple[Path, Path | None, list[Path]]:
-    """The session, the reference file (the spliced run's, and the far runs' truth) and the far runs' files."""
+    """The session, the reference file (the spliced run's, and the far runs' truth) and the far runs' files
+    (``motor_only``: the ``pro_*.csv`` files alone, at their own 6.5 Hz; ``piece_s``: the spliced run's pieces of
+    lengths drawn between those seconds)."""
     from sessions import Session
 
     rng = np.random.default_rng(seed)
     runs = _runs()
+    if motor_only:  # copies of the motor files alone (a BorealTC file given alone brings its partner beside it)
+        for t, by_run in runs.items():
+            for r, fs in by_run.items():
+                (folder.parent / "motor" / t).mkdir(parents=True, exist_ok=True)
+                for f in fs:
+                    if f.name.startswith("pro_"):
+                        shutil.copy(f, folder.parent / "motor" / t / f.name)
+                by_run[r] = [folder.parent / "motor" / t / f.name for f in fs if f.name.startswith("pro_")] + [
+                    f for f in fs if not f.name.startswith("pro_")
+                ]
+
+    def kept_files(fs) -> list[Path]:
+        return [f for f in fs if not motor_only or f.name.startswith("pro_")]
+
     taken = {  # per terrain, the runs that will not be labelled (spliced: cut into the new run instead), then far
         t: [r for r in rng.permutation(sorted(by_run)) if len(by_run[r]) == 2] for t, by_run in runs.items()
     }
-    first = 1 if layout == "spliced" else per_terrain
+    first = per_terrain
     chosen = {t: rs[:first] for t, rs in taken.items()}
     far_runs = {t: rs[first : first + far_per_terrain] for t, rs in taken.items()}
-    far_files = sorted(f for t, rs in far_runs.items() for r in rs for f in runs[t][r])
-    files = [f for t, by_run in runs.items() for r, fs in by_run.items() for f in fs if f not in far_files]
+    far_files = sorted(f for t, rs in far_runs.items() for r in rs for f in kept_files(runs[t][r]))
+    files = [f for t, by_run in runs.items() for r, fs in by_run.items() for f in kept_files(fs) if f not in far_files]
     if labelled_per_terrain:  # a small session: that many labelled runs of each terrain, the rest left out entirely
         end = first + far_per_terrain
         kept = {(t, r) for t, rs in taken.items() for r in rs[: end + labelled_per_terrain]}
         files = [f for f in files if (f.parent.name, f.stem.split("_")[1]) in kept or f.parent.name == "MIXED"]
     reference = None
     if layout == "spliced":
-        pairs = [tuple(sorted(runs[t][r])) for t in sorted(chosen) for r in chosen[t]]  # (imu, pro)
+        pairs = [tuple(sorted(kept_files(runs[t][r]))) for t in sorted(chosen) for r in chosen[t]]  # (imu, pro)
         terrains = [t.lower() for t in sorted(chosen) for _ in chosen[t]]
-        rows = _splice(pairs, terrains, folder.parent / "spliced", changes=changes, seed=seed)
+        rows = _splice(pairs, terrains, folder.parent / "spliced", changes=changes, seed=seed, piece_s=piece_s)
         skip = {f for pair in pairs for f in pair}
         files = [f for f in files if f not in skip] + sorted((folder.parent / "spliced" / "MIXED").iterdir())
     with Session.create(folder) as s:
@@ -154,6 +190,8 @@ def main() -> int:
     args.add_argument(
         "--labelled-per-terrain", type=int, default=0, help="labelled runs of each terrain in the session (0: all)"
     )
+    args.add_argument("--motor-only", action="store_true", help="the motor files alone (pro_*.csv, 6.5 Hz)")
+    args.add_argument("--piece-s", type=float, nargs=2, default=None, help="the spliced run's pieces: LO HI seconds")
     opts = args.parse_args()
     if not DATA.is_dir():
         print(f"skipped: {DATA} is absent (BorealTC is not shipped with the project)")
@@ -172,6 +210,8 @@ def main() -> int:
             seed=opts.seed,
             far_per_terrain=opts.far_per_terrain,
             labelled_per_terrain=opts.labelled_per_terrain,
+            motor_only=opts.motor_only,
+            piece_s=None if opts.piece_s is None else tuple(opts.piece_s),
         )
         with Session.open(folder) as s:
             print(
