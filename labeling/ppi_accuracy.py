@@ -1,4 +1,4 @@
-"""Accuracy as an interval: uniform checks of the model it judges, narrowed by the model's own confidence.
+"""Accuracy as an interval: uniform checks of the model it judges, corrected by the model's own confidence.
 
 A uniform check (a spot check: a piece drawn at random from the time nobody labelled, answered by the person) is an
 unbiased test of the model that was active when it was made. Prediction-powered inference (Angelopoulos et al., Science

@@ -10,8 +10,8 @@ stretches self-training reads), ``scores`` (the one scoring path), ``score_store
 session), ``change_point_store`` (each log's change points kept per predictor), ``suggestions`` (the queue),
 ``checks_record`` (each label first a check of the model: test then train), ``family_choice`` (``--model auto``: every
 family over the default stage 1 fitted, the one the session's held-out evidence favours kept), ``session_figure`` (how
-right the session is now: the active version's spot checks narrowed by its confidence), ``unseen_change`` (whether a new
-version's figure for a run it never saw fell below the last one's interval).
+right the session is now: the active version's spot checks corrected by its confidence), ``unseen_change`` (whether a
+new version's figure for a run it never saw fell below the last one's interval).
 """
 
 from .answer_change import AnswerChange, answer_change, keep_answers

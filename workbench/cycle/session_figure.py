@@ -1,5 +1,5 @@
 """How right the session is now: the active classifier's accuracy over the time nobody labelled, from the person's
-uniform checks of that very version, narrowed by its confidence there (``labeling.powered_accuracy``).
+uniform checks of that very version, corrected by its confidence there (``labeling.powered_accuracy``).
 
 A check tests the model that was active when it was made (test then train): after a Retrain the older checks test
 an older model, so the figure says "not checked since the last Retrain" until the person verifies the new one

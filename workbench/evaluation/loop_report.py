@@ -77,7 +77,7 @@ def loop_report(
             "",
             "The workbench's figure for the session before the first round and after each, from verification checks "
             "(uniform pieces of the new logs' time nobody labelled, stratified by log, as spot checks of that round's "
-            "model; never labelled, counted apart from the rounds'), narrowed by its confidence (the status line's "
+            "model; never labelled, counted apart from the rounds'), corrected by its confidence (the status line's "
             "figure):",
             "",
             "| strategy | round | checks | the checks alone right (%) | estimate (%) (90 % interval) | truth (%) | "

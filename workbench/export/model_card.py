@@ -59,7 +59,7 @@ def _session_section(figure: SessionFigure | None, logs: int) -> list[str]:
         return []
     how = (
         "measured by the person's spot checks of this version (pieces drawn at random from the time nobody "
-        "labelled, each a test before it trained anything), narrowed by the model's confidence over all that time "
+        "labelled, each a test before it trained anything), corrected by the model's confidence over all that time "
         "(prediction-powered inference; `labeling.powered_accuracy`). It is the session's figure, not the robot's: "
         "the next section is."
     )

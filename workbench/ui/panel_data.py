@@ -102,7 +102,7 @@ def logs_table_html(
     if figures:
         head += (
             "<th class='n' title='how right this version is on the log&#39;s time nobody labelled: from your spot "
-            "checks of it there (drawn at random), narrowed by its confidence; 90 % interval. Not checked: no spot "
+            "checks of it there (drawn at random), corrected by its confidence; 90 % interval. Not checked: no spot "
             "check of this version in the log since the last Retrain (Verify, in the Suggest tab, asks for them)'>"
             "this version</th>"
         )

@@ -73,7 +73,7 @@ def session_html(figure: SessionFigure | None, *, checks: str = "") -> str:
         return " · the session: <i>scoring…</i>"
     what = (
         "the share of the time nobody labelled that this version names right: from your spot checks of it (pieces "
-        "drawn at random there), narrowed by its confidence over all that time. A check tests the version that was "
+        "drawn at random there), corrected by its confidence over all that time. A check tests the version that was "
         "active when it was made; after a Retrain, Verify (Suggest tab) asks for fresh ones: "
         f"{figure.plan_words()}{checks}"
     )
