@@ -1,4 +1,4 @@
-"""How right the session is: the active version's spot checks narrowed by its confidence, "not checked since the last
+"""How right the session is: the active version's spot checks corrected by its confidence, "not checked since the last
 Retrain" after a new version, the plan that says how many checks a verification takes, and the card's section."""
 
 from __future__ import annotations
