@@ -16,7 +16,14 @@ new version's figure for a run it never saw fell below the last one's interval).
 
 from .answer_change import AnswerChange, answer_change, keep_answers
 from .change_point_store import keep_change_points, kept_change_points
-from .checks_record import ChecksSummary, checks_summary, estimate_disagrees, names_now, record_check
+from .checks_record import (
+    ChecksSummary,
+    checks_summary,
+    estimate_disagrees,
+    names_now,
+    piece_answer,
+    record_check,
+)
 from .family_choice import FamilyChoice, auto_families, train_best_classifier
 from .frame_stage1 import train_frame_predictor, train_stage1
 from .front_end import (
@@ -108,6 +115,7 @@ __all__ = [
     "log_groups",
     "model_logs",
     "names_now",
+    "piece_answer",
     "queue_key",
     "record_check",
     "require_stage1",

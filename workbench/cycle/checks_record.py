@@ -40,10 +40,7 @@ def record_check(
     s = scores.scores.get(log_id)
     if scores.classifier is None or s is None or s.probs is None or not 0 <= start < stop <= len(s.probs):
         return None
-    predicted = np.asarray(s.probs[start:stop]).argmax(axis=1)  # (L,)
-    classes = names_now(session, scores)
-    most = classes[int(np.bincount(predicted, minlength=len(classes)).argmax())]
-    agreement = float((predicted == classes.index(terrain)).mean()) if terrain in classes else 0.0
+    most, agreement = piece_answer(s.probs[start:stop], names_now(session, scores), terrain)
     return session.add_check(
         log_id,
         start,
@@ -55,6 +52,15 @@ def record_check(
         kind=kind,
         author=author,
     )
+
+
+def piece_answer(probs: np.ndarray, classes: list[str], terrain: str) -> tuple[str, float]:
+    """What a model said on a piece, ``(L, K)`` probabilities over ``classes``: its terrain over most of the piece,
+    and the share of the piece it named ``terrain``."""
+    predicted = np.asarray(probs).argmax(axis=1)  # (L,)
+    most = classes[int(np.bincount(predicted, minlength=len(classes)).argmax())]
+    agreement = float((predicted == classes.index(terrain)).mean()) if terrain in classes else 0.0
+    return most, agreement
 
 
 def names_now(session: Session, scores: SessionScores) -> list[str]:

@@ -18,7 +18,7 @@ import numpy as np
 import labeling
 from sessions import Check, LogInfo, Session
 
-from ..cycle import FigureTally, SessionFigure, SessionScores, names_now, suggestion_lengths
+from ..cycle import FigureTally, SessionFigure, SessionScores, names_now, piece_answer, suggestion_lengths
 
 AUTHOR = "verify"
 
@@ -108,9 +108,7 @@ def verify_session(
         if not len(ref):
             continue  # no reference there: a person would skip it
         terrain = classes[int(np.bincount(ref).argmax())]
-        said = np.asarray(scores.scores[x.id].probs[p.start : p.stop]).argmax(axis=1)  # (L,) as record_check reads
-        agreement = float((said == names.index(terrain)).mean()) if terrain in names else 0.0
-        most = names[int(np.bincount(said, minlength=len(names)).argmax())]
+        most, agreement = piece_answer(scores.scores[x.id].probs[p.start : p.stop], names, terrain)  # as recorded
         checks.append(
             Check(0, x.id, p.start, p.stop, terrain, most, agreement, scores.classifier, "spot check", AUTHOR, "")
         )
