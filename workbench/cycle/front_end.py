@@ -95,6 +95,20 @@ def in_memory_features(
     return [SpectralSteps(log_frames(a, config, transform=bundle.normalizer), len(a), config) for a in arrays]
 
 
+def input_span(classifier: ModelBundle | None, predictor: ModelBundle) -> int:
+    """Samples one step's prediction reads: the front end's span for a frames family (1.6 s), a windows family's
+    window; 0 for a classifier that reads stage 1's recurrent outputs (no fixed window) or none."""
+    if classifier is None or not classifier.classifiers:
+        return 0
+    inputs = classifier.stage2_family().stage2_inputs
+    if inputs == "frames":
+        front = classifier.spectral or predictor.spectral
+        return 0 if front is None else int(front.span)
+    if inputs == "windows":
+        return window_sizes(classifier)[0]
+    return 0
+
+
 def window_sizes(bundle: ModelBundle, front: SpectralConfig | None = None) -> tuple[int, int]:
     """A ``"windows"`` family's samples per window and between windows: its trained classifier's, else
     :data:`WINDOW_S` at the bundle's rate, every hop of the front end (``front``, else the bundle's)."""

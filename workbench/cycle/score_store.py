@@ -109,6 +109,7 @@ def _finish_store(session: Session, folder: Path, scores: SessionScores, names: 
         "predictor": scores.predictor,
         "classifier": scores.classifier,
         "classes": list(scores.classes),
+        "span": scores.span,
         "logs": {str(i): logs[i] for i in scores.scores if i in logs},
         "arrays": names,
     }
@@ -241,6 +242,7 @@ def _score_and_store(
         tracks,
         {i: embeddings[i] for i in ids},
         window,
+        first.span,
     )
     _finish_store(session, folder, result, {k: sorted(v) for k, v in names.items()})
     return result
@@ -304,6 +306,7 @@ def stored_scores(session: Session) -> StoredScores | None:
         scores,
         tracks,
         {x.id: stage1_embedding(outs[x.id]) for x in logs},
+        span=int(meta.get("span", 0)),
     )
     return StoredScores(result, complete=len(logs) == len(wanted))
 

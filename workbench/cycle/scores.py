@@ -29,7 +29,7 @@ from training import (
     load_bundle,
 )
 
-from .front_end import spectral_features, window_features, window_sizes
+from .front_end import input_span, spectral_features, window_features, window_sizes
 from .run_votes import with_run_votes
 from .stage_inputs import stage1_outputs
 from .train_stages import active_bundle, model_logs
@@ -106,6 +106,8 @@ class SessionScores:
         embeddings: Per log, the stage-1 embedding per step (:func:`stage1_embedding`), computed from the
             memory-mapped cache for the rows sliced: what typical and diverse suggestions cluster.
         window: The tracks' smoothing, in samples (the suggestions smooth theirs the same and take these).
+        span: Samples one step's prediction reads (``front_end.input_span``; 0: no fixed window): a suggestion is
+            never shorter.
     """
 
     predictor: int | None = None
@@ -115,6 +117,7 @@ class SessionScores:
     tracks: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
     embeddings: dict[int, LazyFeatures | StepRows] = field(default_factory=dict)
     window: int = TRACK_WINDOW
+    span: int = 0
 
 
 def stage1_embedding(outputs: Stage1Outputs | FrameOutputs) -> LazyFeatures | StepRows:
@@ -193,6 +196,7 @@ def compute_scores(
         # rows are computed from the cache only where a suggestion reads them: an hour of them is 1.6 GB
         {x.id: stage1_embedding(outs[x.id]) for x in logs},
         window,
+        input_span(c_bundle, bundle),
     )
 
 

@@ -71,7 +71,7 @@ def verification_queue(
 
     now = [(index[g.log_id], g.start, g.stop) for g in session.segments() if g.log_id in index]
     before = [x for x in now if not overlaps(*x)]  # the labels but those this version's checks made
-    max_len, min_len = suggestion_lengths(logs[0].rate_hz)
+    max_len, min_len = suggestion_lengths(logs[0].rate_hz, span=scores.span)
     picks = labeling.verification_checks(
         [x.n_samples for x in logs],
         before,
@@ -91,10 +91,12 @@ def verification_queue(
     return out[:more]
 
 
-def suggestion_lengths(rate_hz: float, *, seconds: float = SUGGESTION_S) -> tuple[int, int]:
-    """``(max_len, min_len)`` in samples of suggestions ``seconds`` long: pieces of half to all of it."""
-    longest = round(seconds * rate_hz)
-    return longest, max(1, longest // 2)
+def suggestion_lengths(rate_hz: float, *, seconds: float = SUGGESTION_S, span: int = 0) -> tuple[int, int]:
+    """``(max_len, min_len)`` in samples of suggestions ``seconds`` long: pieces of half to all of it, and never
+    shorter than ``span``, the samples one prediction of the classifier reads (``SessionScores.span``): at 6.5 Hz a
+    second is 6 samples, under the 10 of a 1.6 s window, and a pick that short taught the model nothing."""
+    longest = max(round(seconds * rate_hz), span)
+    return longest, max(1, longest // 2, span)
 
 
 def _wrong_checks(checks: list[Check], log_ids: list[int]) -> list[tuple[int, int]]:
@@ -145,7 +147,7 @@ def suggest_for_session(
     for s in session.segments():
         if s.terrain in classes:
             counts[classes.index(s.terrain)] += s.length
-    max_len, min_len = suggestion_lengths(logs[0].rate_hz)
+    max_len, min_len = suggestion_lengths(logs[0].rate_hz, span=scores.span)
     classifier = session.active_model("classifier")
     if spot_checks is None:
         ranked = strategy != "random"  # a random queue is a sample already

@@ -94,7 +94,7 @@ def verify_session(
     rights = {x.id: _truth_share(scores, x, truth[x.id], free[x.id], classes)[0] for x in new}
     if not sum(len(r) for r in rights.values()):
         return None
-    max_len, min_len = suggestion_lengths(new[0].rate_hz)
+    max_len, min_len = suggestion_lengths(new[0].rate_hz, span=scores.span)
     labelled = [(i, g.start, g.stop) for i, x in enumerate(new) for g in session.segments(x.id)]
     pieces = labeling.verification_checks(
         [x.n_samples for x in new], labelled, k, max_len=max_len, min_len=min_len, seed=seed

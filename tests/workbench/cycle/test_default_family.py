@@ -312,3 +312,20 @@ def test_model_auto_fits_each_family_over_the_default_stage1_and_keeps_the_bette
     # evidence of a version with no estimate: nothing measured, never a number
     assert evidence({}) == (None, "not measurable")
     cycle.train_classifier(session, model="default")  # the module's later tests start from the default family
+
+
+def test_a_pick_is_never_shorter_than_what_one_prediction_reads(session: Session) -> None:
+    """The scores carry the classifier's input span (the front end's 1.6 s at the log's rate); suggestions and
+    verification checks are at least that long, however slow the log (at 6.5 Hz a second is 6 samples, under the 10
+    of one window: picks that short taught nothing on a run that changes terrain every few seconds)."""
+    scores = cycle.compute_scores(session)
+    logs = session.logs()
+    front = cycle.active_bundle(session)[1].spectral  # the classifier's front end
+    assert scores.span == front.span > 0
+    assert cycle.suggestion_lengths(100.0) == (100, 50)
+    assert cycle.suggestion_lengths(100.0, span=160) == (160, 160)
+    assert cycle.suggestion_lengths(6.5, span=10) == (10, 10)
+    picks = cycle.suggest_for_session(session, scores, {}, logs=logs, n=8)
+    assert picks and all(p.stop - p.start >= scores.span for _, p in picks)
+    checks = cycle.verification_queue(session, scores, logs=logs, n=4)
+    assert checks and all(p.stop - p.start >= scores.span for _, p in checks)
