@@ -97,9 +97,11 @@ def snap_range(start: int, stop: int, points: np.ndarray, *, radius: int) -> Sna
 
 
 def spans(length: int, points: np.ndarray, *, max_len: int, min_len: int = 1) -> list[tuple[int, int]]:
-    """Cut ``[0, length)`` at the change points, then cut longer stretches into equal pieces of at most ``max_len``.
+    """Cut ``[0, length)`` at the change points, then cut longer stretches into equal pieces of at most ``max_len``,
+    or, where pieces that short would fall under ``min_len``, into as many as keep each at least ``min_len`` (under
+    ``2 * min_len``): every stretch of ``min_len`` or more yields pieces.
 
-    Pieces shorter than ``min_len`` are dropped.
+    Stretches shorter than ``min_len`` are dropped.
     """
     return [(int(a), int(b)) for a, b in span_array(length, points, max_len=max_len, min_len=min_len)]
 
@@ -112,7 +114,9 @@ def span_array(length: int, points: np.ndarray, *, max_len: int, min_len: int = 
     a, b = edges[:-1], edges[1:]  # (S,) stretches between change points, none empty
     if not len(a):
         return np.zeros((0, 2), np.int64)
-    pieces = -(-(b - a) // max_len)  # (S,)
+    # (S,) pieces of at most max_len, but never so many that they fall under min_len: with a pick no shorter than
+    # one classifier window (max_len = min_len), a stretch of 2.5 windows cut in three pieces would yield none
+    pieces = np.maximum(1, np.minimum(-(-(b - a) // max_len), (b - a) // max(1, min_len)))
     which = np.repeat(np.arange(len(a)), pieces)  # (P,) the stretch of each piece
     k = np.arange(len(which)) - np.repeat(np.cumsum(pieces) - pieces, pieces)  # (P,) its place in the stretch
     step = (b - a) / pieces

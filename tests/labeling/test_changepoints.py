@@ -65,10 +65,20 @@ def test_snap_is_never_empty_and_moves_at_most_radius(points: list[int], start: 
 @given(st.integers(1, 3000), st.lists(st.integers(-10, 3010), max_size=12), st.integers(1, 700), st.integers(1, 50))
 def test_spans_tile_the_log_without_overlap(length: int, points: list[int], max_len: int, min_len: int) -> None:
     got = spans(length, np.array(points), max_len=max_len, min_len=min_len)
-    assert all(0 <= a < b <= length and min_len <= b - a <= max_len for a, b in got)
+    # at most max_len, unless pieces that short would fall under min_len: then under 2 * min_len
+    assert all(0 <= a < b <= length and min_len <= b - a <= max(max_len, 2 * min_len - 1) for a, b in got)
     assert all(b1 <= a2 for (_, b1), (a2, _) in itertools.pairwise(got))
     if min_len == 1:
         assert sum(b - a for a, b in got) == length
+
+
+def test_a_stretch_of_min_len_or_more_always_yields_pieces() -> None:
+    """Picks no shorter than one classifier window (``max_len == min_len``): a stretch 2.5 windows long is two
+    pieces, not three too short to keep (a run that changes terrain every few seconds lost most of its candidates)."""
+    assert spans(25, np.zeros(0, np.int64), max_len=10, min_len=10) == [(0, 12), (12, 25)]
+    assert spans(19, np.zeros(0, np.int64), max_len=10, min_len=10) == [(0, 19)]
+    assert spans(9, np.zeros(0, np.int64), max_len=10, min_len=10) == []
+    assert spans(40, np.zeros(0, np.int64), max_len=10, min_len=5) == [(0, 10), (10, 20), (20, 30), (30, 40)]
 
 
 def test_stretch_agreement_counts_the_steps_of_each_stretchs_most_frequent_label() -> None:
@@ -96,6 +106,7 @@ def test_spans_cut_each_stretch_into_equal_pieces_as_linspace_does(
     edges = [0, *sorted(p for p in points if 0 < p < length), length]
     want = []
     for a, b in itertools.pairwise(edges):
-        cuts = np.linspace(a, b, -(-(b - a) // max_len) + 1).round().astype(int)
+        n = max(1, min(-(-(b - a) // max_len), (b - a) // min_len))  # never pieces under min_len from a stretch
+        cuts = np.linspace(a, b, n + 1).round().astype(int)
         want += [(int(x), int(y)) for x, y in itertools.pairwise(cuts) if y - x >= min_len]
     assert spans(length, np.array(points, np.int64), max_len=max_len, min_len=min_len) == want
