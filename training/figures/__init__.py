@@ -3,8 +3,7 @@ person reads (per terrain, which kind of figure it is, what a log is expected to
 
 Modules: ``blocking`` (blocked folds with guards, folds by log), ``metrics`` (accuracy, balanced accuracy, calibration
 error), ``estimates`` (the per-terrain estimate and its words), ``drift_accuracy`` (accuracy expected at a drift),
-``unseen_runs`` (what the model that ships scores on a run it never saw, with an interval over runs), ``run_tally``
-(per run, the out-of-fold answers right on its labelled time). NumPy and
+``unseen_runs`` (what the model that ships scores on a run it never saw, with an interval over runs). NumPy and
 SciPy only: no torch is loaded here.
 """
 
@@ -38,7 +37,6 @@ __all__, __getattr__, __dir__ = lazy_exports(
         ),
         "drift_accuracy": ("MIN_ROWS", "accuracy_by_drift", "expected_accuracy"),
         "metrics": ("classification_metrics", "expected_calibration_error"),
-        "run_tally": ("add_run_tally",),
         "unseen_runs": ("FEW_RUNS", "UnseenRuns", "runs_low", "unseen_fell", "unseen_runs_figure", "unseen_words"),
     },
     globals(),

@@ -11,8 +11,7 @@ from the ones before, trained on all logs without labels; :mod:`.frame_outputs` 
 
 Modules: ``spectra`` (the front end), ``window_config`` (fit settings), ``window_augment`` (run-to-run changes
 drawn on training rows), ``window_classifier`` (the network), ``fit_window`` / ``window_finetune`` (the fits),
-``window_predict`` (the network's answers offline, a chunk at a time), ``stretch_pool`` (self-training's rows of the
-unlabelled stretches), ``window_rows`` (their labelled rows, held as
+``stretch_pool`` (self-training's rows of the unlabelled stretches), ``window_rows`` (their labelled rows, held as
 the frames they read), ``window_calibration`` (the ensemble's temperature), ``window_drift`` (how unlike the
 labelled frames a step is), ``window_step`` (one sample at a time), ``frame_predictor`` (a stage 1 over the frames:
 the next frame from the ones before), ``frame_outputs`` (its outputs per sample step), ``cnn_family`` (what the
@@ -42,8 +41,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "window_config": ("RowAugment", "WindowFitConfig"),
         "window_augment": ("augment_rows",),
         "window_classifier": ("WindowClassifier", "WindowClassifierConfig"),
-        "fit_window": ("block_and_guard", "fit_window_classifier", "train_rows"),
-        "window_predict": ("predict_steps",),
+        "fit_window": ("block_and_guard", "fit_window_classifier", "predict_steps", "train_rows"),
         "stretch_pool": ("Stretch", "frame_rows"),
         "window_finetune": ("assign_folds", "fine_tune_window_classifier"),
         "window_calibration": ("fit_temperature", "scale_head"),

@@ -20,6 +20,7 @@ at 10 % of labels (two seeds, checked once, not screened) scored 81.8 % against 
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Sequence
 from functools import partial
@@ -27,14 +28,7 @@ from functools import partial
 import numpy as np
 import torch
 
-from ..figures import (
-    add_run_tally,
-    blocked_folds,
-    classification_metrics,
-    log_folds,
-    terrain_estimate,
-    unseen_runs_figure,
-)
+from ..figures import blocked_folds, classification_metrics, log_folds, terrain_estimate, unseen_runs_figure
 from ..fitting import ClassifierFit, Segment
 from ..running import INIT_LOCK, CancelFn, Cancelled, Progress, ProgressFn, fit_workers, never, run_fits
 from .class_balance import BalancedLoss, class_shares, epoch_order
@@ -46,11 +40,11 @@ from .window_calibration import fit_temperature, scale_head
 from .window_classifier import WindowClassifier, WindowClassifierConfig
 from .window_config import WindowFitConfig
 from .window_drift import REFERENCE_ROWS, fit_drift, held_out_relation
-from .window_predict import predict_steps, row_logits
 from .window_rows import WindowRows, at_most, window_rows
 
 BLOCK_GUARDS = 4  # a block is four guards long: a fold's guard never takes more than half of a block next to it
 HELD_ROWS = 8192  # a member's held-out rows the drift reads: a sample past it (100 hours at 5 %: 18,000 each)
+PREDICT_CHUNK = 4096  # steps per call when scoring segments: bounds the stacked frames in memory
 
 
 def block_and_guard(front: SpectralConfig) -> tuple[int, int]:
@@ -149,6 +143,34 @@ class _Rows:
         return torch.from_numpy(self.x.take(idx.numpy())) if isinstance(self.x, WindowRows) else self.x[idx]
 
 
+@torch.inference_mode()
+def predict_steps(model: WindowClassifier, features: SpectralSteps, start: int, stop: int) -> np.ndarray:
+    """Classes of steps ``[start, stop)`` of one log, as the offline passes score them (a chunk at a time)."""
+    out, dev = [], model.in_mean.device
+    for c in range(start, stop, PREDICT_CHUNK):
+        chunk = torch.from_numpy(features[c : min(c + PREDICT_CHUNK, stop)])[None].to(dev)  # (1, L, D)
+        out.append(model(chunk)[0][0].argmax(1).cpu().numpy())
+    features.release()
+    return np.concatenate(out) if out else np.zeros(0, np.int64)
+
+
+@torch.inference_mode()
+def row_logits(model: WindowClassifier, x: np.ndarray | WindowRows) -> np.ndarray:
+    """Logits ``(N, K)`` of rows ``(N, W·F)`` (stacked, or :class:`WindowRows` stacked a chunk at a time)."""
+    if len(x) == 0:
+        return np.zeros((0, model.config.n_classes), np.float32)
+    n, big = divmod(len(x), -(-len(x) // PREDICT_CHUNK))  # np.array_split's chunks: ``big`` one row longer
+    cuts = np.concatenate([[0], np.cumsum([n + 1] * big + [n] * (-(-len(x) // PREDICT_CHUNK) - big))])
+    chunks = (np.asarray(x[a:b], np.float32) for a, b in itertools.pairwise(cuts))
+    dev = model.in_mean.device
+    return torch.cat([model.logits(torch.from_numpy(c).to(dev)).cpu() for c in chunks]).numpy()
+
+
+def _predict_rows(model: WindowClassifier, x: np.ndarray) -> np.ndarray:
+    """Classes of rows ``(N, W·F)``."""
+    return row_logits(model, x).argmax(1)
+
+
 def _pseudo_labels(
     model: WindowClassifier,
     pool: np.ndarray,
@@ -172,7 +194,7 @@ def _pseudo_labels(
         if b > a and taught is not None and taught[j] >= 0:
             counts[j] = np.bincount([int(taught[j])], minlength=k) * (b - a)  # sure by the session's word
         elif b > a:
-            counts[j] = np.bincount(row_logits(model, pool[a:b]).argmax(1), minlength=k)
+            counts[j] = np.bincount(_predict_rows(model, pool[a:b]), minlength=k)
     by_unit: dict[int, np.ndarray] = {}  # the same, summed over each unit's stretches
     if units is not None and unit_agree > 0:
         for j, c in counts.items():
@@ -362,7 +384,7 @@ def fit_window_classifier(
         for j, (i, a, b) in enumerate(stretches):  # every PSEUDO_STRIDE-th row: a stretch's share right, its time
             lo, hi = int(bounds[j]), int(bounds[j + 1])
             if i in held_logs and known_of[j] in measurable and hi > lo:
-                share = float((row_logits(model, pool[lo:hi]).argmax(1) == known_of[j]).mean())
+                share = float((_predict_rows(model, pool[lo:hi]) == known_of[j]).mean())
                 right[group_of[i]] = right.get(group_of[i], 0.0) + share * (b - a)
                 scored[group_of[i]] = scored.get(group_of[i], 0.0) + float(b - a)
         true, pred = np.concatenate(trues), np.concatenate(preds)
@@ -398,10 +420,8 @@ def fit_window_classifier(
     )
     models, histories, oof_true, oof_pred, pseudo = [], [], [], [], []
     trained_rows, oof_rows, oof_logits, oof_classes = [], [], [], []  # per member: for the drift and calibration
-    right, runs = [], {}  # per member: whether it named each row of its drift sample right; per run, (right, steps)
-    for f, (model, taken, seen, labelled, logits, rows_y, some, rows, true, pred) in enumerate(results[: blocked.k]):
-        if blocked.k > 1:  # per run, its held-out steps named right: the model's own evidence on each run
-            add_run_tally(runs, [pieces[j] for j in blocked.held_out(f)], true, pred, seen)
+    right = []  # per member: whether it named each row of its drift sample right
+    for model, taken, seen, labelled, logits, rows_y, some, rows, true, pred in results[: blocked.k]:
         pseudo.append(taken)
         models.append(model.cpu())  # the calibration, the drift and every caller read them on the CPU
         trained_rows.append(labelled)
@@ -420,7 +440,6 @@ def fit_window_classifier(
     same_true, same_pred = np.concatenate(oof_true), np.concatenate(oof_pred)
     metrics = classification_metrics(same_true, same_pred, classes)
     metrics["out_of_fold"] = blocked.k > 1
-    metrics["out_of_fold_runs"] = {str(g): v for g, v in sorted(runs.items())}  # the fit's logs' indices
     metrics["n_segments"] = len(segments)
     metrics["n_pieces"] = len(pieces)
     metrics["labelled_samples"] = int(sum(s[2] - s[1] for s in segments))

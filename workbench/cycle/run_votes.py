@@ -1,8 +1,6 @@
-"""Corrections that stick: wherever a run holds labels, its scores are the model's handed to the vote of those
-labels over the run's own frames, as far as the model is unsure there or untrusted on the run
-(``labeling.run_votes``, ``labeling.blend_votes``). The trust is the fit's own out-of-fold figure on the run's labels
-where it measured one (a test of the model that scores, with the rest of the run's labels in hand), else the
-person's checks there (of the models before: right after labelling a run nobody had labelled, they decide).
+"""Corrections that stick (issue 65, item 3): wherever a run holds labels, its scores are the model's handed to the
+vote of those labels over the run's own frames, as far as the model is unsure (``labeling.run_votes``,
+``labeling.blend_votes``).
 
 Every scoring of a session's logs goes through here (the page's highlights, stretches and suggestions, and the
 export's predictions of those logs), so what a person labels in a run changes what the workbench says around it in
@@ -23,9 +21,6 @@ from sessions import COUNTED_KINDS, LogInfo, Session
 from training import FrameOutputs
 
 DEFAULT_TRUST = 0.8  # a model that reports no estimate is trusted as one estimated at 80 % on new runs
-# Out-of-fold steps of a run that make the model's own figure there its trust (two classifier windows at 6.5 Hz):
-# fewer, and the person's checks in the run decide as before
-MIN_OWN_STEPS = 20
 
 
 def with_run_votes(
@@ -36,11 +31,9 @@ def with_run_votes(
     classes: Sequence[str],
     *,
     estimate: float | None = None,
-    own: Mapping[str, Sequence[int]] | None = None,
 ) -> list[labeling.LogScores]:
     """``scored`` (per log of ``logs``) with the probabilities of each labelled log blended with its labels' vote,
-    as far as the model is unsure there or untrusted on that run: by its own out-of-fold answers on the run's
-    labels where the fit measured them (``own``), else by the person's checks there.
+    as far as the model is unsure there or untrusted on that run by the person's checks.
 
     Args:
         session: Its labels are what vote.
@@ -50,11 +43,6 @@ def with_run_votes(
         classes: The classifier's terrains, in the order of the probabilities' columns (a label of another terrain
             does not vote).
         estimate: The model's estimated accuracy on new runs (the card's): what a run with no check trusts it to.
-        own: Per log id (a string), ``[right, steps]`` of the fit's out-of-fold answers on that run's labelled time
-            (the classifier's ``metrics["out_of_fold_runs"]``): a test of this very model with the rest of the
-            run's labels in hand. The checks were of the models before the labels that fixed them: on a run that
-            changes terrain every few seconds they kept the trust at 0.55 after a Retrain that named 83 % of the
-            run right, and the blend lost 4 points to the model alone (``benchmarks/results/loop.md``).
     """
     prior = DEFAULT_TRUST if estimate is None or estimate != estimate else float(estimate)
     checks: dict[int, list[bool]] = {}
@@ -85,11 +73,7 @@ def with_run_votes(
         if votes is None:
             out.append(s)
             continue
-        right, steps = (own or {}).get(str(log.id), (0, 0))
-        if steps >= MIN_OWN_STEPS:
-            trust = right / steps
-        else:
-            mine = checks.get(log.id, [])
-            trust = labeling.run_trust(sum(mine), len(mine), prior=prior)
+        mine = checks.get(log.id, [])
+        trust = labeling.run_trust(sum(mine), len(mine), prior=prior)
         out.append(replace(s, probs=labeling.blend_votes(s.probs, votes.rows(frame_of), trust=trust)))
     return out

@@ -152,8 +152,7 @@ def _score_session_logs(
     scored = score_logs(classifier.classifiers, features, surprise, drift=classifier.drift)
     if votes:  # a run's labels carried over its own frames (run_votes.py)
         estimate = (classifier.metrics.get("estimate") or {}).get("accuracy")
-        own = classifier.metrics.get("out_of_fold_runs")
-        scored = with_run_votes(session, logs, outs, scored, classifier.classes, estimate=estimate, own=own)
+        scored = with_run_votes(session, logs, outs, scored, classifier.classes, estimate=estimate)
     return logs, outs, scored
 
 

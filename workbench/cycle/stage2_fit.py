@@ -256,8 +256,6 @@ def _train_window(
         )
         if unseen := fit.metrics.get("unseen_runs"):  # the fit's runs are the logs' indices: named as the page does
             unseen["per_run"] = {logs[int(k)].name: v for k, v in unseen["per_run"].items()}
-        if own := fit.metrics.get("out_of_fold_runs"):  # by log id: what the run's vote is weighed against
-            fit.metrics["out_of_fold_runs"] = {str(logs[int(k)].id): v for k, v in own.items()}
         version = _save_classifier(
             session,
             bundle,

@@ -78,36 +78,6 @@ def test_scores_draw_surprise_and_embeddings_from_the_frames(session: Session) -
     assert kept.scores.embeddings[session.logs()[0].id].shape == scores.embeddings[session.logs()[0].id].shape
 
 
-def test_a_runs_vote_is_weighed_by_the_fits_own_out_of_fold_figure_on_that_run(session: Session) -> None:
-    """The fit keeps, per labelled run, its out-of-fold answers on the run's labels (``out_of_fold_runs``, by log
-    id); the run's vote is weighed by them: a run the model names right keeps more of the model's answer than one it
-    misses, and too few such steps leave the person's checks to decide, as before."""
-    from workbench.cycle.run_votes import MIN_OWN_STEPS, with_run_votes
-
-    _, bundle = cycle.active_bundle(session)
-    own = bundle.metrics["out_of_fold_runs"]
-    labelled = {g.log_id for g in session.segments()}
-    assert set(own) == {str(i) for i in labelled}  # every labelled run measured, keyed by its log id
-    assert sum(n for _, n in own.values()) == bundle.metrics["n"]  # the steps of the fit's out-of-fold figure
-    assert sum(r for r, _ in own.values()) / bundle.metrics["n"] == pytest.approx(bundle.metrics["accuracy"])
-    logs = [x for x in session.logs() if x.id in labelled]
-    plain = cycle.compute_scores(session, votes=False)
-    outs = cycle.stage1_outputs(session, *cycle.active_predictor(session), logs)
-    scored = [plain.scores[x.id] for x in logs]
-
-    def blended(levels: dict[str, list[int]] | None) -> list[np.ndarray]:
-        return [s.probs for s in with_run_votes(session, logs, outs, scored, bundle.classes, own=levels)]
-
-    right = blended({str(x.id): [100, 100] for x in logs})
-    wrong = blended({str(x.id): [0, 100] for x in logs})
-    for a, b, s in zip(right, wrong, scored, strict=True):
-        moved_right, moved_wrong = np.abs(a - s.probs).sum(1), np.abs(b - s.probs).sum(1)  # (T,)
-        assert (moved_right <= moved_wrong + 1e-5).all() and moved_wrong.max() > moved_right.max()
-    few = blended({str(x.id): [0, MIN_OWN_STEPS - 1] for x in logs})
-    for a, b in zip(few, blended(None), strict=True):
-        np.testing.assert_array_equal(a, b)
-
-
 def test_export_and_classify_a_bundle_with_the_frame_predictor(session: Session, tmp_path: Path) -> None:
     out = tmp_path / "export"
     written = dict((p.name, what) for p, what in export_all(session, out))
