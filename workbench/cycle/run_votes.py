@@ -1,6 +1,10 @@
-"""Corrections that stick (issue 65, item 3): wherever a run holds labels, its scores are the model's handed to the
-vote of those labels over the run's own frames, as far as the model is unsure (``labeling.run_votes``,
-``labeling.blend_votes``).
+"""Corrections that stick: wherever a run holds labels, its scores are the model's handed to the vote of those
+labels over the run's own frames, as far as the model is unsure there (``labeling.run_votes``,
+``labeling.blend_votes``), and, until a Retrain has learned every label of the run, as far as the person's checks
+there found it wrong. Once the active classifier trained on all of them, its confidence alone decides: the checks were
+of the models before the labels that fixed them (on a run that changes terrain every few seconds they held the trust
+at 0.55 after a Retrain that named 83 % of the run right, and the blend lost 4 to 18 points to the model alone;
+``benchmarks/results/loop.md``).
 
 Every scoring of a session's logs goes through here (the page's highlights, stretches and suggestions, and the
 export's predictions of those logs), so what a person labels in a run changes what the workbench says around it in
@@ -31,6 +35,7 @@ def with_run_votes(
     classes: Sequence[str],
     *,
     estimate: float | None = None,
+    learned: Mapping | None = None,
 ) -> list[labeling.LogScores]:
     """``scored`` (per log of ``logs``) with the probabilities of each labelled log blended with its labels' vote,
     as far as the model is unsure there or untrusted on that run by the person's checks.
@@ -43,6 +48,8 @@ def with_run_votes(
         classes: The classifier's terrains, in the order of the probabilities' columns (a label of another terrain
             does not vote).
         estimate: The model's estimated accuracy on new runs (the card's): what a run with no check trusts it to.
+        learned: The active classifier's record of the labels it trained on (its config's ``labels``: their ids
+            and newest change): a run whose every label it learned trusts the model's own confidence.
     """
     prior = DEFAULT_TRUST if estimate is None or estimate != estimate else float(estimate)
     checks: dict[int, list[bool]] = {}
@@ -73,7 +80,18 @@ def with_run_votes(
         if votes is None:
             out.append(s)
             continue
-        mine = checks.get(log.id, [])
-        trust = labeling.run_trust(sum(mine), len(mine), prior=prior)
+        if _all_learned(by_log[log.id], learned):
+            trust = 1.0
+        else:
+            mine = checks.get(log.id, [])
+            trust = labeling.run_trust(sum(mine), len(mine), prior=prior)
         out.append(replace(s, probs=labeling.blend_votes(s.probs, votes.rows(frame_of), trust=trust)))
     return out
+
+
+def _all_learned(segments: Sequence, learned: Mapping | None) -> bool:
+    """Whether the classifier whose record is ``learned`` trained on every one of ``segments`` as it is now."""
+    if not learned:
+        return False
+    ids, as_of = set(learned.get("ids", ())), learned.get("as_of", "")
+    return all(g.id in ids and g.updated_at <= as_of for g in segments)

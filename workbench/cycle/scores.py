@@ -7,7 +7,7 @@ drift apart. Scores are ``labeling.LogScores``: the type the suggestions take.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -134,6 +134,7 @@ def _score_session_logs(
     log_ids: Collection[int] | None,
     *,
     votes: bool = True,
+    learned: Mapping | None = None,
 ) -> tuple[list[LogInfo], dict, list[labeling.LogScores]]:
     logs = model_logs(session, bundle.channels)
     if log_ids is not None:
@@ -152,7 +153,7 @@ def _score_session_logs(
     scored = score_logs(classifier.classifiers, features, surprise, drift=classifier.drift)
     if votes:  # a run's labels carried over its own frames (run_votes.py)
         estimate = (classifier.metrics.get("estimate") or {}).get("accuracy")
-        scored = with_run_votes(session, logs, outs, scored, classifier.classes, estimate=estimate)
+        scored = with_run_votes(session, logs, outs, scored, classifier.classes, estimate=estimate, learned=learned)
     return logs, outs, scored
 
 
@@ -184,7 +185,10 @@ def compute_scores(
     if c_version is not None and c_version.config.get("predictor") != p_version.id:
         c_version = None  # trained on another predictor's features: its probabilities would mean nothing
     c_bundle = None if c_version is None else load_bundle(session.path / c_version.path)
-    logs, outs, scored = _score_session_logs(session, p_version, bundle, c_bundle, log_ids, votes=votes)
+    learned = None if c_version is None else c_version.config.get("labels")
+    logs, outs, scored = _score_session_logs(
+        session, p_version, bundle, c_bundle, log_ids, votes=votes, learned=learned
+    )
     ids = [x.id for x in logs]
     ranked = labeling.normalised_tracks(scored, window=window) if tracks else []
     return SessionScores(
@@ -207,5 +211,7 @@ def score_session(session: Session, log_ids: Sequence[int] | None = None) -> dic
     p_version = next((v for v in session.model_versions("predictor") if v.id == c_version.config["predictor"]), None)
     if p_version is None:
         raise WorkbenchError(f"{session.path}: the predictor classifier v{c_version.id} was trained on is gone")
-    logs, _, scored = _score_session_logs(session, p_version, bundle, bundle, log_ids)
+    logs, _, scored = _score_session_logs(
+        session, p_version, bundle, bundle, log_ids, learned=c_version.config.get("labels")
+    )
     return {x.id: s for x, s in zip(logs, scored, strict=True)}

@@ -54,10 +54,10 @@ Person = Literal["piece", "stretch"]
 # What a lever is worth, measured by leaving it out: a strategy's name for the loop -> the suggestion strategy, the
 # options it runs with, the scoring's and the fit's
 ABLATIONS: dict[str, tuple[str, dict, dict, dict]] = {
-    "combined-no-unchecked": ("combined", {"unchecked_first": False}, {}, {}),  # new runs not checked first (item 2)
-    "combined-no-votes": ("combined", {}, {"votes": False}, {}),  # a run's labels not carried over its frames (item 3)
+    "combined-no-unchecked": ("combined", {"unchecked_first": False}, {}, {}),  # new runs not checked first
+    "combined-no-votes": ("combined", {}, {"votes": False}, {}),  # a run's labels not carried over its frames
     "combined-no-wrong-first": ("combined", {"wrong_first": False}, {}, {}),  # runs checks found wrong not asked again
-    "combined-no-main-answer": ("combined", {"main_answer": "off"}, {}, {}),  # a run's main answer never asked (item 3)
+    "combined-no-main-answer": ("combined", {"main_answer": "off"}, {}, {}),  # a run's main answer never asked
     "combined-main-answer-new": ("combined", {"main_answer": "new"}, {}, {}),  # every new run's main answer asked first
     "combined-teacher": ("combined", {}, {}, {"teach": True}),  # the fit taught by the session's scores (RETRAIN.teach)
 }

@@ -78,6 +78,35 @@ def test_scores_draw_surprise_and_embeddings_from_the_frames(session: Session) -
     assert kept.scores.embeddings[session.logs()[0].id].shape == scores.embeddings[session.logs()[0].id].shape
 
 
+def test_a_run_whose_labels_the_classifier_learned_keeps_its_confident_answers(session: Session) -> None:
+    """A run's vote takes a step as far as the model is unsure there and, until a Retrain has learned every label of
+    the run, as far as the person's checks (else the card's estimate) distrust it; once the active classifier trained
+    on all of them, its confidence alone decides (its labels record: ids and newest change)."""
+    from workbench.cycle.run_votes import with_run_votes
+
+    version, bundle = cycle.active_bundle(session)
+    learned = version.config["labels"]
+    segments = session.segments()
+    logs = [x for x in session.logs() if any(g.log_id == x.id for g in segments)]
+    plain = cycle.compute_scores(session, votes=False)
+    outs = cycle.stage1_outputs(session, *cycle.active_predictor(session), logs)
+    scored = [plain.scores[x.id] for x in logs]
+
+    def moved(record: dict | None) -> list[np.ndarray]:  # (T,) per log: how far the vote moved each step
+        out = with_run_votes(session, logs, outs, scored, bundle.classes, estimate=0.5, learned=record)
+        return [np.abs(a.probs - s.probs).sum(1) for a, s in zip(out, scored, strict=True)]
+
+    learned_all, untrusted = moved(learned), moved(None)  # trust 1, and the estimate's 0.5 (no check made)
+    for a, b in zip(learned_all, untrusted, strict=True):
+        assert (a <= b + 1e-5).all() and b.max() > a.max()
+    # one label of the first run not in the record (new since the fit): that run is judged as before, the rest not
+    first = next(g for g in segments if g.log_id == logs[0].id)
+    partly = moved({**learned, "ids": [i for i in learned["ids"] if i != first.id]})
+    np.testing.assert_array_equal(partly[0], untrusted[0])
+    for a, b in zip(partly[1:], learned_all[1:], strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_export_and_classify_a_bundle_with_the_frame_predictor(session: Session, tmp_path: Path) -> None:
     out = tmp_path / "export"
     written = dict((p.name, what) for p, what in export_all(session, out))
