@@ -57,6 +57,8 @@ bench: install
 paper: install
 	$(PY) benchmarks/studies/paper_borealtc.py all
 	$(PY) benchmarks/studies/interval_coverage.py
+	for s in 1 2; do $(PY) benchmarks/studies/loop_borealtc.py spliced --motor-only --piece-s 5 30 --per-terrain 3 \
+	  --seed $$s > benchmarks/results/raw/loop/borealtc-motor-spliced-s$$s-$$(date +%F).txt || exit 1; done
 
 # the README's picture (docs/workbench.png), taken by the first-screen browser test
 screenshot: install browser
