@@ -75,9 +75,6 @@ class FileExpectation:
         checks: The person's counted checks in this log of the model whose figure this is (a session's log;
             ``None`` for a file outside one): a check of an earlier model says little of one that learned from it.
         members: The mean of its steps' members' agreement (``None`` when the scoring gave none).
-        earlier: The person's counted checks in this log of the session's other classifier versions, read where
-            this model has fewer than ``MIN_CHECKS`` there: a run where the models before were mostly wrong is
-            named until this one is checked there (a Retrain on those labels fixed the checked pieces, not the run).
     """
 
     name: str
@@ -88,7 +85,6 @@ class FileExpectation:
     agreement: float | None = None
     checks: labeling.CheckEstimate | None = None
     members: float | None = None
-    earlier: labeling.CheckEstimate | None = None
 
     @property
     def figure(self) -> float | None:
@@ -104,22 +100,8 @@ class FileExpectation:
         """Whether the person's checks in the log (``MIN_CHECKS`` or more) contradict its figure, by the rule the
         card is held against the spot checks with (``cycle.estimate_disagrees``: 10 points or more away from their
         share right and outside their 95 % interval)."""
-        c = self.judging_checks
-        return c is not None and estimate_disagrees(self.figure, c)
-
-    @property
-    def judging_checks(self) -> labeling.CheckEstimate | None:
-        """The checks its figure is held against: this model's (``MIN_CHECKS`` or more), else the other versions'
-        (as many), else none."""
-        for c in (self.checks, self.earlier):
-            if c is not None and c.n >= MIN_CHECKS:
-                return c
-        return None
-
-    @property
-    def earlier_judge(self) -> bool:
-        """Whether the checks its figure is held against are of other versions than this model."""
-        return self.judging_checks is not None and self.judging_checks is self.earlier
+        c = self.checks
+        return c is not None and c.n >= MIN_CHECKS and estimate_disagrees(self.figure, c)
 
     @property
     def below_card(self) -> bool:
@@ -157,12 +139,6 @@ class FileExpectation:
         if self.checks_disagree:
             bound = self.members is None and self.expected is None  # the figure is the stretches' bound
             what = "its stretches bound its accuracy at" if bound else "expected accuracy"
-            if self.earlier_judge:
-                return (
-                    f"warning: {self.name}: {what} {self.figure:.0%}, but your checks in it of the versions before "
-                    f"this one found them {self.earlier.words()}, and this one is not checked there yet: trust "  # type: ignore[union-attr]
-                    "the checks; verify this version (V), or label more of it and retrain"
-                )
             return (
                 f"warning: {self.name}: {what} {self.figure:.0%}, but your checks of this model in it found it "
                 f"{self.checks.words()}: trust the checks; label more of it and retrain"  # type: ignore[union-attr]
@@ -205,7 +181,6 @@ def file_expectation(
     checks: labeling.CheckEstimate | None = None,
     members: np.ndarray | None = None,
     labelled: Sequence[tuple[int, int]] = (),
-    earlier: labeling.CheckEstimate | None = None,
 ) -> FileExpectation | None:
     """A file's expectation; ``None`` without drift.
 
@@ -221,7 +196,6 @@ def file_expectation(
         labelled: Its labelled spans ``(start, stop)``, left out of the members' figure: what is expected is the
             accuracy where the person has not said the terrain (a session's log; the loop's labels are where the
             members doubted, and a short run's few seconds of them moved its figure by 2.5 points).
-        earlier: The person's checks in it of the session's other classifier versions (``FileExpectation.earlier``).
     """
     share = labeling.drifted_share(drift)
     if share is None:
@@ -238,9 +212,7 @@ def file_expectation(
             free[a:b] = False
         if free.any():
             mean_agreement = float(np.mean(members[free], dtype=np.float64))
-    return FileExpectation(
-        name, float(np.median(drift)), share, expected, card, agreement, checks, mean_agreement, earlier
-    )
+    return FileExpectation(name, float(np.median(drift)), share, expected, card, agreement, checks, mean_agreement)
 
 
 def stretch_share(predicted: np.ndarray, change_points: np.ndarray, *, rate_hz: float) -> float | None:

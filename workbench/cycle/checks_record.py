@@ -82,33 +82,25 @@ class ChecksSummary:
         suggested: Over the checks of suggestions and manual labels: where the person looked.
         all: Over every counted check.
         per_log: Per log id, over its counted checks.
-        per_run: Per log name, over its counted checks: what a bundle carries of them (``checks.json``'s runs).
     """
 
     spot: labeling.CheckEstimate | None
     suggested: labeling.CheckEstimate | None
     all: labeling.CheckEstimate | None
     per_log: dict[int, labeling.CheckEstimate] = field(default_factory=dict)
-    per_run: dict[str, labeling.CheckEstimate] = field(default_factory=dict)
 
 
 def checks_summary(
-    session: Session,
-    *,
-    log_ids: Collection[int] | None = None,
-    classifier: int | None = None,
-    other_than: int | None = None,
+    session: Session, *, log_ids: Collection[int] | None = None, classifier: int | None = None
 ) -> ChecksSummary:
     """The estimates of the session's checks (of ``log_ids`` only, when given; of the checks of classifier version
-    ``classifier`` only, when given: evidence about that model, not the ones before it; of every other version's
-    than ``other_than``, when given)."""
+    ``classifier`` only, when given: evidence about that model, not the ones before it)."""
     checks = [
         c
         for c in session.checks()
         if c.kind in COUNTED_KINDS
         and (log_ids is None or c.log_id in log_ids)
         and (classifier is None or c.classifier == classifier)
-        and (other_than is None or c.classifier != other_than)
     ]
     by_log: dict[int, list[bool]] = {}
     for c in checks:

@@ -26,15 +26,13 @@ def said_of_logs(
     covered: Callable[[Session, LogInfo], np.ndarray],
 ) -> dict[str, dict]:
     """Per log name: ``figure``, ``expected``, ``agreement`` (``None`` where not measured), ``checks`` ``[right,
-    n]`` (every counted check in it) and ``warning`` (its line or ``None``), as the Data tab computes them: the
-    active classifier's own checks contradict its figure, else (fewer than two) the other versions' checks there;
-    and ``confidence``, the model's mean top probability on the log's time nobody labelled (``covered``: a log's
-    labelled steps), measured beside it."""
+    n]`` (every counted check in it) and ``warning`` (its line or ``None``), as the Data tab computes them: only
+    the active classifier's own checks can contradict its figure; and ``confidence``, the model's mean top
+    probability on the log's time nobody labelled (``covered``: a log's labelled steps), measured beside it."""
     version = session.active_model("classifier")
     metrics = version.metrics if version is not None else {}
     checks = checks_summary(session).per_log
     fresh = {} if version is None else checks_summary(session, classifier=version.id).per_log  # as the Data tab
-    earlier = {} if version is None else checks_summary(session, other_than=version.id).per_log
     out = {}
     for x in logs:
         s = scores.scores.get(x.id)
@@ -50,7 +48,6 @@ def said_of_logs(
             checks=fresh.get(x.id),
             members=s.agreement,
             labelled=[(g.start, g.stop) for g in session.segments(x.id)],  # as the Data tab
-            earlier=earlier.get(x.id),
         )
         c = checks.get(x.id)
         free = ~covered(session, x)

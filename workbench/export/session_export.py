@@ -43,7 +43,7 @@ from training import (
 )
 
 from ..cycle import ChecksSummary, estimate_disagrees
-from ..expectations import MIN_CHECKS, card_accuracy, file_expectation, stretch_share
+from ..expectations import card_accuracy, file_expectation, stretch_share
 from .bundle_checks import read_checks, write_checks
 from .export_staging import check_target, staged
 from .model_card import model_card
@@ -177,7 +177,7 @@ def _write_export(
         logs=len(logs),
     )
     (out / "bundle" / "MODEL_CARD.md").write_text(card)
-    write_checks(out / "bundle", checks, names={x.id: x.name for x in logs})
+    write_checks(out / "bundle", checks)
     written.append((out / "bundle", f"model bundle v{version.id} (safetensors + model.json + MODEL_CARD.md)"))
     onnx = export_onnx(bundle, out / "classifier_stream.onnx")
     worst = max(check_onnx(onnx, bundle, session.samples(x.id, 0, CHECK_SAMPLES)) for x in logs[:2])
@@ -385,12 +385,6 @@ def classify_files(
             )
             if expect is not None:
                 lines += [expect.line(), *filter(None, [expect.warning()])]
-                mine = None if checks is None else checks.per_run.get(name)
-                if mine is not None and mine.n >= MIN_CHECKS and estimate_disagrees(expect.figure, mine):
-                    lines.append(
-                        f"warning: {name}: expected accuracy {expect.figure:.0%}, but your checks in the session's "
-                        f"run of this name found the model {mine.words()}: trust the checks"
-                    )
                 if estimate_disagrees(expect.expected, spot):
                     lines.append(
                         f"warning: {name}: expected accuracy {expect.expected:.0%}, but your spot checks in the "

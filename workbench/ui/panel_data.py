@@ -109,12 +109,7 @@ def logs_table_html(
     if expect_column:
         card = next((e.card for e in expected.values() if e is not None and e.card is not None), None)  # type: ignore[union-attr]
         red = [] if card is None else [f"10 points or more below the card&#39;s {card:.0%}"]
-        below = "; red: " + ", or ".join(
-            [
-                *red,
-                "contradicted by your checks of this model in the log (until it has two there: of the versions before)",
-            ]
-        )
+        below = "; red: " + ", or ".join([*red, "contradicted by your checks of this model in the log"])
         head += (
             "<th class='n' title='accuracy expected on the log: how often the model&#39;s members name the same "
             "terrain there, else its expected accuracy at its drift, else the share of its steps predicted as their "
@@ -198,9 +193,6 @@ class DataPanel:
         # a figure is the active model's: only the checks of that model can contradict it (each earlier check was
         # of a model that has since learned from it)
         fresh = {} if classifier is None else checks_summary(session, classifier=classifier.id).per_log
-        # until this model is checked in a log, the versions before it there still name a run they were mostly
-        # wrong on: a Retrain on those labels fixed the pieces checked, not the run
-        earlier = {} if classifier is None else checks_summary(session, other_than=classifier.id).per_log
         spans: dict[int, list[tuple[int, int]]] = {}
         for g in session.segments():
             spans.setdefault(g.log_id, []).append((g.start, g.stop))
@@ -215,7 +207,6 @@ class DataPanel:
                 checks=fresh.get(i),
                 members=s.agreement,
                 labelled=spans.get(i, ()),
-                earlier=earlier.get(i),
             )
             for i, s in scores.items()
         }
