@@ -29,7 +29,7 @@ def test_the_counts_round_trip_and_no_checks_write_no_file(tmp_path: Path) -> No
 @pytest.mark.parametrize(
     "body",
     ['{"all": [1, 0]}', "[1, 2]", "null", '{"spot": ["a", 3]}', '{"spot": [1, 2, 3]}', '{"spot": [1e400, 3]}',
-     '{"spot": 5}', "[" * 50_000, "{"],
+     '{"spot": 5}', "[" * 50_000, "{", '{"all": [1, 2], "runs": {"a.csv": [3, 2]}}', '{"all": [1, 2], "runs": 4}'],
 )  # fmt: skip
 def test_a_damaged_checks_file_is_one_warning_line(tmp_path: Path, body: str) -> None:
     (tmp_path / "checks.json").write_text(body)

@@ -82,12 +82,14 @@ class ChecksSummary:
         suggested: Over the checks of suggestions and manual labels: where the person looked.
         all: Over every counted check.
         per_log: Per log id, over its counted checks.
+        per_run: Per log name, over its counted checks: what a bundle carries of them (``checks.json``'s runs).
     """
 
     spot: labeling.CheckEstimate | None
     suggested: labeling.CheckEstimate | None
     all: labeling.CheckEstimate | None
     per_log: dict[int, labeling.CheckEstimate] = field(default_factory=dict)
+    per_run: dict[str, labeling.CheckEstimate] = field(default_factory=dict)
 
 
 def checks_summary(

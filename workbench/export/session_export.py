@@ -177,7 +177,7 @@ def _write_export(
         logs=len(logs),
     )
     (out / "bundle" / "MODEL_CARD.md").write_text(card)
-    write_checks(out / "bundle", checks)
+    write_checks(out / "bundle", checks, names={x.id: x.name for x in logs})
     written.append((out / "bundle", f"model bundle v{version.id} (safetensors + model.json + MODEL_CARD.md)"))
     onnx = export_onnx(bundle, out / "classifier_stream.onnx")
     worst = max(check_onnx(onnx, bundle, session.samples(x.id, 0, CHECK_SAMPLES)) for x in logs[:2])
@@ -385,6 +385,11 @@ def classify_files(
             )
             if expect is not None:
                 lines += [expect.line(), *filter(None, [expect.warning()])]
+            if (mine := None if checks is None else checks.per_run.get(name)) is not None:
+                lines.append(  # most of them sit where the model was doubted: a fact beside the figure, no verdict
+                    f"{name}: your checks in the session's run of this name found the model {mine.words()}; "
+                    "suggestions are placed where the model is doubted, so these run low"
+                )
                 if estimate_disagrees(expect.expected, spot):
                     lines.append(
                         f"warning: {name}: expected accuracy {expect.expected:.0%}, but your spot checks in the "

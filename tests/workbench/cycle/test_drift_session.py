@@ -127,12 +127,21 @@ def test_classify_says_the_persons_checks_and_warns_when_the_card_is_outside_the
             )  # fmt: skip
         out = tmp_path / "export"
         export_all(session, out)
-    assert json.loads((out / "bundle" / "checks.json").read_text())["spot"] == [0, 8]
+    carried = json.loads((out / "bundle" / "checks.json").read_text())
+    assert carried["spot"] == [0, 8] and carried["runs"] == {log.name: [0, 8]}
     code, lines = classify_files(out / "bundle", [shifted], tmp_path / "p.csv", IngestOptions())
     assert code == 0, lines
     said = "your checks in the session (at export): right on 0 of 8 spot checks (0 %, 95 % interval 0–32 %)"
     assert lines[0] == said, lines
     assert lines[1].startswith("warning: the card's estimate (") and "trust the spot checks" in lines[1], lines
+    assert not any("run of this name" in x for x in lines), lines  # no run of the session is called so
+    # the session's own run, classified as a file: named with the interval of the checks made in it
+    code, lines = classify_files(out / "bundle", [Path(log.source_path)], tmp_path / "r.csv", IngestOptions())
+    assert code == 0, lines
+    assert (
+        f"{log.name}: your checks in the session's run of this name found the model right on 0 of 8 checks (0 %, "
+        "95 % interval 0–32 %); suggestions are placed where the model is doubted, so these run low"
+    ) in lines, lines
     # a damaged file is named in one line and left out; the predictions are written all the same
     (out / "bundle" / "checks.json").write_text("[" * 50_000)
     code, lines = classify_files(out / "bundle", [shifted], tmp_path / "q.csv", IngestOptions())
