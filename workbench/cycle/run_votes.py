@@ -24,6 +24,8 @@ import labeling
 from sessions import COUNTED_KINDS, LogInfo, Session
 from training import FrameOutputs
 
+from .fold_record import new_labels
+
 DEFAULT_TRUST = 0.8  # a model that reports no estimate is trusted as one estimated at 80 % on new runs
 
 
@@ -57,9 +59,11 @@ def with_run_votes(
         if c.kind in COUNTED_KINDS:
             checks.setdefault(c.log_id, []).append(c.right)
     by_log: dict[int, list] = {}
-    for g in session.segments():
-        if g.terrain in classes:
-            by_log.setdefault(g.log_id, []).append(g)
+    voting = [g for g in session.segments() if g.terrain in classes]
+    for g in voting:
+        by_log.setdefault(g.log_id, []).append(g)
+    fresh = new_labels(voting, learned)  # the labels the active classifier has not learned (None: no record)
+    unlearned = None if fresh is None else {voting[i].id for i in fresh}
     out = []
     for log, s in zip(logs, scored, strict=True):
         o = outs.get(log.id)
@@ -80,18 +84,10 @@ def with_run_votes(
         if votes is None:
             out.append(s)
             continue
-        if _all_learned(by_log[log.id], learned):
-            trust = 1.0
+        if unlearned is not None and not any(g.id in unlearned for g in by_log[log.id]):
+            trust = 1.0  # every label of the run learned: the model's own confidence decides
         else:
             mine = checks.get(log.id, [])
             trust = labeling.run_trust(sum(mine), len(mine), prior=prior)
         out.append(replace(s, probs=labeling.blend_votes(s.probs, votes.rows(frame_of), trust=trust)))
     return out
-
-
-def _all_learned(segments: Sequence, learned: Mapping | None) -> bool:
-    """Whether the classifier whose record is ``learned`` trained on every one of ``segments`` as it is now."""
-    if not learned:
-        return False
-    ids, as_of = set(learned.get("ids", ())), learned.get("as_of", "")
-    return all(g.id in ids and g.updated_at <= as_of for g in segments)

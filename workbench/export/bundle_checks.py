@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping
-from dataclasses import replace
 from pathlib import Path
 
 import labeling
@@ -64,5 +63,4 @@ def read_checks(folder: Path) -> tuple[ChecksSummary | None, str | None]:
         return None, f"{path}: damaged ({type(exc).__name__}: {str(exc)[:200]}); your checks are left out"
     if not estimates:
         return None, None
-    summary = ChecksSummary(estimates.get("spot"), estimates.get("suggested"), estimates.get("all"))
-    return replace(summary, per_run=runs), None
+    return ChecksSummary(estimates.get("spot"), estimates.get("suggested"), estimates.get("all"), per_run=runs), None
