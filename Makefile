@@ -47,13 +47,13 @@ format: install
 stress: install browser
 	WORKBENCH_FUZZ_EXAMPLES=5000 $(PY) -m pytest tests/safety -m "slow or not slow"
 
-# every figure beside a reference measured in the same run; the table goes to benchmarks/results/bench-$(DEVICE).md
+# every figure beside a reference measured in the same run; the table goes to benchmarks/results/speed.md (speed-$(DEVICE).md on another device)
 DEVICE ?= cpu
 bench: install
 	for f in benchmarks/speed/bench_*.py; do $(PY) $$f --device $(DEVICE) || exit 1; done
 	$(PY) benchmarks/speed/report.py $(DEVICE)
 
-# the studies: paper-scale evaluation runs (about an hour each on 2 cores); reports in benchmarks/results/
+# the studies: paper-scale evaluation runs (about an hour each on 2 cores); raw outputs in benchmarks/results/raw/<question>/
 paper: install
 	$(PY) benchmarks/studies/paper_borealtc.py all
 	$(PY) benchmarks/studies/interval_coverage.py

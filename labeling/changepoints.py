@@ -134,7 +134,7 @@ def stretch_agreement(labels: np.ndarray, points: np.ndarray) -> float | None:
 
     Where each stretch between change points is one terrain, a classifier's accuracy on it is at most this, and
     equal to it when each stretch's most predicted terrain is the right one: an expected accuracy that needs no
-    label (issue 54: within 10 points of what held-out BorealTC runs scored on 91 % of them with each run one
+    label (measured: within 10 points of what held-out BorealTC runs scored on 91 % of them with each run one
     stretch, 72 % with each cut at its change points, 79 % with none of the stretches under 10 s:
     :func:`coarser_points`).
     """

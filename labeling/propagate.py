@@ -2,7 +2,7 @@
 
 A label a person makes inside a run says more about that run than the fit lets it say: fitted over every run, one
 second of labels moves the model little, while the frames of the same run that look like the labelled one are most
-likely the same terrain (same robot, same day, same sensor gains). Issue 65 measured it on a run with 26 terrain
+likely the same terrain (same robot, same day, same sensor gains). Measured on a BorealTC run with 26 terrain
 changes: after 48 labelled seconds the fitted model was right on 54 % of the rest of the run, a nearest-neighbour vote
 over the stage-1 embedding within the run on 72 %, 75 % with the time in the run as one more feature.
 

@@ -33,7 +33,7 @@ NOVELTY_FLOOR, CLUSTER_DECAY, PREFILTER = 0.25, 0.05, 10
 DRIFT_PRIORITY = 1.0  # added to a drifted candidate's score (others lie in [0, 1]): drifted time is offered first
 # A log nobody has labelled yet ranks in a tier above every candidate's own score (drifted and missed-terrain ones
 # included): a person's new runs are checked before more time of runs already checked, spread over the new runs
-# first (LOG_DECAY), then over time (NEIGHBOUR_DECAY). Issue 65: a run the model got 40 points worse than the rest drew
+# first (LOG_DECAY), then over time (NEIGHBOUR_DECAY). Measured: a run the model got 40 points worse than the rest drew
 # 5 of 45 picks; with a fixed +2 (drifted candidates reach 5) one new run among 66 checked ones still drew 1 of 12. A
 # log whose checks found the model wrong keeps ``wrong / (checks + 1)`` of the tier: a run the model gets wrong is
 # asked about again once checked, not left after its first pick.

@@ -59,3 +59,24 @@ def test_every_path_the_pages_name_exists() -> None:
         if not p.startswith(to_create) and not (REPO / p.rstrip("/")).exists()
     ]
     assert not missing, missing
+
+
+def test_the_results_are_pages_by_question_and_the_code_names_no_issue() -> None:
+    """A newcomer asking "how fast?" or "how good is the loop?" finds one page per question in benchmarks/results/
+    (raw outputs under raw/<question>/), none named by an issue they never saw; the code says the reason or the
+    figure, not an issue number."""
+    results = REPO / "benchmarks" / "results"
+    entries = sorted(p.name for p in results.iterdir() if p.name != ".gitkeep")
+    assert len(entries) <= 8, entries
+    assert not [e for e in entries if e.startswith("issue")], entries
+    assert not [p for p in (results / "raw").rglob("issue-*")]
+    named = re.compile(r"\b[Ii]ssues? \d+|\bissue-\d+")
+    found = [
+        f"{path.relative_to(REPO)}:{i}"
+        for package in ("sessions", "training", "labeling", "workbench")
+        for path in sorted((REPO / package).rglob("*"))
+        if path.is_file() and path.suffix in {".py", ".js", ".css", ".html", ".md", ".json"}
+        for i, line in enumerate(path.read_text(errors="replace").splitlines(), 1)
+        if named.search(line)
+    ]
+    assert not found, found

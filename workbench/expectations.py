@@ -1,15 +1,15 @@
 """What to expect on each file a model scores: its drift, the accuracy expected on it, and a warning when that is
-well below the card's figure (issue 54).
+well below the card's figure.
 
 Three figures, each from what the model does on the file, with no label read:
 
 - the members' agreement: the share of the ensemble members' pairs that name the same terrain, averaged over the
   file (:func:`labeling.member_agreement`); two members trained apart disagree about as often as each errs, so it
-  estimates their accuracy there. It is the file's figure where the scoring gave it: in issue 65's loop on new runs
+  estimates their accuracy there. It is the file's figure where the scoring gave it: in the loop on new runs
   (``evaluate loop``, two sessions, two seeds each, every round) it was nearer the truth than the accuracy at the
   drift in each of the four: mean distance 4.1 / 8.6 / 6.1 / 9.9 points against 7.6 / 11.1 / 7.4 / 12.1, within 5
-  points on 51 of 90 runs and rounds against 37 (``benchmarks/results/issue-65.md``). Like every figure without a
-  label it cannot see a run the members all get wrong alike;
+  points on 51 of 90 runs and rounds against 37 (``benchmarks/results/raw/loop/notebook-new-runs-2026-11-28.md``).
+  Like every figure without a label it cannot see a run the members all get wrong alike;
 - the accuracy at its drift (:mod:`training.figures.drift_accuracy`'s relation);
 - the agreement of its predictions within each stretch between change points (:func:`labeling.stretch_agreement`),
   no stretch shorter than ``SHORTEST_STRETCH_S``: where a stretch is one terrain, accuracy is at most this, and
@@ -17,9 +17,9 @@ Three figures, each from what the model does on the file, with no label read:
   wrong, so it is printed as a bound.
 
 The drift's figure or the stretches' 10 points or more under the card warns, and so does a file's figure that the
-person's own checks in that log contradict (10 points or more away, outside their 95 % interval: issue 65). The
-figures measured (``benchmarks/studies/expected_borealtc.py``, ``benchmarks/results/issue-54.md``) are in
-``docs/model.md``.
+person's own checks in that log contradict (10 points or more away, outside their 95 % interval). The
+figures measured (``benchmarks/studies/expected_borealtc.py``,
+``benchmarks/results/raw/protocols/notebook-model-and-card-2026-11-27.md``) are in ``docs/model.md``.
 """
 
 from __future__ import annotations

@@ -23,6 +23,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "benchmarks" / "results"
+RAW_SPEED = RESULTS / "raw" / "speed"  # each bench's rows, per device, as JSON
 T = TypeVar("T")
 sys.path.insert(0, str(ROOT))
 
@@ -96,8 +97,8 @@ def fmt_s(seconds: float) -> str:
 
 
 def record(name: str, rows: list[Row], *, device: str) -> None:
-    """Print the rows and keep them for the table of the run (``benchmarks/results/<device>/<name>.json``)."""
-    out = RESULTS / device
+    """Print the rows and keep them for the table of the run (``benchmarks/results/raw/speed/<device>/<name>.json``)."""
+    out = RAW_SPEED / device
     out.mkdir(parents=True, exist_ok=True)
     meta = {"machine": platform.machine(), "cpus": os.cpu_count(), "python": platform.python_version()}
     (out / f"{name}.json").write_text(json.dumps({"rows": [asdict(r) for r in rows], "meta": meta}, indent=1))

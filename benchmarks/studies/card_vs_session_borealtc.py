@@ -1,6 +1,6 @@
 """Kept: the card's estimate checked against `workbench evaluate session` on BorealTC sessions: 80.48 % (pieces) and
-79.19 % (one run per terrain) held out (benchmarks/results/issue-54.md, "The card against `workbench evaluate
-session`").
+79.19 % (one run per terrain) held out (benchmarks/results/raw/protocols/notebook-model-and-card-2026-11-27.md,
+"The card against `workbench evaluate session`").
 
 Issue 54's card-against-evaluate row on BorealTC: a session of its runs, labelled as a person would, trained with
 `workbench train`; the card's figure (the estimate `train` prints, and what the exported card expects of the logs

@@ -1,5 +1,5 @@
 """Kept: self-training in the default family. Without it, 86.15 ± 1.98 % at 10 % on the authors' folds and 81.72 % on
-unseen runs, against 87.72 and 82.24 % with it (benchmarks/results/borealtc-protocol.md).
+unseen runs, against 87.72 and 82.24 % with it (benchmarks/results/protocols.md).
 
 What each part of the default family is worth on BorealTC: the shipped fit against the same fit with one part
 left out, through the product's protocol code (``training.borealtc_window_protocol``), both protocols.

@@ -1,6 +1,6 @@
 """Kept: the network over the frames with self-training (``cnn_st``) became the default family's stage 2: 86.83 /
 84.92 / 86.80 % on the inner folds of outer folds 1-3 against 80.87 / 79.42 / 84.60 for the linear model on window
-summaries (benchmarks/results/default-family-screens.md).
+summaries (benchmarks/results/raw/protocols/notebook-default-family-screens-2026-11-28.md).
 
 A second idea for the default family's stage 2, screened on BorealTC's inner folds only (the outer test folds are
 never read): a small convolutional network over the window's spectral frames, as BorealTC's CNN reads

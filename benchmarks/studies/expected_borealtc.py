@@ -1,8 +1,9 @@
 """Kept: `classify`'s expected accuracy per file (the drift relation, stretches under 10 s merged). Within 10 points
-on 46 % of held-out runs against 18 % for the card's figure (benchmarks/results/issue-54.md, "What to expect on
-each new run"). The members' agreement, screened after (issue 65): within 10 points on 62 % of held-out runs on the
-test folds, 55 % on inner fold set 1 (the drift's figure 46 and 40 %): the Data tab's and classify's first figure
-since (benchmarks/results/issue-65-expected-members-*.txt).
+on 46 % of held-out runs against 18 % for the card's figure
+(benchmarks/results/raw/protocols/notebook-model-and-card-2026-11-27.md, "What to expect on each new run"). The
+members' agreement, screened after: within 10 points on 62 % of held-out runs on the test folds, 55 % on inner fold
+set 1 (the drift's figure 46 and 40 %): the Data tab's and classify's first figure since
+(benchmarks/results/raw/estimates/expected-members-*.txt).
 
 Issue 54's expected-accuracy check on BorealTC: folds by run (5 outer folds), 10 % of the training partitions
 labelled; for every held-out run, the accuracy ``classify`` expects against the accuracy it scored on its 1.7 s

@@ -1,5 +1,5 @@
 """Kept: the per-stretch figure on files whose terrain changes (stretches under 10 s merged; 20 s merged real changes,
-and 38 % of walks fell 10 points under the truth) (benchmarks/results/issue-54-expected-walks.txt).
+and 38 % of walks fell 10 points under the truth) (benchmarks/results/raw/estimates/expected-walks-2026-11-27.txt).
 
 The per-stretch figure on files whose terrain changes: a model of four demo walks (35 % of their time labelled)
 classifies new demo walks (a terrain patch every 5-36 s), and each walk's figure by stretches, at each shortest

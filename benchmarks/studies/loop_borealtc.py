@@ -1,5 +1,5 @@
 """Kept: the yardstick of issue 65 (`workbench evaluate loop`). On the spliced run, `combined` 89.8 % against random's
-79.8 %; on one new run per terrain, 87.1 against 87.2 % (benchmarks/results/issue-65.md).
+79.8 %; on one new run per terrain, 87.1 against 87.2 % (benchmarks/results/raw/loop/notebook-new-runs-2026-11-28.md).
 
 Issue 65's loop on BorealTC's runs: `workbench evaluate loop` on a session where some runs were labelled (10 % of
 their time, in 5 s pieces) and others have no label at all, as a person's new runs do.

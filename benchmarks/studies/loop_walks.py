@@ -1,5 +1,5 @@
 """Kept: the yardstick of issue 65 on walks whose terrain changes. `combined` 95.5 % against random's 92.7 % (seed 1)
-and 93.9 against 86.3 % (seed 2) (benchmarks/results/issue-65.md).
+and 93.9 against 86.3 % (seed 2) (benchmarks/results/raw/loop/notebook-new-runs-2026-11-28.md).
 
 Issue 65's loop on demo walks whose terrain changes every 5-36 s: `workbench evaluate loop` on a session where
 half the walks were labelled (10 % of their time, in 5 s pieces) and the other half have no label.

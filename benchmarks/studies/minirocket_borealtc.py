@@ -1,6 +1,6 @@
 """Kept as the opt-in `minirocket` family, not the default: on folds by run it scored 75.8 / 85.9 % (accuracy at 10 /
 100 % of labels) against the default family's 80.6 / 90.5 %, and the two averaged 80.0 / 90.2 %
-(benchmarks/results/issue-54-labels.txt).
+(benchmarks/results/raw/protocols/labels-2026-11-27.txt).
 
 Issue 54, item 1: MiniRocket (``training.fit_rocket_classifier``: aeon's MiniRocket and ridge, written in
 PyTorch) beside the default family on BorealTC's folds by run, alone and averaged with it (an ensemble member), at

@@ -1,6 +1,6 @@
 """Kept: the logit adjustment (`WindowFitConfig.balance = "logits"`). With a terrain at a tenth of its time, its recall
-rose 3 to 16 points on every terrain (mean +9.6) on the test folds (benchmarks/results/issue-54.md, "Minority
-terrains").
+rose 3 to 16 points on every terrain (mean +9.6) on the test folds
+(benchmarks/results/raw/protocols/notebook-model-and-card-2026-11-27.md, "Minority terrains").
 
 Issue 54's minority row on BorealTC: folds by run (5 outer folds), 10 % of the training partitions labelled, the
 default family as it is; each terrain in turn kept at a tenth of its training partitions (labelled and unlabelled

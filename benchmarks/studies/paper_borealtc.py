@@ -1,37 +1,39 @@
 """The studies, as ``make paper`` runs them: both model families on BorealTC's protocols, the label-efficiency
-simulation, the studies behind the default family's kept choices, and issues 54 and 65's studies. Each study is one
-script of this room whose first line says what it decided and the figure that did.
+simulation, the studies behind the default family's kept choices, the model's and its figures' studies, and the
+loop's. Each study is one script of this room whose first line says what it decided and the figure that did.
 
-    python benchmarks/studies/paper_borealtc.py [protocol|simulate|decisions|issue54|issue65|all]
-    python benchmarks/studies/paper_borealtc.py issue54 PART...   # some of its parts: labels, card-runs, ...
+    python benchmarks/studies/paper_borealtc.py [protocol|simulate|decisions|model|loop|all]
+    python benchmarks/studies/paper_borealtc.py model PART...   # some of its parts: labels, card-runs, ...
 
 ``decisions``: the default family's kept choices, each its study (the spectral front end under a plain learner, the
 network over the frames against the linear model, self-training left out, ``classify --smooth``), and MiniRocket's
-heads at 4,096 windows; each output goes to ``benchmarks/results/decisions-NAME.txt``. Their durations on 2 cores
-were not measured as one command.
+heads at 4,096 windows; each output goes to ``benchmarks/results/raw/protocols/NAME-DATE.txt``. Their durations on
+2 cores were not measured as one command.
 
 ``protocol``: the default family (about 2 minutes on 2 CPU cores) and the paper family (about an hour per split) on
 the authors' partition folds and on folds holding out whole runs, 10 % of the training partitions labelled.
 ``simulate``: random against the suggested labels, 5 seeds (seed s runs outer fold s + 1), 8 rounds of 10 whole
 partitions, for the default family (about 15 minutes) and the paper family (hours).
 
-``issue54``: the runs split at 5, 10, 25 and 100 % of labels for the default family, MiniRocket with a ridge head and
+``model``: the runs split at 5, 10, 25 and 100 % of labels for the default family, MiniRocket with a ridge head and
 their mean (an ensemble member), the default family at a 3.4 s span (an ablation of the span), the default family's
 minority row (each terrain kept at a tenth of its time; again without the logit adjustment, its ablation), the
 expected accuracy per held-out run against what it scored (on BorealTC's runs and on demo walks whose terrain
 changes), the card against ``workbench evaluate session`` on BorealTC sessions, and the label efficiency on folds by
 run (``workbench evaluate borealtc --simulate --split runs``, 3 seeds); 82 minutes as one command on 2 cores (at
-76f3e90), each output written to ``benchmarks/results/issue-54-*.txt``, which ends with its seconds.
+76f3e90), each output written to ``benchmarks/results/raw/protocols/`` (the expected accuracy's and the card's to
+``raw/estimates/``) as ``NAME-DATE.txt``, which ends with its seconds.
 
-``issue65``: `workbench evaluate loop` (4 rounds of 12 suggestions, a piece person) on BorealTC with one run per
+``loop``: `workbench evaluate loop` (4 rounds of 12 suggestions, a piece person) on BorealTC with one run per
 terrain left unlabelled, on BorealTC with a run spliced from five (26 terrain changes), and on demo walks whose
 terrain changes, each with ``combined``, its ablations (``combined-no-unchecked``: new runs not first;
 ``combined-no-wrong-first``: runs the checks found wrong not asked again; ``combined-no-main-answer``: a run's main
 answer never asked; ``combined-no-votes``: a run's labels not voting over its frames) and ``random``, on seed 1
-(some rules were chosen on it; benchmarks/results/issue-65.md has seed 2 beside it); and the run votes' screen on
-demo walks never used for the choice. About an hour a loop part on 2 cores (six arms).
+(some rules were chosen on it; benchmarks/results/raw/loop/notebook-new-runs-2026-11-28.md has seed 2 beside it);
+and the run votes' screen on demo walks never used for the choice. About an hour a loop part on 2 cores (six arms).
 
-Writes Markdown reports (and the simulation plot) to ``benchmarks/results/``. Skips with a reason when
+Writes its raw outputs (and the simulation plot) under ``benchmarks/results/raw/<question>/``; the pages above them
+(``protocols.md``, ``estimates.md``, ``loop.md``) are written by hand from them. Skips with a reason when
 ``../shared/data/borealtc`` is absent (a user's clone).
 """
 
@@ -44,7 +46,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT.parent / "shared" / "data" / "borealtc"
-RESULTS = ROOT / "benchmarks" / "results"
+RAW = ROOT / "benchmarks" / "results" / "raw"
+DAY = time.strftime("%Y-%m-%d")
 BENCH = str(ROOT / "benchmarks" / "studies")
 SIMULATE_RUNS = (
     "--simulate",
@@ -59,7 +62,7 @@ SIMULATE_RUNS = (
     "--batch",
     "10",
 )
-ISSUE54 = (  # (name, arguments to python): each prints its own table
+MODEL = (  # (name, arguments to python): each prints its own table
     ("labels", [f"{BENCH}/minirocket_borealtc.py"]),  # the runs split at 5/10/25/100 %: default, MiniRocket, mean
     ("labels-span", [f"{BENCH}/minirocket_borealtc.py", "--span", "3.4", "--no-member", "--labelled", "0.1", "1"]),
     ("minority", [f"{BENCH}/minority_borealtc.py"]),
@@ -79,7 +82,7 @@ LOOP_ARMS = (
     "combined-no-votes",
     "random",
 )
-ISSUE65 = (
+LOOP = (
     ("loop-walks", [f"{BENCH}/loop_walks.py", "--seed", "1", *LOOP_ARMS]),
     ("loop-new-runs", [f"{BENCH}/loop_borealtc.py", "new-runs", "--seed", "1", *LOOP_ARMS]),
     ("loop-spliced", [f"{BENCH}/loop_borealtc.py", "spliced", "--seed", "1", *LOOP_ARMS]),
@@ -92,13 +95,15 @@ DECISIONS = (
     ("smooth", [f"{BENCH}/smooth_demo.py"]),
     ("rocket-rows", [f"{BENCH}/rocket_rows_borealtc.py"]),  # MiniRocket's 4,096 windows where they bite (25 %)
 )
-ISSUES = {"decisions": DECISIONS, "issue54": ISSUE54, "issue65": ISSUE65}
-PREFIX = {"decisions": "decisions", "issue54": "issue-54", "issue65": "issue-65"}  # of each part's results file
+PARTS = {"decisions": DECISIONS, "model": MODEL, "loop": LOOP}
+# the question each part's raw output answers (benchmarks/results/raw/<question>/): the page it feeds
+QUESTION = {"decisions": "protocols", "model": "protocols", "loop": "loop"}
+ESTIMATES = {"expected", "expected-walks", "card-pieces", "card-runs"}  # model's parts that feed estimates.md
 
 
 def main(which: str = "all", *, parts: list[str] | None = None) -> int:
-    if parts and which not in ISSUES:
-        print(f"paper_borealtc.py: parts are for {' and '.join(ISSUES)} only, not {which}", file=sys.stderr)
+    if parts and which not in PARTS:
+        print(f"paper_borealtc.py: parts are for {' and '.join(PARTS)} only, not {which}", file=sys.stderr)
         return 2
     if not DATA.is_dir():
         print(f"skipped: {DATA} is absent (BorealTC is not shipped with the project)")
@@ -106,19 +111,25 @@ def main(which: str = "all", *, parts: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
     from workbench.evaluation import protocols as ev
 
-    RESULTS.mkdir(parents=True, exist_ok=True)
+    protocols = RAW / "protocols"
+    protocols.mkdir(parents=True, exist_ok=True)
     if which in ("protocol", "all"):
         t = time.monotonic()
-        (RESULTS / "borealtc-protocol.json").unlink(missing_ok=True)  # the workbench writes new files only
+        (protocols / f"borealtc-protocol-{DAY}.json").unlink(missing_ok=True)  # the workbench writes new files only
         report = ev.evaluate_borealtc(
-            DATA, model="both", labelled=0.1, split="both", variant="shared", out=RESULTS / "borealtc-protocol.json"
+            DATA,
+            model="both",
+            labelled=0.1,
+            split="both",
+            variant="shared",
+            out=protocols / f"borealtc-protocol-{DAY}.json",
         )
-        (RESULTS / "borealtc-protocol.md").write_text(report + f"\n\n{time.monotonic() - t:.0f} s\n")
+        (protocols / f"borealtc-protocol-{DAY}.md").write_text(report + f"\n\n{time.monotonic() - t:.0f} s\n")
         print(report)
     if which in ("simulate", "all"):
         t = time.monotonic()
         for model in ("default", "paper"):
-            (RESULTS / model / "simulate-borealtc.png").unlink(missing_ok=True)
+            (protocols / model / "simulate-borealtc.png").unlink(missing_ok=True)
         report = "\n\n".join(
             f"## {model} family\n\n"
             + ev.simulate(
@@ -128,24 +139,23 @@ def main(which: str = "all", *, parts: list[str] | None = None) -> int:
                 seeds=5,
                 rounds=8,
                 batch=10,
-                out=RESULTS / model,
+                out=protocols / model,
                 model=model,
             )
             for model in ("default", "paper")
         )
-        (RESULTS / "borealtc-simulate.md").write_text(report + f"\n\n{time.monotonic() - t:.0f} s\n")
+        (protocols / f"borealtc-simulate-{DAY}.md").write_text(report + f"\n\n{time.monotonic() - t:.0f} s\n")
         print(report)
     code = 0
-    for issue, table in ISSUES.items():
-        if which in (issue, "all"):
-            code = max(code, run_parts(issue, table, parts or [name for name, _ in table]))
+    for part, table in PARTS.items():
+        if which in (part, "all"):
+            code = max(code, run_parts(part, table, parts or [name for name, _ in table]))
     return code
 
 
-def run_parts(issue: str, table: tuple, parts: list[str]) -> int:
-    """Run the named parts of a ``table`` in its order; each output goes to ``PREFIX-NAME.txt`` (``issue-NN-NAME.txt``,
-    ``decisions-NAME.txt``) headed by the commit it ran at and ending with its seconds, so parts run at different
-    times say which code gave them."""
+def run_parts(part: str, table: tuple, parts: list[str]) -> int:
+    """Run the named parts of a ``table`` in its order; each output goes to ``raw/<question>/NAME-DATE.txt`` headed by
+    the commit it ran at and ending with its seconds, so parts run at different times say which code gave them."""
     known = [name for name, _ in table]
     unknown = sorted(set(parts) - set(known))
     if unknown:
@@ -162,12 +172,14 @@ def run_parts(issue: str, table: tuple, parts: list[str]) -> int:
         took = f"{time.monotonic() - t:.0f} s" + (f", exit {out.returncode}" if out.returncode else "")
         command = " ".join(a.replace(f"{ROOT}/", "") for a in args)
         text = f"commit {commit.stdout.strip() or 'unknown'}: python {command}\n\n{out.stdout}{out.stderr}\n{took}\n"
-        (RESULTS / f"{PREFIX[issue]}-{name}.txt").write_text(text)
+        folder = RAW / ("estimates" if name in ESTIMATES else QUESTION[part])
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / f"{name}-{DAY}.txt").write_text(text)
         print(f"\n{text}", flush=True)
         if out.returncode:
             failed.append(name)
     if failed:
-        where = f"benchmarks/results/{PREFIX[issue]}-*.txt"
+        where = f"benchmarks/results/raw/{QUESTION[part]}/"
         print(f"paper_borealtc.py: {', '.join(failed)} failed; see {where}", file=sys.stderr)
     return 1 if failed else 0
 

@@ -1,6 +1,6 @@
 """Kept: a run's labels vote over its own frames with `w = exp(-(near/1.0)^2) · (1 - trust · max p)`. On walks never
 used for the choice (seed 2): 93.0 % with all labels and 91.7 % with one terrain's, against the model's 91.6 %
-(benchmarks/results/issue-65-propagate-demo-s2.txt).
+(benchmarks/results/raw/loop/propagate-demo-s2-2026-11-27.txt).
 
 The screen behind ``labeling.propagate`` (issue 65, item 3): how a run's own labels should be blended with the
 model's answer on that run. Kept: ``w = exp(-(near / 1.0)^2) * (1 - trust * max p)``.

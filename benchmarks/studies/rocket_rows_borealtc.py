@@ -1,4 +1,4 @@
-"""Kept: MiniRocket's heads read at most 4,096 labelled hop rows (issue 66; benchmarks/results/issue-66.md,
+"""Kept: MiniRocket's heads read at most 4,096 labelled hop rows (issue 66; benchmarks/results/fleet.md,
 "MiniRocket at a fleet's hours").
 
 The accuracy cost of that budget on BorealTC's runs, where it bites: a session of every run, a share of its time

@@ -1,5 +1,5 @@
 """Kept as an option, off by default: `classify --smooth` gained +0.4 to +0.5 points on new demo walks
-(benchmarks/results/issue-54.md, "The optional filter").
+(benchmarks/results/raw/protocols/notebook-model-and-card-2026-11-27.md, "The optional filter").
 
 Issue 54's optional filter on runs with real terrain changes: `workbench classify` with and without `--smooth` on
 new demo walks (patches of about 20 s), scored against their truth.

@@ -1,6 +1,6 @@
 """Kept: the spectral front end (every family but the paper's reads it). A logistic regression on it alone scored
 83.66 % at 10 % of labels on the authors' folds, against 74.2 % for the paper's LSTMs
-(benchmarks/results/default-family-screens.md).
+(benchmarks/results/raw/protocols/notebook-default-family-screens-2026-11-28.md).
 
 How far the spectral front end alone carries on BorealTC: a logistic regression on window summaries of
 ``training.spectral_cnn`` frames, under both protocols, with its one setting chosen on inner folds only.

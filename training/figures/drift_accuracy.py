@@ -1,5 +1,5 @@
 """What a new file is expected to score, from its drift: the relation between drift and accuracy a fit measured on
-its held-out folds (issue 54).
+its held-out folds (``benchmarks/studies/expected_borealtc.py``).
 
 A fit's ensemble members each held out blocks of the labelled time; each held-out row has the member's drift (how
 unlike the member's own labelled rows it is, :mod:`.spectral_cnn.window_drift`) and whether the member was right.

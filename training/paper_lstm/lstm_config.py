@@ -68,12 +68,14 @@ class TrainConfig:
         class_balance: Stage 2: weight each class's cross-entropy by the inverse of its labelled steps (the
             weights' labelled-step mean is 1), so a terrain labelled less does not lose to one labelled more. Off by
             default: on BorealTC's label-efficiency simulation (3 seeds) it left random labelling's curve where it
-            was and lowered the suggested labels' middle rounds by 3 points (benchmarks/results/label-efficiency.md).
+            was and lowered the suggested labels' middle rounds by 3 points
+            (benchmarks/results/raw/protocols/notebook-label-efficiency-2026-11-26.md).
         consistency: Stage 2: weight of the consistency term on unlabelled neighbour pairs (``fit_classifier``'s
             ``pairs``): the squared distance between the class probabilities the model gives two windows of one log
             a few seconds apart, with no change point between their last steps. It lets the unlabelled logs shape the
             classifier, which counts most when labels are few: on BorealTC, 40 partitions chosen by ``combined`` went
-            from 78.7 to 83.7 % with weight 3 (fold 2; benchmarks/results/label-efficiency.md). Ignored without pairs.
+            from 78.7 to 83.7 % with weight 3 (fold 2;
+            benchmarks/results/raw/protocols/notebook-label-efficiency-2026-11-26.md). Ignored without pairs.
             Off (0) by default: on 40 minutes of demo walks it made the UI's stage-2 refit from scratch 15× slower
             (1356 s against 90 s) for no accuracy (71.2 against 72.6 %; benchmarks/paper_consistency_cost.py at
             38a27ac), and on BorealTC's simulation it moved the label-efficiency ratio from about 0.73× to 0.68×

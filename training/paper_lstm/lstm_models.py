@@ -53,7 +53,7 @@ def stage1_features(
     few labels learns it far better from the magnitude than from the signed error or the hidden state alone
     (held-out demo logs, 40 labelled 3 s segments: 64 % against 44 % and 31 %). ``hidden+surprise``, the
     workbench's default, keeps the hidden state beside it, which is what BorealTC's few-label runs liked best
-    (benchmarks/results/label-efficiency.md).
+    (benchmarks/results/raw/protocols/notebook-label-efficiency-2026-11-26.md).
     """
     if mode == "hidden":
         return hidden

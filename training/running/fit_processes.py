@@ -3,9 +3,10 @@
 Threads share one interpreter: a fold network's step is many small torch ops, and between two ops the thread needs
 the GIL back. Sampled on 2 cores (py-spy ``--gil``), a fit thread held the GIL in 18 % of its active samples, so
 threads top out near five fits' worth of cores however many there are, and waiting for the GIL costs more the more
-threads ask (a first model's ten fits: 1.24x from 16 cores over 2, ``benchmarks/results/bench-gpu.md``). A forked
-child shares nothing but the memory it inherits: the session's memory-mapped frames and the self-training pool are
-read in place (copy-on-write, never written), and only the result travels back, as plain arrays.
+threads ask (a first model's ten fits: 1.24x from 16 cores over 2,
+``benchmarks/results/raw/fleet/gpu-and-cores-h200-2026-11-28.md``). A forked child shares nothing but the memory it
+inherits: the session's memory-mapped frames and the self-training pool are read in place (copy-on-write, never
+written), and only the result travels back, as plain arrays.
 
 Forking is Linux's: elsewhere, or with ``WORKBENCH_FIT_PROCESSES=0``, the fits run in threads
 (:mod:`.fit_threads`). A child enters no OpenMP parallel region (one torch thread), which is what makes a fork after

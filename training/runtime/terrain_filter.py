@@ -7,7 +7,7 @@ a terrain, in steps (``--smooth SECONDS``). The classifier's probabilities stand
 offline, ``classify --smooth`` reads whole files and runs forward–backward. The causal filter answers a change
 late: :meth:`TerrainFilter.delay_steps` is that delay for a clean change at a given confidence.
 
-Issue 54 measured it as an option, not more: +0.5 points on a quadruped's held-out runs (errors in long blocks),
+Measured as an option, not more: +0.5 points on a quadruped's held-out runs (errors in long blocks),
 +4 to +6 on a run with 26 terrain changes. Off unless asked for.
 
 NumPy only, so it ships with the streaming runtime.

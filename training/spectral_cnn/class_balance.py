@@ -1,4 +1,5 @@
-"""A terrain's weight in the window network's loss when it has less labelled time than the others (issue 54).
+"""A terrain's weight in the window network's loss when it has less labelled time than the others (logit adjustment:
+Menon et al. 2021).
 
 Three ways are offered (:attr:`.window_config.WindowFitConfig.balance`), each a function of the terrains' shares
 of the training rows, ``prior``:

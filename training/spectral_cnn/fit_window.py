@@ -13,7 +13,7 @@ lends it to all of its frames, and the fold's network goes on training on its la
 (``refit_epochs``). Its out-of-fold figures stay honest: stretches never hold a labelled step.
 
 The refit goes on from the network that labelled the stretches, for 10 passes, rather than training a new one for
-30 (issue 53): a first model on 11 quadruped-shaped logs of 50 Hz IMU
+30: a first model on 11 quadruped-shaped logs of 50 Hz IMU
 (``benchmarks/speed/bench_first_model.py``) trained its stage 2 in 36 s instead of 70, and BorealTC's folds by run
 at 10 % of labels (two seeds, checked once, not screened) scored 81.8 % against 81.3 %.
 """

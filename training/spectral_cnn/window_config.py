@@ -69,7 +69,7 @@ class WindowFitConfig:
         pool_mib: Most memory self-training's pool of unlabelled rows holds: past it, a random draw of the stretches
             that fits (``stretch_pool.pool_draw``), each read whole. A row is ``window`` frames (12.6 KiB at 22
             channels, every third frame read), so 10 hours of unlabelled logs fill 700 MiB and 100 hours 7 GiB: the
-            part of a fit that grew with a fleet's hours (issue 66). 0: no bound.
+            part of a fit that grew with a fleet's hours (benchmarks/results/fleet.md). 0: no bound.
         pool_share: At most this share of the pool's bytes, drawn as ``pool_mib`` draws: what the budget keeps of a
             fleet's hours, reproduced on a small set to measure its cost (1: all).
         held_out: Also measure accuracy on held-out logs (folds over logs: as many fits again).

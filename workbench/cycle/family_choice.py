@@ -1,5 +1,5 @@
 """``train --model auto``: fit every family that reads the default stage 1, keep the one the session's own held-out
-evidence favours, and say why (issue 65, item 7).
+evidence favours, and say why.
 
 Which family wins differs by robot (a wearable gait set: MiniRocket 78.6 % against the default's 75.3; a quadruped
 and BorealTC's runs: the default), so the choice is made per session, from the estimates the fits already make:

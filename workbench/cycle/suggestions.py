@@ -19,9 +19,9 @@ from .session_figure import DEFAULT_WIDTH, session_figures
 # 56-71 % as 3 s pieces (docs/design-notes.md, "Suggestion length").
 SUGGESTION_S = 1.0
 # Of a queue of 4 or more, this many are spot checks, drawn uniformly from the unlabelled time: what the person's
-# checks of them say of the model is a fair sample (issue 65), which the ranked suggestions' is not
+# checks of them say of the model is a fair sample, which the ranked suggestions' is not
 SPOT_CHECKS = 1
-# Which logs are asked the model's main answer there (issue 65, ``labeling.suggest``): a log once the person's checks
+# Which logs are asked the model's main answer there (``labeling.suggest``): a log once the person's checks
 # there found the model right at least as often as wrong. `evaluate loop`, 4 x 12 suggestions, same code: BorealTC with
 # one run per terrain new, 87.1 -> 91.4 % (seed 1) and 81.7 -> 93.8 % (seed 2, never used for the choice); demo walks
 # whose terrain changes every 5-36 s, 95.5 -> 94.0 % and 93.9 -> 91.3 % (random: 92.7 and 86.3 %). Asking every

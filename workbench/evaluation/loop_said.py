@@ -1,4 +1,4 @@
-"""What the workbench says of each new log in ``evaluate loop`` (issue 65's fourth target): the figure its Data tab
+"""What the workbench says of each new log in ``evaluate loop``: the figure its Data tab
 shows (its members' agreement, else the accuracy expected at the log's drift, else the bound by its stretches), the
 person's checks in it, and whether it warns, beside the truth. A log passes when its figure lies within ``WITHIN`` of
 the truth or the workbench warns about it by name."""

@@ -1,5 +1,5 @@
 """The person's checks carried in an exported bundle (``checks.json``), so ``classify`` can set them beside its own
-expectation on files far from the session (issue 65, item 4).
+expectation on files far from the session.
 
 The counts are the session's at export: right of how many, over spot checks (the fair sample of the unlabelled
 time), over the checks of suggestions and manual labels, and over all. ``classify`` reads them back as Wilson
