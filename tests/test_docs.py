@@ -19,6 +19,14 @@ def test_the_readme_is_a_front_door_with_its_screenshot() -> None:
     assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and picture.stat().st_size > 10_000
 
 
+def test_the_design_notes_read_in_a_quarter_hour() -> None:
+    """The decisions that hold, each with the figure that chose it: at most 400 lines (screens not kept are one line
+    each at its end; their history is in git and the results' notebooks)."""
+    lines = (REPO / "docs" / "design-notes.md").read_text().splitlines()
+    assert len(lines) <= 400, f"docs/design-notes.md is {len(lines)} lines"
+    assert "## Screened and not kept" in lines
+
+
 def test_every_relative_link_resolves() -> None:
     broken = []
     for page in PAGES:
