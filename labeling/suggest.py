@@ -35,13 +35,17 @@ DRIFT_PRIORITY = 1.0  # added to a drifted candidate's score (others lie in [0, 
 # included): a person's new runs are checked before more time of runs already checked, spread over the new runs
 # first (LOG_DECAY), then over time (NEIGHBOUR_DECAY). Measured: a run the model got 40 points worse than the rest drew
 # 5 of 45 picks; with a fixed +2 (drifted candidates reach 5) one new run among 66 checked ones still drew 1 of 12. A
-# log whose checks found the model wrong keeps ``wrong / (checks + 1)`` of the tier: a run the model gets wrong is
-# asked about again once checked, not left after its first pick.
+# log whose checks found the model wrong keeps ``wrong / (checks + 1) / WRONG_FULL`` of the tier (at most all of it):
+# a run the model gets wrong is asked about again once checked, not left after its first pick.
 DRIFT_CAP = 4.0  # a drifted candidate's own score is weighted by its drift, up to this
 MISSED_RECALL = 0.5  # a terrain measured under this recall is one the model misses (training.MISSED_RECALL)
 MISSED_BOOST = 6.0  # a candidate with all its probability on a fully missed terrain counts (1 + this) times
 NEAREST_MIB = 64  # scikit-learn's working memory for the candidates' nearest labelled segment, a block at a time
 MISSED_SAY = 0.1  # the pull (missed share x probability) from which the reason names the missed terrain
+# a checked log whose checks found the model wrong this often (wrong / (checks + 1)) is level with the logs nobody
+# checked: at 10 wrong of 24 (0.4 of the tier) a changing run lost its picks to the other runs' best candidates while
+# the model was still wrong on 4 of 10 of its doubted places there
+WRONG_FULL = 1 / 3
 
 
 def _kinds_for(strategy: Strategy) -> tuple[Kind, ...]:
@@ -165,9 +169,9 @@ def suggest(
             spread over those logs and then over their time, so a person's new runs are checked before more time of
             runs already checked.
         wrong: Per log, ``(wrong, checks)``: how often the person's checks there found the model wrong. ``combined``
-            (with ``unchecked_first``) then lifts a checked log's candidates by ``wrong / (checks + 1)`` of
-            the new logs' tier: where checks found the model wrong, more checks follow, behind the logs nobody has
-            checked yet.
+            (with ``unchecked_first``) then lifts a checked log's candidates by ``wrong / (checks + 1)`` over
+            ``WRONG_FULL`` of the new logs' tier (at most all of it): where checks found the model wrong, more
+            checks follow, level with the logs nobody has checked yet once a third of them were wrong.
         wrong_first: Whether ``wrong`` lifts the logs (off only to measure what that is worth; ``main_answer``
             still reads it).
         spot_checks: How many of the ``n`` are spot checks, placed last: each a piece around a step drawn uniformly
@@ -249,7 +253,7 @@ def suggest(
         tier = 1.0 + float(base.max(initial=0.0))  # above any candidate's own score
         per_log = np.zeros(len(scores))
         for g, (bad, n_checks) in enumerate((wrong or ()) if wrong_first else ()):
-            per_log[g] = tier * bad / (n_checks + 1)
+            per_log[g] = tier * min(1.0, bad / (n_checks + 1) / WRONG_FULL)
         per_log[[g for g in range(len(scores)) if g not in checked]] = tier
         priority = per_log[logs]  # (N,) each candidate's log's
     firsts: list[Suggestion] = []
