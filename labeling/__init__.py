@@ -8,6 +8,7 @@ from .check_estimates import CheckEstimate, check_estimate, wilson
 from .placed_picks import Suggestion, coverage
 from .ppi_accuracy import MAX_GAIN, Z90, Moments, PoweredAccuracy, powered_accuracy, wilson_bounds
 from .propagate import RunVotes, blend_votes, run_trust, run_votes
+from .queue_policy import STRATEGIES, Evidence, MainAnswer, QueuePolicy, Strategy
 from .simulate import (
     CurvePoint,
     Labelled,
@@ -23,7 +24,7 @@ from .simulate import (
     time_to_reach,
 )
 from .stretches import PredictedStretch, predicted_stretches, uncovered
-from .suggest import STRATEGIES, Interrupted, MainAnswer, Strategy, candidates, class_weights, suggest
+from .suggest import Interrupted, candidates, class_weights, suggest
 from .teacher import TEACHER_SURE, taught_terrains
 from .tracks import (
     DRIFT_TRACK_AT_1,
@@ -56,6 +57,7 @@ __all__ = [
     "Z90",
     "CheckEstimate",
     "CurvePoint",
+    "Evidence",
     "Interrupted",
     "Interval",
     "Kind",
@@ -66,6 +68,7 @@ __all__ = [
     "Moments",
     "PoweredAccuracy",
     "PredictedStretch",
+    "QueuePolicy",
     "Round",
     "RunVotes",
     "Snap",

@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .suggest import Strategy, suggest
+from .queue_policy import Evidence, QueuePolicy, Strategy
+from .suggest import suggest
 from .tracks import LogScores
 
 Labelled = tuple[int, int, int, int]  # (log, start, stop, class)
@@ -111,17 +112,16 @@ def simulate(
         counts = np.bincount([c for *_, c in labels], [b - a for _, a, b, _ in labels], minlength=len(classes))
         picks = suggest(
             state.scores,
-            labelled=spans,
-            label_counts=counts,
-            change_points=change_points,
-            classes=classes,
-            strategy=strategy,
+            Evidence(
+                labelled=spans,
+                label_counts=counts,
+                change_points=change_points,
+                classes=classes,
+                embeddings=embeddings,
+                recall=state.recall,
+            ),
+            policy=QueuePolicy(strategy=strategy, max_len=max_len, min_len=min_len, seed=seed * 1000 + r),
             n=batch,
-            max_len=max_len,
-            min_len=min_len,
-            embeddings=embeddings,
-            recall=state.recall,
-            seed=seed * 1000 + r,
         )
         if not picks:
             break

@@ -12,19 +12,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
-from typing import Literal
 
 import numpy as np
 
 from .changepoints import span_array
 from .placed_picks import Span, Suggestion, coverage, main_answers, spot_guess, unlabelled_runs
 from .placed_picks import spot_checks as place_spot_checks
+from .queue_policy import Evidence, QueuePolicy, Strategy
 from .span_means import embedding_means, log_span_means, per_log
 from .tracks import DRIFT_TRACK_AT_1, Kind, LogScores, normalised_tracks
-
-Strategy = Literal["random", "entropy", "margin", "disagreement", "surprise", "combined"]
-MainAnswer = Literal["off", "new", "checked-right"]  # which logs are asked the model's main answer there
-STRATEGIES: tuple[Strategy, ...] = ("random", "entropy", "margin", "disagreement", "surprise", "combined")
 
 # weights of the combined score; renormalised over the kinds the model can give
 WEIGHTS: dict[str, float] = {"unsure": 0.45, "disagreement": 0.3, "surprise": 0.25}
@@ -122,81 +118,37 @@ def class_weights(label_counts: np.ndarray) -> np.ndarray:
 
 def suggest(
     scores: Sequence[LogScores],
+    evidence: Evidence = Evidence(),
     *,
-    labelled: Sequence[Span] = (),
-    label_counts: np.ndarray | None = None,
-    change_points: Sequence[np.ndarray] | None = None,
-    classes: Sequence[str] = (),
-    strategy: Strategy = "combined",
+    policy: QueuePolicy = QueuePolicy(),
     n: int = 10,
-    max_len: int = 500,
-    min_len: int = 100,
-    window: int = 25,
-    embeddings: Sequence[np.ndarray] | None = None,
-    recall: np.ndarray | None = None,
-    seed: int = 0,
-    unchecked_first: bool = True,
-    spot_checks: int = 0,
-    wrong: Sequence[tuple[int, int]] | None = None,
-    tracks: Sequence[Mapping[Kind, np.ndarray]] | None = None,
-    wrong_first: bool = True,
-    main_answer: MainAnswer = "off",
-    answered: Sequence[Span] = (),
     stop: Callable[[], bool] = lambda: False,
 ) -> list[Suggestion]:
     """The next ``n`` segments to label.
 
     Args:
         scores: Per log, the model's scores (``probs`` ``None`` before a classifier exists).
-        labelled: Labelled stretches ``(log, start, stop)``; never suggested again.
-        label_counts: ``(K,)`` labelled samples per class (favours rare classes in ``combined``).
-        change_points: Per log, ``(N,)`` change-point sample indices where candidates are cut.
-        classes: ``K`` class names, for the reasons.
-        strategy: ``random``, ``entropy``, ``margin``, ``disagreement`` (BALD), ``surprise`` or ``combined``.
-        n: How many suggestions.
-        max_len: Longest suggestion, samples.
-        min_len: Shortest suggestion, samples.
-        window: Smoothing of the tracks, samples.
-        embeddings: Per log, ``(T, D)`` features (e.g. stage 1's hidden state). ``combined`` then clusters the
-            candidates' mean feature vectors and takes the most typical member of each cluster first, holding back
-            segments like labelled ones: before a classifier exists this alone ranks (covering the kinds of
-            terrain), after it the clusters keep the uncertain picks diverse.
-        recall: ``(K,)`` each class's measured recall (NaN: not measured). ``combined`` favours candidates the
-            model gives some probability to a class it misses (recall under ``MISSED_RECALL``): a missed terrain is
-            rarely the guess, so its probability, not the guess, says where it may be; the reason names it.
-        seed: Seed of ``random`` (other strategies are deterministic; ties break by log then start).
-        unchecked_first: ``combined``: the candidates of logs with no labelled span come before every other one,
-            spread over those logs and then over their time, so a person's new runs are checked before more time of
-            runs already checked.
-        wrong: Per log, ``(wrong, checks)``: how often the person's checks there found the model wrong. ``combined``
-            (with ``unchecked_first``) then lifts a checked log's candidates by ``wrong / (checks + 1)`` over
-            ``WRONG_FULL`` of the new logs' tier (at most all of it): where checks found the model wrong, more
-            checks follow, level with the logs nobody has checked yet once a third of them were wrong.
-        wrong_first: Whether ``wrong`` lifts the logs (off only to measure what that is worth; ``main_answer``
-            still reads it).
-        spot_checks: How many of the ``n`` are spot checks, placed last: each a piece around a step drawn uniformly
-            from the unlabelled time (``seed``), overlapping neither labels nor the other picks. A check the person
-            makes of one is an unbiased sample of the model's accuracy on unlabelled time, which a ranked
-            suggestion's is not.
-        tracks: Per log, the tracks :func:`normalised_tracks` gives for these ``scores`` and ``window`` (every kind
-            or more), where the caller has them already: the kinds the strategy reads are taken from them instead
-            of computed again (at 10 hours of logs, 69 MB).
-        main_answer: ``combined`` (with ``unchecked_first``): where a log is asked about its main answer, the middle
-            of the model's longest stretch of one terrain (kind ``"main answer"``, placed first): a run the model
-            reads confidently as the wrong terrain has no doubt to draw a pick to its bulk. ``"new"``: every log
-            nobody checked, before the tier's picks where the model is unsure. ``"checked-right"``: a log once the
-            person's checks there (``wrong``) found the model right at least as often as wrong: where the model is
-            right where it doubts, whether its sure bulk is right is the question left; where it is wrong there, the
-            tier goes on asking where it doubts. ``"off"``: never.
-        answered: The pieces of ``labelled`` that were checks of a log's main answer: they do not count as checking
-            the log (it keeps its place in the tier for the picks where the model is unsure), and a log with one is
-            not asked its main answer again.
+        evidence: What is labelled and checked, per log in the order of ``scores`` (:class:`Evidence`).
+        policy: Which tiers in which order, how long a pick, how many spot checks (:class:`QueuePolicy`).
+        n: How many suggestions (spot checks included).
         stop: Polled between the ranking's passes; when it returns True, :class:`Interrupted` is raised (a fleet's
             hours take seconds a pass, and a caller with newer work has no use for this ranking).
 
     Returns:
         At most ``n`` suggestions, best first, overlapping neither labelled time nor each other.
     """
+    labelled, label_counts, change_points = evidence.labelled, evidence.label_counts, evidence.change_points
+    classes, embeddings, recall, wrong = evidence.classes, evidence.embeddings, evidence.recall, evidence.wrong
+    answered, tracks = evidence.answered, evidence.tracks
+    strategy, max_len, min_len, window, seed = (
+        policy.strategy,
+        policy.max_len,
+        policy.min_len,
+        policy.window,
+        policy.seed,
+    )
+    unchecked_first, wrong_first, main_answer = policy.unchecked_first, policy.wrong_first, policy.main_answer
+    spot_checks = policy.spot_checks
     lengths = [len(s) for s in scores]
     spot_checks = min(max(spot_checks, 0), n)
     n -= spot_checks

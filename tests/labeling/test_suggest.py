@@ -1,13 +1,38 @@
 """Suggestions: never on labelled time, never overlapping, deterministic, with reasons and guesses."""
 
 import itertools
+from collections.abc import Callable
+from dataclasses import fields
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from labeling import STRATEGIES, LogScores, candidates, class_weights, coverage, oracle, suggest
+from labeling import (
+    STRATEGIES,
+    Evidence,
+    LogScores,
+    QueuePolicy,
+    Suggestion,
+    candidates,
+    class_weights,
+    coverage,
+    oracle,
+    suggest,
+)
+
+EVIDENCE = {f.name for f in fields(Evidence)}
+
+
+def ranked(
+    scores: list[LogScores], *, n: int = 10, stop: Callable[[], bool] = lambda: False, **named
+) -> list[Suggestion]:
+    """``suggest`` with its options named flat: each goes to ``Evidence`` or ``QueuePolicy`` by its field's name (an
+    unknown name fails in ``QueuePolicy``)."""
+    evidence = Evidence(**{k: v for k, v in named.items() if k in EVIDENCE})
+    policy = QueuePolicy(**{k: v for k, v in named.items() if k not in EVIDENCE})
+    return suggest(scores, evidence, policy=policy, n=n, stop=stop)
 
 
 def make_scores(lengths: list[int], k: int, seed: int, *, cold: bool = False) -> list[LogScores]:
@@ -55,7 +80,7 @@ def test_suggestions_never_overlap_labels_or_each_other(situation, strategy, col
         seed=seed,
     )
     kwargs["embeddings"] = embeddings
-    got = suggest(scores, **kwargs)
+    got = ranked(scores, **kwargs)
     assert len(got) <= n
     cov = coverage(lengths, labelled)
     for s in got:
@@ -68,7 +93,7 @@ def test_suggestions_never_overlap_labels_or_each_other(situation, strategy, col
     assert all(s.reason for s in got)
     assert all((s.guess is None) == cold for s in got)
     # deterministic for a fixed seed
-    assert suggest(scores, **kwargs) == got
+    assert ranked(scores, **kwargs) == got
 
 
 def test_ranking_follows_the_strategy() -> None:
@@ -78,23 +103,23 @@ def test_ranking_follows_the_strategy() -> None:
     err = np.ones(n)
     err[300:500] = 10.0  # surprised here
     scores = [LogScores(err, probs, np.zeros(n))]
-    top = suggest(scores, strategy="entropy", n=1, max_len=200, min_len=50, classes=["a", "b", "c"])[0]
+    top = ranked(scores, strategy="entropy", n=1, max_len=200, min_len=50, classes=["a", "b", "c"])[0]
     assert top.start >= 1100 and top.stop <= 1500
     assert top.reason == "classifier unsure between a and b"
-    top = suggest(scores, strategy="surprise", n=1, max_len=200, min_len=50)[0]
+    top = ranked(scores, strategy="surprise", n=1, max_len=200, min_len=50)[0]
     assert top.start >= 200 and top.stop <= 600 and top.reason == "predictor surprised"
 
 
 def test_random_depends_on_the_seed_only() -> None:
     scores = make_scores([3000], 3, 0)
-    a = suggest(scores, strategy="random", n=5, max_len=100, min_len=50, seed=1)
-    assert a == suggest(scores, strategy="random", n=5, max_len=100, min_len=50, seed=1)
-    assert a != suggest(scores, strategy="random", n=5, max_len=100, min_len=50, seed=2)
+    a = ranked(scores, strategy="random", n=5, max_len=100, min_len=50, seed=1)
+    assert a == ranked(scores, strategy="random", n=5, max_len=100, min_len=50, seed=1)
+    assert a != ranked(scores, strategy="random", n=5, max_len=100, min_len=50, seed=2)
 
 
 def test_combined_spreads_over_logs_and_favours_rare_classes() -> None:
     scores = make_scores([3000, 3000, 3000], 3, 4)
-    got = suggest(scores, strategy="combined", n=6, max_len=200, min_len=50)
+    got = ranked(scores, strategy="combined", n=6, max_len=200, min_len=50)
     assert len({s.log for s in got}) == 3
     np.testing.assert_allclose(class_weights(np.array([100.0, 100.0, 100.0])), 1.0)
     w = class_weights(np.array([300.0, 100.0, 0.0]))
@@ -103,7 +128,7 @@ def test_combined_spreads_over_logs_and_favours_rare_classes() -> None:
 
 def test_cold_start_suggests_from_surprise() -> None:
     scores = make_scores([1000], 3, 0, cold=True)
-    got = suggest(scores, strategy="combined", n=3, max_len=200, min_len=50)
+    got = ranked(scores, strategy="combined", n=3, max_len=200, min_len=50)
     assert len(got) == 3 and all(s.guess is None and s.reason == "predictor surprised" for s in got)
 
 
@@ -127,7 +152,7 @@ def test_combined_with_embeddings_covers_distinct_regimes_first() -> None:
     emb[2000:] = [0.0, 5.0]
     emb += np.random.default_rng(0).normal(scale=0.1, size=emb.shape)
     scores = [LogScores(np.ones(n))]
-    got = suggest(
+    got = ranked(
         scores,
         strategy="combined",
         n=3,
@@ -139,7 +164,7 @@ def test_combined_with_embeddings_covers_distinct_regimes_first() -> None:
     assert sorted(s.start // 1000 for s in got) == [0, 1, 2]
     assert all(s.reason == "typical of many unlabelled stretches" for s in got)
     # with the first regime labelled, the first pick is in another
-    again = suggest(
+    again = ranked(
         scores,
         strategy="combined",
         n=1,
@@ -157,15 +182,15 @@ def test_combined_offers_the_drifted_log_first_and_says_why() -> None:
     scores = make_scores([2000, 2000, 2000], 3, 7)
     drift = [np.full(2000, 0.4), np.full(2000, 1.8), np.full(2000, 0.5)]
     scores = [LogScores(s.surprise, s.probs, s.disagreement, d) for s, d in zip(scores, drift, strict=True)]
-    got = suggest(scores, strategy="combined", n=4, max_len=200, min_len=50, classes=["a", "b", "c"])
+    got = ranked(scores, strategy="combined", n=4, max_len=200, min_len=50, classes=["a", "b", "c"])
     assert got[0].log == 1
     assert got[0].reason.startswith("unlike anything labelled (drift 1.8)")
     assert all(s.reason.startswith("unlike anything labelled") == (s.log == 1) for s in got)
     # the other strategies do not read drift; nor does combined when nothing is drifted
     calm = [LogScores(s.surprise, s.probs, s.disagreement, np.full(2000, 0.3)) for s in scores]
-    assert not any("unlike" in s.reason for s in suggest(calm, strategy="combined", n=4, max_len=200, min_len=50))
-    assert [s.log for s in suggest(scores, strategy="entropy", n=3, max_len=200, min_len=50)] == [
-        s.log for s in suggest(make_scores([2000, 2000, 2000], 3, 7), strategy="entropy", n=3, max_len=200, min_len=50)
+    assert not any("unlike" in s.reason for s in ranked(calm, strategy="combined", n=4, max_len=200, min_len=50))
+    assert [s.log for s in ranked(scores, strategy="entropy", n=3, max_len=200, min_len=50)] == [
+        s.log for s in ranked(make_scores([2000, 2000, 2000], 3, 7), strategy="entropy", n=3, max_len=200, min_len=50)
     ]
 
 
@@ -177,15 +202,15 @@ def test_combined_asks_for_a_terrain_the_model_misses_and_names_it() -> None:
     maybe_c = np.tile([0.75, 0.0, 0.25], (n, 1))
     scores = [LogScores(surprise, p, np.full(n, 0.1)) for p in (plain, plain, maybe_c)]
     kw = dict(strategy="combined", n=3, max_len=200, min_len=50, classes=["a", "b", "c"])
-    assert suggest(scores, **kw)[0].log != 2  # without the recalls, the surer log comes last
-    got = suggest(scores, recall=np.array([0.9, 0.8, 0.2]), **kw)
+    assert ranked(scores, **kw)[0].log != 2  # without the recalls, the surer log comes last
+    got = ranked(scores, recall=np.array([0.9, 0.8, 0.2]), **kw)
     assert got[0].log == 2, got
     assert got[0].reason.endswith("may be c, which the model misses (20 % recall)"), got[0].reason
     assert not any("misses" in s.reason for s in got if s.log != 2)
     # recalls all above one half (or unmeasured), or another strategy: no terrain is missed, nothing is named
     for recall in (np.array([0.9, 0.8, 0.7]), np.array([0.9, np.nan, np.nan])):
-        assert not any("misses" in s.reason for s in suggest(scores, recall=recall, **kw))
-    entropy = suggest(scores, recall=np.array([0.9, 0.8, 0.2]), **{**kw, "strategy": "entropy"})
+        assert not any("misses" in s.reason for s in ranked(scores, recall=recall, **kw))
+    entropy = ranked(scores, recall=np.array([0.9, 0.8, 0.2]), **{**kw, "strategy": "entropy"})
     assert not any("misses" in s.reason for s in entropy)
 
 
@@ -196,10 +221,10 @@ def test_logs_nobody_labelled_are_suggested_first_spread_over_them() -> None:
     scores[0] = LogScores(scores[0].surprise * 3, scores[0].probs, scores[0].disagreement + 0.5)  # the busiest log
     labelled = [(0, 100, 200), (1, 100, 200)]  # logs 0 and 1 are checked; 2 and 3 are new
     kwargs = dict(labelled=labelled, classes=["a", "b", "c"], n=6, max_len=200, min_len=50)
-    picks = suggest(scores, **kwargs)
+    picks = ranked(scores, **kwargs)
     assert [p.log for p in picks[:4]].count(2) == 2 and [p.log for p in picks[:4]].count(3) == 2
     assert {p.log for p in picks[:2]} == {2, 3}  # one in each new log before a second in either
-    flat = suggest(scores, unchecked_first=False, **kwargs)
+    flat = ranked(scores, unchecked_first=False, **kwargs)
     assert [p.log for p in flat].count(0) > [p.log for p in picks].count(0)
 
 
@@ -213,9 +238,9 @@ def test_one_new_log_among_checked_ones_is_asked_first_even_beside_drifted_time(
         scores[g] = LogScores(scores[g].surprise, scores[g].probs, scores[g].disagreement, np.zeros(3000))
     labelled = [(0, 100, 200), (1, 100, 200)]  # log 2 is the new one
     kwargs = dict(labelled=labelled, classes=["a", "b", "c"], n=6, max_len=200, min_len=50)
-    picks = suggest(scores, **kwargs)
+    picks = ranked(scores, **kwargs)
     assert [p.log for p in picks] == [2] * 6, picks
-    flat = suggest(scores, unchecked_first=False, **kwargs)  # without the rule the drifted log leads
+    flat = ranked(scores, unchecked_first=False, **kwargs)  # without the rule the drifted log leads
     assert flat[0].log == 0 and flat[0].reason.startswith("unlike anything labelled"), flat[0]
 
 
@@ -223,14 +248,14 @@ def test_spot_checks_are_drawn_uniformly_from_unlabelled_time_and_placed_last() 
     scores = make_scores([2000, 6000], 3, 5)
     labelled = [(0, 0, 1900)]
     kwargs = dict(labelled=labelled, classes=["a", "b", "c"], max_len=100, min_len=50)
-    picks = suggest(scores, n=6, spot_checks=2, **kwargs)
+    picks = ranked(scores, n=6, spot_checks=2, **kwargs)
     assert [p.kind for p in picks] == ["suggestion"] * 4 + ["spot check"] * 2
     assert all(p.guess is not None and p.reason.startswith("spot check") for p in picks[4:])
     spans = sorted((p.log, p.start, p.stop) for p in picks)
     assert all(a[0] != b[0] or a[2] <= b[1] for a, b in itertools.pairwise(spans))  # no overlap
     assert all(not (p.log == 0 and p.start < 1900) for p in picks)  # never on labels
     # uniform over the unlabelled time: log 1 holds 6000 of its 6100 steps, so nearly every draw lands there
-    logs = [p.log for seed in range(40) for p in suggest(scores, n=1, spot_checks=1, seed=seed, **kwargs)]
+    logs = [p.log for seed in range(40) for p in ranked(scores, n=1, spot_checks=1, seed=seed, **kwargs)]
     assert logs.count(1) >= 36
 
 
@@ -240,9 +265,9 @@ def test_a_checked_log_whose_checks_found_the_model_wrong_is_asked_again() -> No
     scores[0] = LogScores(scores[0].surprise * 3, scores[0].probs, scores[0].disagreement + 0.5)  # the busiest log
     labelled = [(0, 100, 200), (1, 100, 200), (2, 100, 200)]  # every log checked once
     kwargs = dict(labelled=labelled, classes=["a", "b", "c"], n=6, max_len=200, min_len=50)
-    asked = suggest(scores, wrong=[(0, 4), (3, 4), (0, 4)], **kwargs)
+    asked = ranked(scores, wrong=[(0, 4), (3, 4), (0, 4)], **kwargs)
     assert [p.log for p in asked].count(1) >= 4  # the log with 3 of 4 checks wrong
-    plain = suggest(scores, **kwargs)
+    plain = ranked(scores, **kwargs)
     assert [p.log for p in plain].count(1) < [p.log for p in asked].count(1)
 
 
@@ -256,9 +281,9 @@ def test_a_log_with_a_third_of_its_checks_wrong_keeps_its_picks_against_busier_l
     labelled = [(0, 100, 200), (1, 100, 200), (2, 100, 200)]
     kwargs = dict(labelled=labelled, classes=["a", "b", "c"], n=6, max_len=200, min_len=50, spot_checks=0)
     kwargs["recall"] = np.array([0.0, 1.0, 1.0])
-    asked = suggest(scores, wrong=[(0, 4), (10, 24), (0, 4)], **kwargs)
+    asked = ranked(scores, wrong=[(0, 4), (10, 24), (0, 4)], **kwargs)
     assert [p.log for p in asked] == [1] * 6
-    fewer = suggest(scores, wrong=[(0, 4), (2, 24), (0, 4)], **kwargs)  # 2 of 24 wrong: a share of the tier
+    fewer = ranked(scores, wrong=[(0, 4), (2, 24), (0, 4)], **kwargs)  # 2 of 24 wrong: a share of the tier
     assert [p.log for p in fewer].count(1) <= 3
 
 
@@ -305,7 +330,7 @@ def test_each_new_log_is_first_asked_its_main_answer_and_stays_in_the_tier_after
     scores[2] = LogScores(scores[2].surprise, sure, scores[2].disagreement)
     labelled = [(0, 100, 200), (1, 100, 200)]  # log 2 is the new one
     kwargs = dict(classes=["a", "b", "c"], n=4, max_len=200, min_len=50)
-    picks = suggest(scores, labelled=labelled, main_answer="new", **kwargs)
+    picks = ranked(scores, labelled=labelled, main_answer="new", **kwargs)
     first = picks[0]
     assert (first.kind, first.log, first.guess) == ("main answer", 2, 1), first
     assert first.start >= 1000 and first.stop <= 3000 and first.stop - first.start == 200
@@ -313,9 +338,9 @@ def test_each_new_log_is_first_asked_its_main_answer_and_stays_in_the_tier_after
     assert "main answer" in first.reason and " b over " in first.reason
     assert all(p.kind == "suggestion" and p.log == 2 for p in picks[1:])  # the tier's unsure picks follow
     assert all(not (p.start < first.stop and first.start < p.stop) for p in picks[1:])
-    assert "main answer" not in [p.kind for p in suggest(scores, labelled=labelled, **kwargs)]  # off by default
+    assert "main answer" not in [p.kind for p in ranked(scores, labelled=labelled, **kwargs)]  # off by default
     # once answered: asked no more, and the log keeps the tier (its only label is that check)
-    again = suggest(
+    again = ranked(
         scores,
         labelled=[*labelled, (2, first.start, first.stop)],
         answered=[(2, first.start, first.stop)],
@@ -323,7 +348,7 @@ def test_each_new_log_is_first_asked_its_main_answer_and_stays_in_the_tier_after
         **kwargs,
     )
     assert [p.kind for p in again] == ["suggestion"] * 4 and [p.log for p in again] == [2] * 4
-    plain = suggest(scores, labelled=[*labelled, (2, first.start, first.stop)], main_answer="new", **kwargs)
+    plain = ranked(scores, labelled=[*labelled, (2, first.start, first.stop)], main_answer="new", **kwargs)
     assert [p.log for p in plain].count(2) < 4  # a label that was not a main answer checks the log
 
 
@@ -333,12 +358,12 @@ def test_a_checked_log_is_asked_its_main_answer_once_its_checks_found_the_model_
     scores = make_scores([3000, 3000, 3000], 3, 9)
     labelled = [(0, 100, 200), (1, 100, 200), (2, 100, 200)]
     kwargs = dict(labelled=labelled, classes=["a", "b", "c"], n=4, max_len=200, min_len=50, main_answer="checked-right")
-    picks = suggest(scores, wrong=[(0, 0), (1, 3), (2, 3)], **kwargs)  # log 0 unchecked, 1 mostly right, 2 wrong
+    picks = ranked(scores, wrong=[(0, 0), (1, 3), (2, 3)], **kwargs)  # log 0 unchecked, 1 mostly right, 2 wrong
     mains = [p for p in picks if p.kind == "main answer"]
     assert [p.log for p in mains] == [1] and picks[0] is mains[0]
-    answered = suggest(scores, wrong=[(0, 0), (1, 3), (2, 3)], answered=[(1, mains[0].start, mains[0].stop)], **kwargs)
+    answered = ranked(scores, wrong=[(0, 0), (1, 3), (2, 3)], answered=[(1, mains[0].start, mains[0].stop)], **kwargs)
     assert "main answer" not in [p.kind for p in answered]  # asked once
-    assert all(p.kind == "suggestion" for p in suggest(scores, wrong=[(0, 0), (2, 3), (3, 3)], **kwargs))
+    assert all(p.kind == "suggestion" for p in ranked(scores, wrong=[(0, 0), (2, 3), (3, 3)], **kwargs))
 
 
 def test_a_main_answer_never_lies_on_labelled_time() -> None:
@@ -348,12 +373,12 @@ def test_a_main_answer_never_lies_on_labelled_time() -> None:
     sure[:, 1] = 0.9  # one stretch of b over the whole log: its middle is 1500
     scores = [LogScores(np.ones(3000), sure, np.zeros(3000))]
     kwargs = dict(classes=["a", "b", "c"], n=3, max_len=200, min_len=50, main_answer="checked-right", wrong=[(0, 2)])
-    picks = suggest(scores, labelled=[(0, 1400, 1700)], **kwargs)
+    picks = ranked(scores, labelled=[(0, 1400, 1700)], **kwargs)
     (main,) = [p for p in picks if p.kind == "main answer"]
     assert main.stop <= 1400 or main.start >= 1700, main
     assert min(abs(main.stop - 1400), abs(main.start - 1700)) == 0  # beside the labels, nearest the middle
     assert main.stop - main.start == 200
-    whole = suggest(scores, labelled=[(0, 0, 3000)], **kwargs)
+    whole = ranked(scores, labelled=[(0, 0, 3000)], **kwargs)
     assert whole == []  # nothing unlabelled: no main answer, no pick
 
 
@@ -408,5 +433,17 @@ def test_suggest_stops_when_asked_and_ranks_the_same_otherwise() -> None:
     )
     asked = []
     with pytest.raises(Interrupted):
-        suggest(scores, stop=lambda: asked.append(1) or len(asked) > 1, **kwargs)  # the second pass is stopped
-    assert suggest(scores, stop=lambda: False, **kwargs) == suggest(scores, **kwargs)
+        ranked(scores, stop=lambda: asked.append(1) or len(asked) > 1, **kwargs)  # the second pass is stopped
+    assert ranked(scores, stop=lambda: False, **kwargs) == ranked(scores, **kwargs)
+
+
+def test_the_queue_is_asked_with_its_evidence_and_a_policy() -> None:
+    """Eight parameters at most: what is known (``Evidence``) and how to rank (``QueuePolicy``) are values."""
+    import inspect
+
+    assert len(inspect.signature(suggest).parameters) <= 8
+    scores = make_scores([2000, 2000], 3, 4)
+    evidence = Evidence(labelled=[(0, 0, 300)], classes=["a", "b", "c"])
+    picks = suggest(scores, evidence, policy=QueuePolicy(max_len=200, min_len=50, spot_checks=1), n=4)
+    assert [p.kind for p in picks][-1] == "spot check" and len(picks) == 4
+    assert all(p.log == 1 for p in picks[:2])  # log 1 nobody labelled comes first

@@ -4,6 +4,7 @@ next segments to label, as a label file to fill in)."""
 from __future__ import annotations
 
 import getpass
+from dataclasses import replace
 from pathlib import Path
 from typing import Literal
 
@@ -146,6 +147,7 @@ def suggest(
     from sessions import write_frame
 
     from ..cycle import (
+        SESSION_POLICY,
         answer_change,
         compute_scores,
         keep_answers,
@@ -175,7 +177,8 @@ def suggest(
                 return
         else:
             points = {x.id: signal_change_points(s, x) for x in logs}
-            picks = suggest_for_session(s, scores, points, logs=logs, n=n or 12, strategy=strategy)
+            policy = replace(SESSION_POLICY, strategy=strategy)
+            picks = suggest_for_session(s, scores, points, logs=logs, n=n or 12, policy=policy)
         classes = names_now(s, scores)  # a guess names its terrain as the session does now
         rows = [
             (

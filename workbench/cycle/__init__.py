@@ -60,7 +60,15 @@ from .stage_inputs import (
     stage1_outputs,
     stage2_features,
 )
-from .suggestions import QUEUE_MODES, SUGGESTION_S, VERIFY, suggest_for_session, suggestion_lengths, verification_queue
+from .suggestions import (
+    QUEUE_MODES,
+    SESSION_POLICY,
+    SUGGESTION_S,
+    VERIFY,
+    suggest_for_session,
+    suggestion_lengths,
+    verification_queue,
+)
 from .train_stages import (
     MODEL_FAMILIES,
     active_bundle,
@@ -81,6 +89,7 @@ __all__ = [
     "GROUP_STEPS",
     "MODEL_FAMILIES",
     "QUEUE_MODES",
+    "SESSION_POLICY",
     "STAGE1_FEATURES",
     "STRETCH_S",
     "SUGGESTION_S",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -27,6 +28,11 @@ SPOT_CHECKS = 1
 # whose terrain changes every 5-36 s, 95.5 -> 94.0 % and 93.9 -> 91.3 % (random: 92.7 and 86.3 %). Asking every
 # new log first ("new") gained as much on BorealTC (92.7 %) and lost 4.9 points on the walks.
 MAIN_ANSWER: labeling.MainAnswer = "checked-right"
+# The queue the page, `workbench suggest` and `evaluate loop` rank with; each takes its strategy and seed from it
+# (`dataclasses.replace`), and `evaluate loop`'s ablation arms are this policy with one lever left out. The pick's
+# length comes from the session (its rate and the classifier's span), and spot checks are left out where they cannot
+# be a fair sample (a `random` queue is one already; no classifier yet; a queue under 4).
+SESSION_POLICY = labeling.QueuePolicy(main_answer=MAIN_ANSWER, spot_checks=SPOT_CHECKS)
 
 
 VERIFY = "verify"  # the queue of verification checks, beside the ranking strategies
@@ -117,23 +123,22 @@ def suggest_for_session(
     *,
     logs: list[LogInfo],
     n: int = 12,
-    strategy: labeling.Strategy = "combined",
-    seed: int = 0,
-    unchecked_first: bool = True,
-    spot_checks: int | None = None,
-    wrong_first: bool = True,
-    main_answer: labeling.MainAnswer = MAIN_ANSWER,
+    policy: labeling.QueuePolicy = SESSION_POLICY,
     stop: Callable[[], bool] = lambda: False,
 ) -> list[tuple[LogInfo, labeling.Suggestion]]:
-    """The session's suggestion queue: ``n`` segments of ``SUGGESTION_S / 2`` to ``SUGGESTION_S`` to label next,
-    with the log each lies in. ``seed``: of the ``random`` strategy and the clustering; ``unchecked_first``: see
-    ``labeling.suggest`` (off only to measure what it is worth); ``spot_checks``: how many of the ``n`` are spot
-    checks (default ``SPOT_CHECKS`` in a ranked queue of 4 or more once a classifier has scored the logs, else
-    none); ``wrong_first``: a checked log where the person's checks found the model wrong stays ahead
-    (``labeling.suggest``'s ``wrong``; off only to measure what it is worth); ``main_answer``: which logs are
-    first asked the model's main answer there (``labeling.suggest``'s; ``MAIN_ANSWER``: once the person's checks
-    there found the model mostly right); ``stop``: polled between the ranking's passes (``labeling.Interrupted``
-    raised when it says so)."""
+    """The session's suggestion queue: ``n`` segments to label next, with the log each lies in.
+
+    Args:
+        session: The session whose labels, checks and terrains are the queue's evidence.
+        scores: Its scores (the tracks they carry are ranked, not computed again, when they cover ``logs``).
+        change_points: Per log id, change points where candidates are cut.
+        logs: The logs to rank (those the scores hold).
+        n: How many, spot checks included.
+        policy: The queue's policy (``SESSION_POLICY`` with a strategy and seed of the caller's); its lengths are
+            replaced by the session's (``suggestion_lengths``), and its spot checks dropped where they cannot be a
+            fair sample (a ``random`` queue, no classifier yet, a queue under 4).
+        stop: Polled between the ranking's passes (``labeling.Interrupted`` raised when it says so).
+    """
     logs = [x for x in logs if x.id in scores.scores]
     if not logs:
         return []
@@ -149,35 +154,25 @@ def suggest_for_session(
             counts[classes.index(s.terrain)] += s.length
     max_len, min_len = suggestion_lengths(logs[0].rate_hz, span=scores.span)
     classifier = session.active_model("classifier")
-    if spot_checks is None:
-        ranked = strategy != "random"  # a random queue is a sample already
-        spot_checks = SPOT_CHECKS if ranked and scores.classifier is not None and n >= 4 else 0
+    fair = policy.strategy != "random" and scores.classifier is not None and n >= 4
+    policy = replace(
+        policy, max_len=max_len, min_len=min_len, window=scores.window, spot_checks=policy.spot_checks if fair else 0
+    )
     # the metrics name the classes as they were called when the classifier was trained: the scores' names
     recall = terrain_recalls(
         classifier.metrics.get("estimate") if classifier is not None else None, list(scores.classes) or terrains
     )
-    out = labeling.suggest(
-        [scores.scores[x.id] for x in logs],
+    evidence = labeling.Evidence(
         labelled=labelled,
         label_counts=counts,
         change_points=[change_points.get(x.id, np.zeros(0, np.int64)) for x in logs],
         classes=classes,
-        strategy=strategy,
-        n=n,
-        max_len=max_len,
-        min_len=min_len,
         embeddings=[scores.embeddings[x.id] for x in logs],
         recall=recall,
-        seed=seed,
-        unchecked_first=unchecked_first,
-        wrong_first=wrong_first,
-        spot_checks=spot_checks,
         wrong=_wrong_checks(checks, [x.id for x in logs]),
-        main_answer=main_answer,
         answered=answered,
-        stop=stop,
-        window=scores.window,
         # the tracks the scores carry, where they were ranked over exactly these logs: taken, not computed again
         tracks=[scores.tracks[x.id] for x in logs] if set(scores.tracks) == {x.id for x in logs} else None,
     )
+    out = labeling.suggest([scores.scores[x.id] for x in logs], evidence, policy=policy, n=n, stop=stop)
     return [(logs[s.log], s) for s in out]

@@ -19,7 +19,7 @@ import json
 import re
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
@@ -46,21 +46,14 @@ from ..retrain import RETRAIN
 from ..scratch_folders import scratch_folder
 from ..user_errors import USER_ERRORS
 from .far_runs import FarRuns, read_far_runs, score_far
+from .loop_arms import ABLATIONS, loop_arm
 from .loop_report import loop_report
 from .loop_said import said_of_logs
 from .loop_verify import Verified, verify_session
 
 Person = Literal["piece", "stretch"]
-# What a lever is worth, measured by leaving it out: a strategy's name for the loop -> the suggestion strategy, the
-# options it runs with, the scoring's and the fit's
-ABLATIONS: dict[str, tuple[str, dict, dict, dict]] = {
-    "combined-no-unchecked": ("combined", {"unchecked_first": False}, {}, {}),  # new runs not checked first
-    "combined-no-votes": ("combined", {}, {"votes": False}, {}),  # a run's labels not carried over its frames
-    "combined-no-wrong-first": ("combined", {"wrong_first": False}, {}, {}),  # runs checks found wrong not asked again
-    "combined-no-main-answer": ("combined", {"main_answer": "off"}, {}, {}),  # a run's main answer never asked
-    "combined-main-answer-new": ("combined", {"main_answer": "new"}, {}, {}),  # every new run's main answer asked first
-    "combined-teacher": ("combined", {}, {}, {"teach": True}),  # the fit taught by the session's scores (RETRAIN.teach)
-}
+
+
 AUTHOR = "evaluate loop"
 STRETCH_WINDOW_S, STRETCH_MIN_S = 1.0, 2.0  # the model's stretches as the page draws them (ui.state)
 
@@ -311,7 +304,8 @@ def run_arm(
     would export scored on those runs after every round."""
     with Session.open(start) as s0:
         s0.copy_to(folder)
-    _, options, scoring, fitting = ABLATIONS.get(strategy, (strategy, {}, {}, {}))
+    arm = loop_arm(strategy)
+    scoring = {} if arm.votes else {"votes": False}
     with Session.open(folder) as s:
         classes = [t.name for t in s.terrains()]
         scores = compute_scores(s, **scoring)
@@ -370,24 +364,15 @@ def run_arm(
                 break
             t0 = time.monotonic()
             worst = min(measured.per_log, key=measured.per_log.__getitem__) if measured.per_log else None
-            base = ABLATIONS.get(strategy, (strategy,))[0]
-            picks = suggest_for_session(
-                s,
-                scores,
-                points,
-                logs=logs,
-                n=settings.per_round,
-                strategy=base,  # type: ignore[arg-type]
-                seed=settings.seed * 1000 + r,
-                **options,
-            )
+            policy = replace(arm.policy, seed=settings.seed * 1000 + r)
+            picks = suggest_for_session(s, scores, points, logs=logs, n=settings.per_round, policy=policy)
             if not picks:
                 raise WorkbenchError(f"{s.path}: round {r + 1} of {strategy} found nothing left to suggest")
             picks_new = sum(x.id in new_ids for x, _ in picks)
             picks_worst = sum(x.name == worst for x, _ in picks)
             _check(s, scores, picks, truth, classes)
             labelled += _label(s, person_labels(picks, scores, truth, person=settings.person), classes)
-            _fit(s, scores=scores, scoring=scoring, **fitting)
+            _fit(s, scores=scores, scoring=scoring, teach=arm.teach)
     return rounds
 
 

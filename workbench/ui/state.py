@@ -8,7 +8,7 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Collection
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -17,6 +17,7 @@ from sessions import LogInfo, Segment, Session, Terrain, WorkbenchError
 
 from ..cycle import (
     QUEUE_MODES,
+    SESSION_POLICY,
     VERIFY,
     SessionScores,
     compute_scores,
@@ -463,7 +464,8 @@ class SharedState:
                 ranked = verification_queue(self.session, scores, logs=logs)
             else:
                 strategy: labeling.Strategy = self.strategy  # type: ignore[assignment]
-                ranked = suggest_for_session(self.session, scores, cps, logs=logs, strategy=strategy, stop=newer)
+                policy = replace(SESSION_POLICY, strategy=strategy)
+                ranked = suggest_for_session(self.session, scores, cps, logs=logs, policy=policy, stop=newer)
         except labeling.Interrupted:
             return None
         for log, s in ranked:

@@ -1,0 +1,45 @@
+"""``evaluate loop``'s arms: each a queue policy (the page's, with one lever changed) and how its scores and fits
+are made, so what an arm measures is the page's own queue with that lever left out."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import labeling
+
+from ..cycle import SESSION_POLICY
+from ..retrain import RETRAIN
+
+
+@dataclass(frozen=True)
+class LoopArm:
+    """What one arm of the loop runs: the page's queue policy, and how its scores and fits are made.
+
+    Attributes:
+        policy: The suggestion queue's policy (the session's, ``cycle.SESSION_POLICY``, with a lever changed).
+        votes: Whether a run's labels vote over its frames in the scores (``compute_scores(votes=)``).
+        teach: Whether each round's fit is taught by the session's scores (``RETRAIN.teach``).
+    """
+
+    policy: labeling.QueuePolicy = SESSION_POLICY
+    votes: bool = True
+    teach: bool = RETRAIN.teach
+
+
+# What a lever is worth, measured by leaving it out: an arm's name in the loop -> what it runs
+ABLATIONS: dict[str, LoopArm] = {
+    "combined-no-unchecked": LoopArm(replace(SESSION_POLICY, unchecked_first=False)),  # new runs not checked first
+    "combined-no-votes": LoopArm(votes=False),  # a run's labels not carried over its frames
+    "combined-no-wrong-first": LoopArm(replace(SESSION_POLICY, wrong_first=False)),  # wrong runs not asked again
+    "combined-no-main-answer": LoopArm(replace(SESSION_POLICY, main_answer="off")),  # a run's main answer never asked
+    "combined-main-answer-new": LoopArm(replace(SESSION_POLICY, main_answer="new")),  # every new run's asked first
+    "combined-teacher": LoopArm(teach=True),  # the fit taught by the session's scores (RETRAIN.teach)
+}
+
+
+def loop_arm(name: str) -> LoopArm:
+    """The arm a strategy's name stands for: an ablation of ``ABLATIONS``, or the session's queue with that strategy
+    (``labeling.STRATEGIES``)."""
+    if name in ABLATIONS:
+        return ABLATIONS[name]
+    return LoopArm(replace(SESSION_POLICY, strategy=name))  # type: ignore[arg-type]
