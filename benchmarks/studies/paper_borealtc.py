@@ -59,7 +59,7 @@ SIMULATE_RUNS = (
     "3",
     "--rounds",
     "8",
-    "--batch",
+    "--per-round",
     "10",
 )
 MODEL = (  # (name, arguments to python): each prints its own table

@@ -1,9 +1,11 @@
-"""CLI command ``workbench evaluate``: dataset protocols and the label-efficiency simulation."""
+"""CLI command ``workbench evaluate PROTOCOL``: one subcommand per protocol, each with only its own options
+(``borealtc`` and ``demo`` also run the label-efficiency simulation with ``--simulate``)."""
 
 from __future__ import annotations
 
+import inspect
 import os
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
@@ -20,206 +22,346 @@ STAGE2_EPOCHS = 150  # the protocols' stage 2 (the paper family) when --stage2-e
 Pos = tyro.conf.Positional
 
 
-def evaluate(
-    dataset: Pos[Literal["borealtc", "qcat", "demo", "session", "loop"]],
+Split = Literal["partitions", "runs", "both"]
+Strategies = tuple[str, ...]
+
+
+def borealtc(
     folder: Pos[Path],
+    *,
     labelled: float = 0.1,
     model: Literal["default", "paper", "both"] = "default",
-    split: Literal["partitions", "runs", "both"] = "both",
+    split: Split = "both",
     variant: Literal["both", "shared", "strict"] = "shared",
     hidden: int = 200,
     seed: int = 0,
     stage1_epochs: int = 40,
     stage2_epochs: int | None = None,
-    folds: int = 5,
     out: Path | None = None,
+    device: Literal["cpu", "cuda"] = "cpu",
     simulate: bool = False,
-    strategies: tuple[str, ...] = ("random", "combined"),
+    strategies: Strategies = ("random", "combined"),
     seeds: int = 3,
-    rounds: int | None = None,
-    batch: int = 4,
-    per_round: int = 12,
-    person: Literal["piece", "stretch"] = "piece",
+    rounds: int = 8,
+    per_round: int = 4,
     feature_mode: FeatureMode = "hidden+surprise",
     warm_start: bool = False,
     segment_s: float | None = None,
     members: int = 3,
     stage1: Literal["own", "lstm"] = "own",
-    device: Literal["cpu", "cuda"] = "cpu",
-    reference: Path | None = None,
-    far: tuple[Path, ...] = (),
-    verify: int = 0,
 ) -> None:
-    """Evaluate the method on a dataset with its published protocol and print the table beside published figures.
-
-    With ``--simulate``, compare suggestion strategies instead: an oracle labels each suggestion from the truth,
-    stage 2 retrains after every batch, and held-out accuracy is printed against labelled time (table + PNG plot).
+    """BorealTC's protocol (5 s partitions, stratified 5-fold CV, 1.7 s windows at 0.1 s stride), the table beside
+    the published figures; with --simulate, the label-efficiency simulation instead.
 
     Args:
-        dataset: Which protocol. borealtc: 5 s partitions, stratified 5-fold CV, 1.7 s windows at 0.1 s stride.
-            qcat: the paper's 90 % / 5 % / 5 % split of step sequences, and one holding out whole trials.
-            demo: leave-logs-out on demo logs against their truth, for each stage-1 feature mode.
-            session: your own session, leave-logs-out: stage 2 retrained per fold on the other logs' labels and
-            scored against reference labels (--reference FILE, kept apart from the labels).
-            loop: your own session as a person works it, on a copy: each round labels the suggestions from the
-            reference and fits as the Retrain ends; accuracy on the logs that had no label at the start, per
-            strategy (--strategies, default combined and random), --rounds (4) of --per-round (12).
-        folder: The dataset folder (e.g. ../shared/data/borealtc, a QCAT folder, demo logs), or the session.
-        labelled: Fraction labelled: of the training partitions (borealtc), of the training logs' time (demo).
-        model: The model family ("default": spectral window classifier with self-training; "paper": the paper's
-            two LSTMs); borealtc also takes both.
-        split: borealtc: the authors' partition folds, folds holding out whole runs, or both (with --simulate:
-            runs holds out whole runs, otherwise the partition folds).
-        variant: borealtc, paper family: "shared": stage 1 trains once on all partitions' signals (no labels);
-            "strict": stage 1 never sees the test partitions; "both".
-        hidden: LSTM width of both stages.
+        folder: The dataset folder (../shared/data/borealtc).
+        labelled: Fraction of the training partitions labelled.
+        model: The model family ("default": spectral window classifier with self-training; "paper": the paper's two
+            LSTMs; "both").
+        split: The authors' partition folds, folds holding out whole runs, or both (with --simulate: runs holds out
+            whole runs, otherwise the partition folds).
+        variant: Paper family: "shared": stage 1 trains once on all partitions' signals (no labels); "strict": stage
+            1 never sees the test partitions; "both".
+        hidden: LSTM width of both stages (paper family).
         seed: Seed of folds, labelled subset and training.
-        stage1_epochs: Most epochs of stage 1 (early stopping on validation loss).
-        stage2_epochs: Most epochs of stage 2 (the paper family's LSTM); unset: 150, and for a session the
-            Retrain's (100, early stopping on its validation loss).
-        folds: Outer folds of the qcat and demo protocols (borealtc keeps the authors' 5).
+        stage1_epochs: Most epochs of stage 1 (paper family; early stopping on validation loss).
+        stage2_epochs: Most epochs of stage 2 (paper family; unset: 150).
         out: Also write per-fold details as JSON here (with --simulate: the folder for the plot).
-        simulate: Run the label-efficiency simulation (borealtc and demo).
-        strategies: Strategies to compare: random, entropy, margin, disagreement, surprise, combined (loop: in this
-            order; default combined then random).
-        seeds: Seeds per strategy (BorealTC: seed s uses outer fold s + 1).
-        rounds: Rounds of labelling, each followed by a retrain (default: 8 with --simulate, 4 for loop).
-        per_round: loop: suggestions labelled per round.
-        person: loop: how the simulated person labels a suggestion: the suggested piece, or also the model's stretch
-            around it where the reference agrees (as a range or Y does).
-        batch: Suggestions labelled per round.
+        device: Where both stages train and run ("cuda" refused by a family without a CUDA path, in one line).
+        simulate: Compare suggestion strategies: an oracle labels each suggestion from the truth, stage 2 retrains
+            after every round, and held-out accuracy is printed against labelled time (table + PNG plot).
+        strategies: With --simulate: random, entropy, margin, disagreement, surprise, combined.
+        seeds: With --simulate: seeds per strategy (seed s uses outer fold s + 1).
+        rounds: With --simulate: rounds of labelling, each followed by a retrain.
+        per_round: With --simulate: suggestions labelled per round.
         feature_mode: With --simulate, paper family: what stage 1 hands stage 2.
-        warm_start: With --simulate, paper family: each round fine-tunes the previous round's models instead of
-            training afresh.
-        segment_s: With --simulate: length of one suggestion in seconds (default: the UI's 1 s on demo logs, a whole
-            5 s partition on borealtc, which then labels 5 / segment_s equal pieces of a partition).
+        warm_start: With --simulate, paper family: each round fine-tunes the previous round's models.
+        segment_s: With --simulate: length of one suggestion in seconds (default a whole 5 s partition, which then
+            labels 5 / segment_s equal pieces of a partition).
         members: With --simulate: stage-2 ensemble members per retrain (the UI's Retrain trains 5).
-        stage1: With --simulate, default family: the stage 1 drawing the surprise and the suggestions' embeddings,
-            its own next-frame predictor or the paper's LSTM (as sessions trained before it), to compare the two.
-        device: Where both stages train and run: "cuda" for either family's protocol and the paper family's
-            simulation (the default family's simulation and the loop and session protocols, which fit as the
-            Retrain does on the CPU, refuse it in one line).
-        reference: With session or loop: a label file (the columns of `workbench labels export`) stored as the
-            reference labels of the logs it names before scoring (loop: in its copy of the session only).
-        far: loop: log files of runs kept out of the session, their truth in --reference: after every round the
-            bundle the session would export scores them as `workbench classify` does (what ships to the robot).
-        verify: loop: before the first round and after each, this many verification checks (uniform pieces of the
-            new logs' time nobody labelled, by log, never labelled, counted apart from the rounds'): the session's
-            accuracy with its 90 % interval as the page shows it, and whether it covers the truth.
+        stage1: With --simulate, default family: the stage 1 drawing the surprise and the embeddings, its own
+            next-frame predictor or the paper's LSTM, to compare the two.
     """
-    if out is not None:  # before anything loads (torch takes seconds): a refused target is told at once
-        _check_out(out, dataset=dataset, simulate=simulate)
-    if not strategies:
-        raise WorkbenchError("--strategies: name at least one (random, combined, entropy, margin, ...)")
-    if rounds is not None and rounds < 1:
-        raise WorkbenchError(f"--rounds {rounds}: at least one round of labelling")
-    if far and dataset != "loop":
-        raise WorkbenchError(f"--far: evaluate {dataset} has no far runs; --far is for evaluate loop")
-    if verify and dataset != "loop":
-        raise WorkbenchError(f"--verify: evaluate {dataset} checks nothing; --verify is for evaluate loop")
-    if verify < 0:
-        raise WorkbenchError(f"--verify {verify}: a number of checks, 0 or more")
+    _before_work(out, protocol="borealtc", simulate=simulate, device=device)
     from ..evaluation import protocols as ev
 
+    families = ("default", "paper") if model == "both" else (model,)
+    refuse_family_device(families, device)
+    if simulate:
+        sim = _Simulation(strategies, seeds, rounds, per_round, feature_mode, warm_start, segment_s, members, stage1)
+        print(_simulate("borealtc", folder, sim, out=out, model=model, device=device, split=split))
+        return
+    report = ev.evaluate_borealtc(
+        folder,
+        model=model,
+        labelled=labelled,
+        split=split,
+        variant=variant,
+        hidden=hidden,
+        seed=seed,
+        stage1_epochs=stage1_epochs,
+        stage2_epochs=stage2_epochs or STAGE2_EPOCHS,
+        out=out,
+        device=device,
+    )
+    print(report)
+
+
+def qcat(
+    folder: Pos[Path],
+    *,
+    hidden: int = 200,
+    seed: int = 0,
+    folds: int = 5,
+    stage1_epochs: int = 40,
+    stage2_epochs: int | None = None,
+    device: Literal["cpu", "cuda"] = "cpu",
+) -> None:
+    """QCAT's protocol (the paper family): the paper's 90 % / 5 % / 5 % split of step sequences, and one holding out
+    whole trials.
+
+    Args:
+        folder: A QCAT folder.
+        hidden: LSTM width of both stages.
+        seed: Seed of the split and training.
+        folds: Outer folds of the split holding out trials.
+        stage1_epochs: Most epochs of stage 1 (early stopping on validation loss).
+        stage2_epochs: Most epochs of stage 2 (unset: 150).
+        device: Where both stages train and run.
+    """
+    _before_work(None, protocol="qcat", simulate=False, device=device)
+    from ..evaluation import protocols as ev
+
+    epochs = (stage1_epochs, stage2_epochs or STAGE2_EPOCHS)
+    print(ev.evaluate_qcat(folder, hidden=hidden, seed=seed, folds=folds, epochs=epochs, device=device))
+
+
+def demo(
+    folder: Pos[Path],
+    *,
+    labelled: float = 0.1,
+    model: Literal["default", "paper"] = "default",
+    hidden: int = 200,
+    seed: int = 0,
+    folds: int = 5,
+    stage1_epochs: int = 40,
+    stage2_epochs: int | None = None,
+    out: Path | None = None,
+    device: Literal["cpu", "cuda"] = "cpu",
+    simulate: bool = False,
+    strategies: Strategies = ("random", "combined"),
+    seeds: int = 3,
+    rounds: int = 8,
+    per_round: int = 4,
+    feature_mode: FeatureMode = "hidden+surprise",
+    warm_start: bool = False,
+    segment_s: float | None = None,
+    members: int = 3,
+    stage1: Literal["own", "lstm"] = "own",
+) -> None:
+    """Leave-logs-out on demo logs against their truth, for each stage-1 feature mode (the paper family); with
+    --simulate, the label-efficiency simulation on them instead.
+
+    Args:
+        folder: A folder of demo logs (`workbench demo` writes one beside its session).
+        labelled: Fraction of the training logs' time labelled.
+        model: With --simulate: the model family.
+        hidden: LSTM width of both stages.
+        seed: Seed of folds, labelled subset and training.
+        folds: Outer folds.
+        stage1_epochs: Most epochs of stage 1.
+        stage2_epochs: Most epochs of stage 2 (unset: 150).
+        out: With --simulate: the folder for the plot.
+        device: Where both stages train and run (the default family's simulation fits on the CPU, as the Retrain).
+        simulate: Compare suggestion strategies (table + PNG plot).
+        strategies: With --simulate: random, entropy, margin, disagreement, surprise, combined.
+        seeds: With --simulate: seeds per strategy.
+        rounds: With --simulate: rounds of labelling, each followed by a retrain.
+        per_round: With --simulate: suggestions labelled per round.
+        feature_mode: With --simulate, paper family: what stage 1 hands stage 2.
+        warm_start: With --simulate, paper family: each round fine-tunes the previous round's models.
+        segment_s: With --simulate: length of one suggestion in seconds (default the UI's 1 s).
+        members: With --simulate: stage-2 ensemble members per retrain.
+        stage1: With --simulate, default family: its own next-frame predictor or the paper's LSTM.
+    """
+    _before_work(out, protocol="demo", simulate=simulate, device=device)
+    from ..evaluation import protocols as ev
+
+    if simulate:
+        refuse_family_device((model,), device)
+        sim = _Simulation(strategies, seeds, rounds, per_round, feature_mode, warm_start, segment_s, members, stage1)
+        print(_simulate("demo", folder, sim, out=out, model=model, device=device, split="partitions"))
+        return
+    epochs = (stage1_epochs, stage2_epochs or STAGE2_EPOCHS)
+    print(
+        ev.evaluate_demo(folder, labelled=labelled, hidden=hidden, seed=seed, folds=folds, epochs=epochs, device=device)
+    )
+
+
+def session(
+    folder: Pos[Path],
+    *,
+    reference: Path | None = None,
+    folds: int = 5,
+    seed: int = 0,
+    stage2_epochs: int | None = None,
+) -> None:
+    """Your own session, leave-logs-out: stage 2 retrained per fold on the other logs' labels, as the Retrain fits,
+    and scored against reference labels kept apart from the labels.
+
+    Args:
+        folder: The session.
+        reference: A label file (the columns of `workbench labels export`) stored as the reference labels of the logs
+            it names before scoring; without it, the session's stored reference.
+        folds: Folds over the logs.
+        seed: Seed of the folds and the fits.
+        stage2_epochs: Most epochs of stage 2 (unset: the Retrain's, with early stopping).
+    """
+    _before_work(None, protocol="session", simulate=False, device="cpu")
+    from sessions import Session
+
+    from ..evaluation import evaluate_session
+
+    with Session.open(folder) as s:
+        config = None if stage2_epochs is None else replace(RETRAIN.classifier, max_epochs=stage2_epochs)
+        print(evaluate_session(s, reference=reference, folds=folds, config=config, seed=seed))
+
+
+def loop(
+    folder: Pos[Path],
+    *,
+    reference: Path | None = None,
+    strategies: Strategies = ("combined", "random"),
+    rounds: int = 4,
+    per_round: int = 12,
+    person: Literal["piece", "stretch"] = "piece",
+    far: tuple[Path, ...] = (),
+    verify: int = 0,
+    seed: int = 0,
+    out: Path | None = None,
+) -> None:
+    """Your own session as a person works it, on a copy: each round labels the suggestions from the reference and
+    fits as the Retrain ends; accuracy on the logs that had no label at the start, per strategy.
+
+    Args:
+        folder: The session.
+        reference: A label file stored as the reference labels of the logs it names (in the copy only).
+        strategies: Strategies compared, each from the same start: random, entropy, margin, disagreement, surprise,
+            combined, and the ablations (combined-no-unchecked, combined-no-votes, combined-no-wrong-first,
+            combined-no-main-answer, combined-main-answer-new, combined-teacher).
+        rounds: Rounds of labelling, each followed by a fit.
+        per_round: Suggestions labelled per round.
+        person: How the simulated person labels a suggestion: the suggested piece, or also the model's stretch around
+            it where the reference agrees (as a range or Y does).
+        far: Log files of runs kept out of the session, their truth in --reference: after every round the bundle the
+            session would export scores them as `workbench classify` does (what ships to the robot).
+        verify: Before the first round and after each, this many verification checks (uniform pieces of the new
+            logs' time nobody labelled, never labelled): the session's accuracy with its 90 % interval as the page
+            shows it, and whether it covers the truth.
+        seed: Seed of the random strategy and the clustering (each round draws anew).
+        out: Also write the rounds as JSON here.
+    """
+    _before_work(out, protocol="loop", simulate=False, device="cpu")
+    if not strategies:
+        raise WorkbenchError("--strategies: name at least one (combined, random, entropy, margin, ...)")
+    if rounds < 1:
+        raise WorkbenchError(f"--rounds {rounds}: at least one round of labelling")
+    if verify < 0:
+        raise WorkbenchError(f"--verify {verify}: a number of checks, 0 or more")
+    from sessions import Session
+
+    from ..evaluation import LoopSettings, evaluate_loop
+
+    settings = LoopSettings(
+        rounds=rounds, per_round=per_round, person=person, strategies=strategies, seed=seed, verify=verify
+    )
+    with Session.open(folder) as s:
+        print(evaluate_loop(s, reference=reference, settings=settings, out=out, far=far))
+
+
+PROTOCOLS = {"borealtc": borealtc, "qcat": qcat, "demo": demo, "session": session, "loop": loop}
+# spellings of the single `evaluate` command that mean something else now: one line naming the new one
+RENAMED = {"--batch": "--per-round"}
+
+
+def misplaced_option(protocol: str, args: list[str]) -> str | None:
+    """One line for an option this protocol does not take: renamed (``RENAMED``), or another protocol's."""
+    own = {_flag(name) for name in inspect.signature(PROTOCOLS[protocol]).parameters}
+    for arg in args:
+        flag = arg.split("=", 1)[0]
+        if not flag.startswith("--") or flag in ("--help",) or flag in own or flag.replace("--no-", "--", 1) in own:
+            continue
+        if flag in RENAMED:
+            return f"{flag}: now {RENAMED[flag]} (workbench evaluate {protocol} --help)"
+        others = [p for p, f in PROTOCOLS.items() if flag in {_flag(n) for n in inspect.signature(f).parameters}]
+        if others:
+            named = ", ".join(others[:-1]) + (" and " if len(others) > 1 else "") + others[-1]
+            return f"{flag}: evaluate {protocol} takes no {flag} (evaluate {named} take{'s' * (len(others) == 1)} it)"
+    return None
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+@dataclass(frozen=True)
+class _Simulation:
+    """The label-efficiency simulation's options, as borealtc and demo take them."""
+
+    strategies: Strategies
+    seeds: int
+    rounds: int
+    per_round: int
+    feature_mode: FeatureMode
+    warm_start: bool
+    segment_s: float | None
+    members: int
+    stage1: str
+
+
+def _simulate(
+    dataset: str, folder: Path, sim: _Simulation, *, out: Path | None, model: str, device: str, split: Split
+) -> str:
+    if not sim.strategies:
+        raise WorkbenchError("--strategies: name at least one (random, combined, entropy, margin, ...)")
+    if sim.rounds < 1:
+        raise WorkbenchError(f"--rounds {sim.rounds}: at least one round of labelling")
+    if model in ("default", "both") and device != "cpu":  # its rounds fit and score as a Retrain does
+        raise WorkbenchError(
+            f"--device {device}: evaluate --simulate runs the default family's rounds on the CPU, as the Retrain "
+            "does; leave --device out (or --model paper)"
+        )
+    from ..evaluation import protocols as ev
+
+    return ev.simulate(
+        dataset,
+        folder,
+        strategies=sim.strategies,
+        seeds=sim.seeds,
+        rounds=sim.rounds,
+        batch=sim.per_round,
+        out=out,
+        model=model,
+        feature_mode=sim.feature_mode,
+        warm_start=sim.warm_start,
+        segment_s=sim.segment_s,
+        members=sim.members,
+        stage1=sim.stage1,
+        device=device,
+        split=split,
+    )
+
+
+def _before_work(out: Path | None, *, protocol: str, simulate: bool, device: str) -> None:
+    """What is refused before anything loads (torch takes seconds): the output target, and a device the protocol
+    cannot use; then the GPUs hidden from a CPU run."""
+    if out is not None:
+        _check_out(out, dataset=protocol, simulate=simulate)
     check_device(device)
     if device == "cpu":
         from training import hide_gpus
 
         hide_gpus()  # a CUDA torch's autograd would otherwise forbid the fits' forked processes their backward pass
-    if dataset in ("loop", "session") and device != "cpu":  # both fit as the session's Retrain does: on the CPU
-        raise WorkbenchError(
-            f"--device {device}: evaluate {dataset} fits as the Retrain does, on the CPU; leave --device out"
-        )
-    if simulate or dataset == "borealtc":
-        refuse_family_device(("default", "paper") if model == "both" else (model,), device)
-    if simulate and model in ("default", "both") and device != "cpu":  # its rounds fit and score as a Retrain does
-        raise WorkbenchError(
-            f"--device {device}: evaluate --simulate runs the default family's rounds on the CPU, as the Retrain "
-            "does; leave --device out (or --model paper)"
-        )
-    if dataset == "loop":
-        from sessions import Session
-
-        from ..evaluation import LoopSettings, evaluate_loop
-
-        order = strategies if strategies != ("random", "combined") else ("combined", "random")
-        settings = LoopSettings(
-            rounds=4 if rounds is None else rounds,
-            per_round=per_round,
-            person=person,
-            strategies=order,
-            seed=seed,
-            verify=verify,
-        )
-        with Session.open(folder) as s:
-            print(evaluate_loop(s, reference=reference, settings=settings, out=out, far=far))
-        return
-    rounds = 8 if rounds is None else rounds
-    if dataset == "session":
-        from sessions import Session
-
-        from ..evaluation import evaluate_session
-
-        with Session.open(folder) as s:
-            config = None if stage2_epochs is None else replace(RETRAIN.classifier, max_epochs=stage2_epochs)
-            print(evaluate_session(s, reference=reference, folds=folds, config=config, seed=seed))
-        return
-    if simulate:
-        print(
-            ev.simulate(
-                dataset,
-                folder,
-                strategies=strategies,
-                seeds=seeds,
-                rounds=rounds,
-                batch=batch,
-                out=out,
-                model=model,
-                feature_mode=feature_mode,
-                warm_start=warm_start,
-                segment_s=segment_s,
-                members=members,
-                stage1=stage1,
-                device=device,
-                split=split,
-            )
-        )
-        return
-
-    if dataset == "borealtc":
-        report = ev.evaluate_borealtc(
-            folder,
-            model=model,
-            labelled=labelled,
-            split=split,
-            variant=variant,
-            hidden=hidden,
-            seed=seed,
-            stage1_epochs=stage1_epochs,
-            stage2_epochs=stage2_epochs or STAGE2_EPOCHS,
-            out=out,
-            device=device,
-        )
-    elif dataset == "qcat":
-        report = ev.evaluate_qcat(
-            folder,
-            hidden=hidden,
-            seed=seed,
-            folds=folds,
-            epochs=(stage1_epochs, stage2_epochs or STAGE2_EPOCHS),
-            device=device,
-        )
-    else:
-        report = ev.evaluate_demo(
-            folder,
-            labelled=labelled,
-            hidden=hidden,
-            seed=seed,
-            folds=folds,
-            epochs=(stage1_epochs, stage2_epochs or STAGE2_EPOCHS),
-            device=device,
-        )
-    print(report)
 
 
 def _check_out(out: Path, *, dataset: str, simulate: bool) -> None:

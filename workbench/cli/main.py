@@ -6,6 +6,7 @@ User errors (bad files, bad sessions, refused labels) print one line and exit 2;
 
 from __future__ import annotations
 
+import inspect
 import os
 import sys
 from pathlib import Path
@@ -336,6 +337,11 @@ def labels() -> None:
     """Label files: `workbench labels export SESSION --out F`, `workbench labels import SESSION F`."""
 
 
+def evaluate() -> None:
+    """Measure the method: `workbench evaluate borealtc|qcat|demo FOLDER` (a dataset's protocol, or --simulate the
+    label efficiency), `evaluate session|loop SESSION` (your own logs, leave-logs-out or as a person works them)."""
+
+
 COMMANDS = {
     "new": new,
     "ingest": ingest,
@@ -343,7 +349,7 @@ COMMANDS = {
     "train": model_commands.train,
     "export": model_commands.export,
     "classify": model_commands.classify,
-    "evaluate": evaluate_command.evaluate,
+    "evaluate": evaluate,
     "labels": labels,
     "suggest": label_commands.suggest,
     "terrains": terrains,
@@ -391,6 +397,13 @@ def _parse_and_run(argv: list[str]) -> int:
     if argv[:1] == ["labels"]:  # tyro has no nested subcommands over functions: route them here
         result = tyro.extras.subcommand_cli_from_dict(
             LABEL_COMMANDS, prog="workbench labels", description="Export or import label files.", args=argv[1:]
+        )
+    elif argv[:1] == ["evaluate"]:
+        protocols = evaluate_command.PROTOCOLS
+        if len(argv) > 1 and argv[1] in protocols and (wrong := evaluate_command.misplaced_option(argv[1], argv[2:])):
+            raise WorkbenchError(wrong)
+        result = tyro.extras.subcommand_cli_from_dict(
+            protocols, prog="workbench evaluate", description=inspect.cleandoc(evaluate.__doc__ or ""), args=argv[1:]
         )
     else:
         result = tyro.extras.subcommand_cli_from_dict(

@@ -148,8 +148,11 @@ def test_device_cuda_is_refused_for_a_family_without_a_cuda_path(tmp_path: Path,
         assert err.count("\n") == 1 and "Traceback" not in err
         assert err.startswith("error: --device cuda: the minirocket family trains and scores on the CPU only")
         assert "--model default or --model paper trains on cuda" in err
-    assert run("evaluate", "loop", tmp_path / "s", "--device", "cuda") == 2
-    assert "fits as the Retrain does, on the CPU" in capsys.readouterr().err
+    assert run("evaluate", "loop", tmp_path / "s", "--device", "cuda") == 2  # the loop fits as the Retrain: CPU
+    assert (
+        capsys.readouterr().err
+        == "error: --device: evaluate loop takes no --device (evaluate borealtc, qcat and demo take it)\n"
+    )
     assert run("evaluate", "demo", tmp_path, "--simulate", "--device", "cuda") == 2
     err = capsys.readouterr().err
     assert err.startswith("error: --device cuda: evaluate --simulate runs the default family's rounds on the CPU")
@@ -167,3 +170,26 @@ def test_device_cuda_without_a_gpu_is_one_clear_line(tmp_path: Path, capsys) -> 
     assert run("evaluate", "demo", tmp_path, "--simulate", "--device", "cuda") == 2
     err = capsys.readouterr().err
     assert err.startswith("error: --device cuda: no CUDA device") and "Traceback" not in err
+
+
+def test_each_evaluate_protocol_lists_only_its_own_options(capsys) -> None:
+    """`workbench evaluate PROTOCOL --help` shows what that protocol takes and nothing else; an option of another
+    protocol, or a renamed one, is one line naming where it went (exit 2, nothing run)."""
+    for protocol, own, foreign in [
+        ("loop", ["--per-round", "--far", "--verify", "--strategies"], ["--variant", "--simulate", "--feature-mode"]),
+        ("borealtc", ["--variant", "--simulate", "--per-round", "--split"], ["--far", "--verify", "--person"]),
+        ("session", ["--reference", "--folds"], ["--simulate", "--rounds", "--device"]),
+        ("qcat", ["--folds", "--hidden"], ["--simulate", "--labelled", "--out"]),
+    ]:
+        with pytest.raises(SystemExit):
+            run("evaluate", protocol, "--help")
+        text = capsys.readouterr().out
+        assert all(o in text for o in own), (protocol, own)
+        assert not [o for o in foreign if o in text], (protocol, foreign)
+    assert run("evaluate", "borealtc", "nowhere", "--simulate", "--batch", "10") == 2
+    assert capsys.readouterr().err == "error: --batch: now --per-round (workbench evaluate borealtc --help)\n"
+    assert run("evaluate", "session", "nowhere", "--simulate") == 2
+    assert (
+        capsys.readouterr().err
+        == "error: --simulate: evaluate session takes no --simulate (evaluate borealtc and demo take it)\n"
+    )

@@ -282,6 +282,6 @@ def test_verification_checks_are_dealt_to_runs_by_their_unlabelled_time() -> Non
 
 def test_verify_is_for_the_loop_and_a_count(tmp_path: Path, capsys) -> None:
     assert main(["evaluate", "borealtc", str(tmp_path), "--verify", "4"]) == 2
-    assert "--verify is for evaluate loop" in capsys.readouterr().err
+    assert "evaluate borealtc takes no --verify (evaluate loop takes it)" in capsys.readouterr().err
     assert main(["evaluate", "loop", str(tmp_path), "--verify", "-1"]) == 2
     assert "--verify -1: a number of checks" in capsys.readouterr().err
