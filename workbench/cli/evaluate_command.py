@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import inspect
 import os
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import dataclass, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Literal
 
@@ -26,6 +27,36 @@ Split = Literal["partitions", "runs", "both"]
 Strategies = tuple[str, ...]
 
 
+@dataclass(frozen=True)
+class Simulation:
+    """The label-efficiency simulation, as ``evaluate borealtc`` and ``evaluate demo`` run it: an oracle labels each
+    suggestion from the truth, stage 2 retrains after every round, and held-out accuracy is printed against labelled
+    time (table + PNG plot)."""
+
+    simulate: bool = False
+    """Run the simulation instead of the protocol."""
+    strategies: Strategies = ("random", "combined")
+    """Strategies compared: random, entropy, margin, disagreement, surprise, combined."""
+    seeds: int = 3
+    """Seeds per strategy (BorealTC: seed s uses outer fold s + 1)."""
+    rounds: int = 8
+    """Rounds of labelling, each followed by a retrain."""
+    per_round: int = 4
+    """Suggestions labelled per round."""
+    feature_mode: FeatureMode = "hidden+surprise"
+    """Paper family: what stage 1 hands stage 2."""
+    warm_start: bool = False
+    """Paper family: each round fine-tunes the previous round's models instead of training afresh."""
+    segment_s: float | None = None
+    """Length of one suggestion in seconds (default: the UI's 1 s on demo logs, a whole 5 s partition on BorealTC,
+    which then labels 5 / segment_s equal pieces of a partition)."""
+    members: int = 3
+    """Stage-2 ensemble members per retrain (the UI's Retrain trains 5)."""
+    stage1: Literal["own", "lstm"] = "own"
+    """Default family: the stage 1 drawing the surprise and the embeddings, its own next-frame predictor or the
+    paper's LSTM (as sessions trained before it), to compare the two."""
+
+
 def borealtc(
     folder: Pos[Path],
     *,
@@ -39,16 +70,7 @@ def borealtc(
     stage2_epochs: int | None = None,
     out: Path | None = None,
     device: Literal["cpu", "cuda"] = "cpu",
-    simulate: bool = False,
-    strategies: Strategies = ("random", "combined"),
-    seeds: int = 3,
-    rounds: int = 8,
-    per_round: int = 4,
-    feature_mode: FeatureMode = "hidden+surprise",
-    warm_start: bool = False,
-    segment_s: float | None = None,
-    members: int = 3,
-    stage1: Literal["own", "lstm"] = "own",
+    simulation: tyro.conf.OmitArgPrefixes[Simulation] = Simulation(),
 ) -> None:
     """BorealTC's protocol (5 s partitions, stratified 5-fold CV, 1.7 s windows at 0.1 s stride), the table beside
     the published figures; with --simulate, the label-efficiency simulation instead.
@@ -68,28 +90,15 @@ def borealtc(
         stage2_epochs: Most epochs of stage 2 (paper family; unset: 150).
         out: Also write per-fold details as JSON here (with --simulate: the folder for the plot).
         device: Where both stages train and run ("cuda" refused by a family without a CUDA path, in one line).
-        simulate: Compare suggestion strategies: an oracle labels each suggestion from the truth, stage 2 retrains
-            after every round, and held-out accuracy is printed against labelled time (table + PNG plot).
-        strategies: With --simulate: random, entropy, margin, disagreement, surprise, combined.
-        seeds: With --simulate: seeds per strategy (seed s uses outer fold s + 1).
-        rounds: With --simulate: rounds of labelling, each followed by a retrain.
-        per_round: With --simulate: suggestions labelled per round.
-        feature_mode: With --simulate, paper family: what stage 1 hands stage 2.
-        warm_start: With --simulate, paper family: each round fine-tunes the previous round's models.
-        segment_s: With --simulate: length of one suggestion in seconds (default a whole 5 s partition, which then
-            labels 5 / segment_s equal pieces of a partition).
-        members: With --simulate: stage-2 ensemble members per retrain (the UI's Retrain trains 5).
-        stage1: With --simulate, default family: the stage 1 drawing the surprise and the embeddings, its own
-            next-frame predictor or the paper's LSTM, to compare the two.
+        simulation: The label-efficiency simulation (--simulate) and its options.
     """
-    _before_work(out, protocol="borealtc", simulate=simulate, device=device)
+    _before_work(out, protocol="borealtc", simulate=simulation.simulate, device=device)
     from ..evaluation import protocols as ev
 
     families = ("default", "paper") if model == "both" else (model,)
     refuse_family_device(families, device)
-    if simulate:
-        sim = _Simulation(strategies, seeds, rounds, per_round, feature_mode, warm_start, segment_s, members, stage1)
-        print(_simulate("borealtc", folder, sim, out=out, model=model, device=device, split=split))
+    if simulation.simulate:
+        print(_simulate("borealtc", folder, simulation, out=out, model=model, device=device, split=split))
         return
     report = ev.evaluate_borealtc(
         folder,
@@ -148,16 +157,7 @@ def demo(
     stage2_epochs: int | None = None,
     out: Path | None = None,
     device: Literal["cpu", "cuda"] = "cpu",
-    simulate: bool = False,
-    strategies: Strategies = ("random", "combined"),
-    seeds: int = 3,
-    rounds: int = 8,
-    per_round: int = 4,
-    feature_mode: FeatureMode = "hidden+surprise",
-    warm_start: bool = False,
-    segment_s: float | None = None,
-    members: int = 3,
-    stage1: Literal["own", "lstm"] = "own",
+    simulation: tyro.conf.OmitArgPrefixes[Simulation] = Simulation(),
 ) -> None:
     """Leave-logs-out on demo logs against their truth, for each stage-1 feature mode (the paper family); with
     --simulate, the label-efficiency simulation on them instead.
@@ -173,24 +173,14 @@ def demo(
         stage2_epochs: Most epochs of stage 2 (unset: 150).
         out: With --simulate: the folder for the plot.
         device: Where both stages train and run (the default family's simulation fits on the CPU, as the Retrain).
-        simulate: Compare suggestion strategies (table + PNG plot).
-        strategies: With --simulate: random, entropy, margin, disagreement, surprise, combined.
-        seeds: With --simulate: seeds per strategy.
-        rounds: With --simulate: rounds of labelling, each followed by a retrain.
-        per_round: With --simulate: suggestions labelled per round.
-        feature_mode: With --simulate, paper family: what stage 1 hands stage 2.
-        warm_start: With --simulate, paper family: each round fine-tunes the previous round's models.
-        segment_s: With --simulate: length of one suggestion in seconds (default the UI's 1 s).
-        members: With --simulate: stage-2 ensemble members per retrain.
-        stage1: With --simulate, default family: its own next-frame predictor or the paper's LSTM.
+        simulation: The label-efficiency simulation (--simulate) and its options.
     """
-    _before_work(out, protocol="demo", simulate=simulate, device=device)
+    _before_work(out, protocol="demo", simulate=simulation.simulate, device=device)
     from ..evaluation import protocols as ev
 
-    if simulate:
+    if simulation.simulate:
         refuse_family_device((model,), device)
-        sim = _Simulation(strategies, seeds, rounds, per_round, feature_mode, warm_start, segment_s, members, stage1)
-        print(_simulate("demo", folder, sim, out=out, model=model, device=device, split="partitions"))
+        print(_simulate("demo", folder, simulation, out=out, model=model, device=device, split="partitions"))
         return
     epochs = (stage1_epochs, stage2_epochs or STAGE2_EPOCHS)
     print(
@@ -286,41 +276,31 @@ RENAMED = {"--batch": "--per-round"}
 
 def misplaced_option(protocol: str, args: list[str]) -> str | None:
     """One line for an option this protocol does not take: renamed (``RENAMED``), or another protocol's."""
-    own = {_flag(name) for name in inspect.signature(PROTOCOLS[protocol]).parameters}
+    own = _flags(PROTOCOLS[protocol])
     for arg in args:
         flag = arg.split("=", 1)[0]
         if not flag.startswith("--") or flag in ("--help",) or flag in own or flag.replace("--no-", "--", 1) in own:
             continue
         if flag in RENAMED:
             return f"{flag}: now {RENAMED[flag]} (workbench evaluate {protocol} --help)"
-        others = [p for p, f in PROTOCOLS.items() if flag in {_flag(n) for n in inspect.signature(f).parameters}]
+        others = [p for p, f in PROTOCOLS.items() if flag in _flags(f)]
         if others:
             named = ", ".join(others[:-1]) + (" and " if len(others) > 1 else "") + others[-1]
             return f"{flag}: evaluate {protocol} takes no {flag} (evaluate {named} take{'s' * (len(others) == 1)} it)"
     return None
 
 
-def _flag(name: str) -> str:
-    return "--" + name.replace("_", "-")
-
-
-@dataclass(frozen=True)
-class _Simulation:
-    """The label-efficiency simulation's options, as borealtc and demo take them."""
-
-    strategies: Strategies
-    seeds: int
-    rounds: int
-    per_round: int
-    feature_mode: FeatureMode
-    warm_start: bool
-    segment_s: float | None
-    members: int
-    stage1: str
+def _flags(command: Callable[..., None]) -> set[str]:
+    """The options a protocol's function takes, a nested dataclass's fields as their own (``OmitArgPrefixes``)."""
+    names = []
+    for name, parameter in inspect.signature(command).parameters.items():
+        nested = parameter.default if is_dataclass(parameter.default) else None
+        names += [f.name for f in fields(nested)] if nested is not None else [name]
+    return {"--" + name.replace("_", "-") for name in names}
 
 
 def _simulate(
-    dataset: str, folder: Path, sim: _Simulation, *, out: Path | None, model: str, device: str, split: Split
+    dataset: str, folder: Path, sim: Simulation, *, out: Path | None, model: str, device: str, split: Split
 ) -> str:
     if not sim.strategies:
         raise WorkbenchError("--strategies: name at least one (random, combined, entropy, margin, ...)")
