@@ -13,11 +13,10 @@ from functools import partial
 import numpy as np
 
 import labeling
-from sessions import LogInfo, ModelVersion, Segment, Session, WorkbenchError
+from sessions import LogInfo, ModelVersion, Segment, Session
 from training import (
     CancelFn,
     ClassifierFit,
-    Family,
     FeatureMode,
     ModelBundle,
     ProgressFn,
@@ -33,34 +32,14 @@ from training import (
 
 from ..retrain import RETRAIN
 from .checks_record import names_now
+from .fit_inputs import FitInputs, fit_inputs
 from .fold_record import labels_record, new_labels, recorded_pieces
 from .front_end import spectral_features, stretch_units, unlabelled_stretches, window_features, window_sizes
 from .scores import SessionScores
 from .stage_inputs import consistency_pairs, signal_change_points, stage2_features
-from .train_stages import (
-    active_predictor,
-    front_end_of,
-    model_logs,
-    recorded_run,
-    require_stage1,
-    save_version,
-    stage1_family,
-)
+from .train_stages import recorded_run, save_version, stage1_family
 
 STAGE1_FEATURES: FeatureMode = "hidden+surprise"  # what a family reading stage 1's outputs takes of them
-
-
-def _labelled(session: Session, logs: Sequence[LogInfo]) -> tuple[tuple[str, ...], list[Segment], list]:
-    index = {x.id: i for i, x in enumerate(logs)}
-    used = [s for s in session.segments() if s.log_id in index]
-    # the classes are the terrains labelled: a terrain nobody labelled would be an empty row of the confusion matrix
-    # and a column of zeros in every prediction file
-    labelled = {s.terrain for s in used}
-    classes = tuple(t.name for t in session.terrains() if t.name in labelled)
-    segments = [(index[s.log_id], s.start, s.stop, classes.index(s.terrain)) for s in used]
-    if len({s[3] for s in segments}) < 2:
-        raise WorkbenchError(f"{session.path}: label segments of at least two terrains before training the classifier")
-    return classes, used, segments
 
 
 def train_classifier(
@@ -108,11 +87,11 @@ def train_classifier(
         teach: With ``scores``, the fit also takes the terrain the session knows over a stretch as its pseudo-label
             instead of its own agreement there (``RETRAIN.teach``: off, a screen not kept).
     """
-    fam = stage1_family(session, model)
-    if fam.stage2_inputs == "stage1":
+    inputs = fit_inputs(session, stage1_family(session, model))
+    if inputs.family.stage2_inputs == "stage1":
         return _train_on_stage1(
             session,
-            fam,
+            inputs,
             config or TrainConfig(),
             feature_mode=feature_mode,
             hidden=hidden,
@@ -122,19 +101,19 @@ def train_classifier(
             cancel=cancel,
         )
     settings = window or RETRAIN.window
-    if warm_start and warm_epochs is not None and fam.fine_tune is not None:
-        quick = _fine_tune_window(session, fam, settings, progress=progress, cancel=cancel)
+    if warm_start and warm_epochs is not None and inputs.family.fine_tune is not None:
+        quick = _fine_tune_window(session, inputs, settings, progress=progress, cancel=cancel)
         if quick is not None:
             return quick
     device = (config or TrainConfig()).device
     return _train_window(
-        session, fam, settings, progress=progress, cancel=cancel, device=device, scores=scores, teach=teach
+        session, inputs, settings, progress=progress, cancel=cancel, device=device, scores=scores, teach=teach
     )
 
 
 def _train_on_stage1(
     session: Session,
-    fam: Family,
+    inputs: FitInputs,
     config: TrainConfig,
     *,
     feature_mode: FeatureMode,
@@ -146,13 +125,10 @@ def _train_on_stage1(
 ) -> ModelVersion:
     """Stage 2 of a family that reads its stage 1's outputs (the paper's LSTM classifier): warm-started from the
     active classifier where the family does and it fits, with consistency pairs when ``config`` asks for them."""
-    p_version, bundle = active_predictor(session)
-    require_stage1(session, fam, p_version, bundle)
-    logs = model_logs(session, bundle.channels)
-    classes, used, segments = _labelled(session, logs)
+    fam, p_version, bundle, logs = inputs.family, inputs.predictor, inputs.bundle, inputs.logs
+    classes, used, segments, previous = inputs.classes, inputs.used, inputs.segments, inputs.previous
     features = stage2_features(session, p_version, bundle, logs, feature_mode)
     init = None
-    previous = session.active_model("classifier")
     if (
         warm
         and fam.warm_start
@@ -210,7 +186,7 @@ def _train_on_stage1(
 
 def _train_window(
     session: Session,
-    fam: Family,
+    inputs: FitInputs,
     settings: WindowFitConfig,
     *,
     progress: ProgressFn | None,
@@ -223,10 +199,9 @@ def _train_window(
     window network, MiniRocket), with self-training over the unlabelled stretches of every log where the family
     learns from them (its held-out runs judged, and with ``teach`` it taught, by ``scores`` where they are sure); a
     new, active version (the predictor's bundle with it)."""
-    p_version, bundle = active_predictor(session)
-    logs = model_logs(session, bundle.channels)
-    classes, used, segments = _labelled(session, logs)
-    front = front_end_of(session, bundle, logs)
+    fam, p_version, bundle, logs = inputs.family, inputs.predictor, inputs.bundle, inputs.logs
+    classes, used, segments = inputs.classes, inputs.used, inputs.segments
+    front = inputs.front_end(session)
     if fam.stage2_inputs == "windows":  # the samples themselves, a window per hop of the front end
         features = window_features(session, bundle, logs, window_sizes(bundle, front))
     else:
@@ -280,22 +255,20 @@ def _train_window(
 
 
 def _fine_tune_window(
-    session: Session, fam: Family, settings: WindowFitConfig, *, progress: ProgressFn | None, cancel: CancelFn
+    session: Session, inputs: FitInputs, settings: WindowFitConfig, *, progress: ProgressFn | None, cancel: CancelFn
 ) -> ModelVersion | None:
     """A frames family's quick phase (the default family's): the active fold models fine-tuned on the labels added
     or changed since; a new, active version. ``None`` (fit from scratch) unless the active classifier is an ensemble
     of this family of two or more fold models over the same predictor and terrains that recorded its segments'
     folds."""
-    previous = session.active_model("classifier")
+    fam, p_version, bundle, previous = inputs.family, inputs.predictor, inputs.bundle, inputs.previous
     if previous is None or previous.config.get("model") != fam.name or fam.fine_tune is None:
         return None
-    p_version, bundle = active_predictor(session)
     seen = previous.config.get("labels") or {}
     if previous.config.get("predictor") != p_version.id or not seen.get("ids"):
         return None
     old = load_bundle(session.path / previous.path)
-    logs = model_logs(session, bundle.channels)
-    classes, used, segments = _labelled(session, logs)
+    logs, classes, used, segments = inputs.logs, inputs.classes, inputs.used, inputs.segments
     if old.classes != classes or old.spectral is None or len(old.classifiers) < 2:
         return None
     fresh = set(new_labels(used, seen) or [])

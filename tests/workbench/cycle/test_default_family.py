@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -174,8 +175,26 @@ def test_a_retrain_after_more_labels_fine_tunes_the_default_models_and_keeps_the
     session.add_terrain("ice")
     b = _free_second(session, log)
     ice = session.add_segment(log.id, b, b + int(log.rate_hz), "ice", author="test")
+    reads = Counter()
+
+    def counted(name, fn):
+        def call(*args, **kwargs):
+            reads[name] += 1
+            return fn(*args, **kwargs)
+
+        return call
+
+    import workbench.cycle.fit_inputs as inputs_module
+    import workbench.cycle.stage2_fit as fit_module
+
     try:
-        assert cycle.train_classifier(session, warm_epochs=2).config["warm_start"] is False
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(inputs_module, "active_predictor", counted("predictor", inputs_module.active_predictor))
+            mp.setattr(fit_module, "recorded_run", counted("run record", fit_module.recorded_run))
+            mp.setattr(session, "segments", counted("labels", session.segments))
+            # the quick phase declines (a new terrain) and the fit from scratch runs on what was read: once each
+            assert cycle.train_classifier(session, warm_epochs=2).config["warm_start"] is False
+        assert reads == {"predictor": 1, "labels": 1, "run record": 1}
     finally:
         session.delete_segment(ice.id, author="test")
         session.delete_segment(added.id, author="test")
