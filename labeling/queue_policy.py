@@ -34,9 +34,9 @@ class QueuePolicy:
         unchecked_first: ``combined``: the candidates of logs with no labelled span come before every other one,
             spread over those logs and then over their time, so a person's new runs are checked before more time of
             runs already checked.
-        wrong_first: ``combined`` (with ``unchecked_first``): a checked log is lifted by ``wrong / (checks + 1)``
-            over ``WRONG_FULL`` of the new logs' tier (at most all of it), from :attr:`Evidence.wrong`: where checks
-            found the model wrong, more checks follow. Off only to measure what it is worth.
+        wrong_first: ``combined`` (with ``unchecked_first``): a checked log is lifted by ``wrong / (checks + 1)`` of
+            the new logs' tier, from :attr:`Evidence.wrong`: where checks found the model wrong, more checks follow,
+            behind the logs nobody has checked yet. Off only to measure what it is worth.
         main_answer: ``combined`` (with ``unchecked_first``): where a log is asked about its main answer, the middle
             of the model's longest stretch of one terrain (kind ``"main answer"``, placed first): a run the model
             reads confidently as the wrong terrain has no doubt to draw a pick to its bulk. ``"new"``: every log

@@ -271,22 +271,6 @@ def test_a_checked_log_whose_checks_found_the_model_wrong_is_asked_again() -> No
     assert [p.log for p in plain].count(1) < [p.log for p in asked].count(1)
 
 
-def test_a_log_with_a_third_of_its_checks_wrong_keeps_its_picks_against_busier_logs() -> None:
-    """A run whose checks are still 10 of 24 wrong is level with the logs nobody checked: the other runs'
-    candidates lifted by a terrain the model misses do not take its picks, as they did at 0.4 of the tier."""
-    scores = make_scores([3000, 3000, 3000], 3, 6)
-    for g in (0, 2):  # the other runs lean to terrain a, which the model misses: their candidates score up to 7x
-        probs = scores[g].probs + np.array([1.0, 0.0, 0.0])
-        scores[g] = LogScores(scores[g].surprise, probs / probs.sum(axis=1, keepdims=True), scores[g].disagreement)
-    labelled = [(0, 100, 200), (1, 100, 200), (2, 100, 200)]
-    kwargs = dict(labelled=labelled, classes=["a", "b", "c"], n=6, max_len=200, min_len=50, spot_checks=0)
-    kwargs["recall"] = np.array([0.0, 1.0, 1.0])
-    asked = ranked(scores, wrong=[(0, 4), (10, 24), (0, 4)], **kwargs)
-    assert [p.log for p in asked] == [1] * 6
-    fewer = ranked(scores, wrong=[(0, 4), (2, 24), (0, 4)], **kwargs)  # 2 of 24 wrong: a share of the tier
-    assert [p.log for p in fewer].count(1) <= 3
-
-
 def test_novelty_is_the_nearest_labelled_distance_found_a_block_at_a_time(monkeypatch) -> None:
     # candidates times labels grew with the hours squared as one matrix (469 MB at 10 h); the nearest labelled
     # segment is now found in blocks, with the same distances as the whole matrix
