@@ -141,3 +141,38 @@ def test_the_ensemble_pass_gives_back_what_each_chunk_read_where_its_rows_can(mo
     for r, o, x in zip(ref, out, rows, strict=True):
         np.testing.assert_allclose(o, r, atol=1e-5)
         assert x.read == -(-len(x) // 100) == x.released  # each chunk read once, and given back
+
+
+def test_members_of_a_window_family_share_one_search_for_repeated_rows_with_the_same_numbers(monkeypatch) -> None:
+    """The rows that repeat the one before are found once per chunk for every member (``per_row``); the
+    probabilities are bit for bit those of each member searching its chunk itself, and of one pass over each log
+    within float rounding."""
+    from training.spectral_cnn import WindowClassifier, WindowClassifierConfig
+
+    torch.manual_seed(0)
+    rng = np.random.default_rng(0)
+    members = [WindowClassifier(WindowClassifierConfig(7 * 5, 3, window=7, hidden=8)).eval() for _ in range(3)]
+    assert all(type(m).per_row for m in members)
+    logs = []
+    for n in (400, 95, 260):  # a new row every 20 steps, as frames complete at 100 Hz; a log's tail padded in a batch
+        rows = rng.normal(size=(n // 20 + 1, 7 * 5)).astype(np.float32)
+        logs.append(np.repeat(rows, 20, axis=0)[:n])
+
+    def run() -> list[np.ndarray]:
+        got = [np.empty((3, len(x), 3), np.float32) for x in logs]
+
+        def keep(i: int, a: int, b: int, probs: np.ndarray) -> None:
+            got[i][:, a:b] = probs
+
+        ensemble_pass(members, logs, keep, chunk=128, batch=2)
+        return got
+
+    shared = run()
+    monkeypatch.setattr(WindowClassifier, "per_row", False)  # each member searches its chunk itself
+    alone = run()
+    assert all(np.array_equal(a, b) for a, b in zip(shared, alone, strict=True))
+    with torch.inference_mode():
+        for x, g in zip(logs, shared, strict=True):
+            for m, member in enumerate(members):
+                whole_log = torch.softmax(member(torch.from_numpy(x)[None], None)[0], -1)[0].numpy()  # (T, K)
+                np.testing.assert_allclose(g[m], whole_log, atol=1e-6)
