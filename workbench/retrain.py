@@ -17,7 +17,7 @@ class RetrainSettings:
         predictor: Stage 1, when logs were added since it trained.
         classifier: Stage 2 from scratch (the refine phase, a new terrain, a new predictor). Stopping at 100 epochs
             with patience 20 keeps one label set's accuracy within 2 points over training seeds; 40 with patience 8
-            moved it by 11 (docs/design-notes.md).
+            moved it by 11.
         warm_epochs: The quick phase fine-tunes the active classifier for this many epochs on the labels added or
             changed since (``None``: every retrain trains as long as a fresh one). The old models fit all the older
             labels already, and a person waits for this one (``benchmarks/speed/bench_retrain.py``).

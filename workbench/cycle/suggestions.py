@@ -17,7 +17,7 @@ from .session_figure import DEFAULT_WIDTH, session_figures
 
 # Suggestions are short: a labelled second from many places teaches stage 2 more than the same seconds in a few
 # longer stretches. On the demo logs, 140 s labelled at random reached 80-81 % held-out accuracy as 1 s pieces and
-# 56-71 % as 3 s pieces (docs/design-notes.md, "Suggestion length").
+# 56-71 % as 3 s pieces (docs/design-notes.md, "A pick is one classifier window long").
 SUGGESTION_S = 1.0
 # Of a queue of 4 or more, this many are spot checks, drawn uniformly from the unlabelled time: what the person's
 # checks of them say of the model is a fair sample, which the ranked suggestions' is not
