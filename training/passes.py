@@ -70,8 +70,9 @@ def ensemble_pass(
         model.to(device).eval()
     joint = getattr(type(models[0]), "ensemble_forward", None)  # members that share work run it once for all
     together = joint(models) if joint is not None else None
-    # members whose step reads its own row alone (``per_row``): the rows that repeat the one before are found once
-    # per chunk for all of them, not once per member (at 10 h, five members' search was a third of a rescoring)
+    # members whose step reads its own row alone (``per_row``: their ``logits (N, D) -> (N, K)``): the rows that
+    # repeat the one before are found once per chunk for all of them, not once per member (at 10 h, five members'
+    # search was a third of a rescoring), and each member's logits are asked of those rows only
     per_row = together is None and getattr(type(models[0]), "per_row", False)
     for group in padded_groups([len(f) for f in features], batch):
         lengths = [len(features[i]) for i in group]
@@ -89,9 +90,9 @@ def ensemble_pass(
             if together is not None:  # stateless members: every one's logits in one call
                 probs[:] = torch.softmax(together(ft), -1).cpu().numpy()  # (M, B, L, K)
             elif per_row:
-                distinct, which = distinct_rows(ft)  # (1, U, F), (B·L,)
+                distinct, which = distinct_rows(ft)  # (U, F), (B·L,)
                 for m, model in enumerate(models):
-                    logits = model(distinct, None)[0][0][which].reshape(len(group), size, -1)  # (B, L, K)
+                    logits = model.logits(distinct)[which].reshape(len(group), size, -1)  # (B, L, K)
                     probs[m] = torch.softmax(logits, -1).cpu().numpy()
             else:
                 for m, model in enumerate(models):
@@ -136,7 +137,7 @@ def run_classifiers(
 
 
 def distinct_rows(features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """``features (B, T, D)`` -> the first row of each run of identical consecutive rows, ``(1, U, D)``, and for each
+    """``features (B, T, D)`` -> the first row of each run of identical consecutive rows, ``(U, D)``, and for each
     of the ``B·T`` rows the index of its run, ``(B·T,)``. No two consecutive distinct rows are equal, so a pass over
     them finds nothing more to merge."""
     b, t, d = features.shape
@@ -144,7 +145,7 @@ def distinct_rows(features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     new = torch.ones(b * t, dtype=torch.bool, device=flat.device)
     new[1:] = (flat[1:] != flat[:-1]).any(dim=1)
     which = torch.cumsum(new.long(), 0) - 1  # (B·T,) index of each row's distinct run
-    return flat[new][None], which
+    return flat[new], which
 
 
 def per_distinct_row(logits: Callable[[torch.Tensor], torch.Tensor], features: torch.Tensor) -> torch.Tensor:
@@ -152,5 +153,5 @@ def per_distinct_row(logits: Callable[[torch.Tensor], torch.Tensor], features: t
     ``(B, T, K)``. A window family's input changes once per hop (a frame, a window of samples), so at 100 Hz most
     steps repeat the one before, and the network runs twenty times less."""
     b, t, _ = features.shape
-    distinct, which = distinct_rows(features)  # (1, U, D), (B·T,)
-    return logits(distinct[0])[which].reshape(b, t, -1)
+    distinct, which = distinct_rows(features)  # (U, D), (B·T,)
+    return logits(distinct)[which].reshape(b, t, -1)

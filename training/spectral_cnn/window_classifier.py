@@ -123,7 +123,7 @@ class WindowClassifier(nn.Module):
         conv = self.conv.weight.permute(0, 2, 1).reshape(h, 3 * h)  # (H, 3H) tap-major, as ``taps``
         return F.gelu(F.linear(taps, conv, self.conv.bias), approximate="tanh")  # (N, W, H)
 
-    per_row = True  # a step's logits read its own row alone: an ensemble pass may hand it distinct rows only
+    per_row = True  # a step's logits read its own row alone: an ensemble pass asks ``logits`` of distinct rows only
 
     def forward(self, features: torch.Tensor, state: None = None) -> tuple[torch.Tensor, None]:
         """``features (B, T, W·F)`` -> ``logits (B, T, K)``; no state is carried.
