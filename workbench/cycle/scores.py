@@ -24,9 +24,11 @@ from training import (
     Stage1Outputs,
     StepRows,
     WindowClassifier,
-    drift_of_log,
+    blank_probs,
     ensemble_pass,
+    frame_chunks,
     load_bundle,
+    step_frames,
 )
 
 from .front_end import input_span, spectral_features, window_features, window_sizes
@@ -57,7 +59,8 @@ def score_logs(
         features: Per log, ``(T, F)`` stage-2 inputs (a ``LazyFeatures`` or ``SpectralSteps`` computes only the
             chunk asked for).
         surprise: Per log, ``(T,)`` stage-1 error (``Stage1Outputs.surprise``).
-        drift: The bundle's drift reference; with spectral features, each step's drift score is computed too.
+        drift: The bundle's drift reference: with the default family over its frames, each step's drift score is
+            computed too, from the same pass as the probabilities.
         batch: Logs per LSTM call.
         device: Torch device.
 
@@ -68,6 +71,11 @@ def score_logs(
     """
     if not classifiers:
         return [labeling.LogScores(np.asarray(s)) for s in surprise]
+    windows = [c for c in classifiers if isinstance(c, WindowClassifier)]
+    if len(windows) == len(classifiers) and all(isinstance(f, SpectralSteps) for f in features):
+        # the default family: each member once per frame, its answer repeated over the frame's steps
+        steps = [f for f in features if isinstance(f, SpectralSteps)]
+        return [_frame_scores(windows, f, s, drift) for f, s in zip(steps, surprise, strict=True)]
     k = classifiers[0].config.n_classes
     mean = [np.empty((len(f), k), np.float32) for f in features]
     disagreement = [np.empty(len(f), np.float32) for f in features]
@@ -81,15 +89,43 @@ def score_logs(
             agreement[i][a:b] = labeling.member_agreement(probs)  # type: ignore[index]
 
     ensemble_pass(classifiers, features, reduce, batch=batch, device=device)
-    drifts: list[np.ndarray | None] = [None] * len(features)
-    if drift is not None and all(isinstance(f, SpectralSteps) for f in features):
-        for i, f in enumerate(features):
-            drifts[i] = drift_of_log(drift, classifiers, f)  # type: ignore[arg-type]
-            f.release()  # type: ignore[union-attr]  # read whole again: its mapped frames not held over the logs
     return [
-        labeling.LogScores(np.asarray(s), m, d, r, g)
-        for s, m, d, r, g in zip(surprise, mean, disagreement, drifts, agreement, strict=True)
+        labeling.LogScores(np.asarray(s), m, d, None, g)
+        for s, m, d, g in zip(surprise, mean, disagreement, agreement, strict=True)
     ]
+
+
+def _frame_scores(
+    classifiers: Sequence[WindowClassifier], features: SpectralSteps, surprise: np.ndarray, drift: DriftReference | None
+) -> labeling.LogScores:
+    """One log's scores from the members' answers once per frame, each repeated over the steps that read that frame
+    last (a step before the first frame reads zeros; its drift is the first frame's, as ``drift_of_log`` gives)."""
+    n, k, pairs = len(features.frames), classifiers[0].config.n_classes, len(classifiers) >= 2
+    mean, mi = np.empty((n + 1, k), np.float32), np.empty(n + 1, np.float32)  # the last row: the blank input's
+    agreement = np.empty(n + 1, np.float32) if pairs else None
+    drifts = np.zeros(max(n, 1), np.float32) if drift is not None else None
+
+    def reduce(a: int, b: int, probs: np.ndarray) -> None:  # probs: (M, b - a, K)
+        mean[a:b] = probs.mean(axis=0)
+        mi[a:b] = labeling.mutual_information(probs)
+        if agreement is not None:
+            agreement[a:b] = labeling.member_agreement(probs)
+
+    for part in frame_chunks(classifiers, features, drift=drift):
+        reduce(part.start, part.start + part.probs.shape[1], part.probs)
+        if drifts is not None and part.drift is not None:
+            drifts[part.start : part.start + len(part.drift)] = part.drift
+    reduce(n, n + 1, blank_probs(classifiers)[:, None])
+    features.release()  # its mapped frames not held over the logs
+    which = step_frames(features)  # (T,)
+    rows = np.where(which >= 0, which, n)  # (T,) a blank step reads the last row
+    return labeling.LogScores(
+        np.asarray(surprise),
+        mean[rows],
+        mi[rows],
+        None if drifts is None else drifts[np.clip(which, 0, max(n - 1, 0))],
+        None if agreement is None else agreement[rows],
+    )
 
 
 @dataclass(frozen=True)

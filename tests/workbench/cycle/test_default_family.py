@@ -77,6 +77,41 @@ def test_scores_stream_and_classify_agree_on_every_step(session: Session, tmp_pa
     np.testing.assert_allclose(pred[[f"p_{c}" for c in bundle.classes]].to_numpy(), scored.probs, atol=1e-4)
 
 
+class _Rows:
+    """A log's step inputs that are not ``SpectralSteps``: ``score_logs`` runs the step pass over them."""
+
+    def __init__(self, steps) -> None:
+        self.steps, self.shape = steps, steps.shape
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def __getitem__(self, key: slice) -> np.ndarray:
+        return self.steps[key]
+
+
+def test_the_members_once_per_frame_score_as_the_step_pass(session: Session) -> None:
+    from training import drift_of_log
+    from workbench.cycle.front_end import spectral_features
+
+    if session.active_model("classifier").config["model"] != "default":
+        cycle.train_classifier(session, model="default")
+    _, bundle = cycle.active_bundle(session)
+    predictor = load_bundle(session.path / session.active_model("predictor").path)
+    logs = session.logs()
+    steps = spectral_features(session, predictor, logs, bundle.spectral)
+    surprise = [np.zeros(len(f), np.float32) for f in steps]
+    framed = cycle.score_logs(bundle.classifiers, steps, surprise, drift=bundle.drift)
+    stepped = cycle.score_logs(bundle.classifiers, [_Rows(f) for f in steps], surprise, drift=bundle.drift)
+    for f, a, b in zip(steps, framed, stepped, strict=True):
+        np.testing.assert_allclose(a.probs, b.probs, atol=1e-5)
+        assert (a.probs.argmax(1) == b.probs.argmax(1)).all()
+        np.testing.assert_allclose(a.disagreement, b.disagreement, atol=1e-5)
+        np.testing.assert_allclose(a.agreement, b.agreement, atol=1e-6)
+        assert b.drift is None  # the step pass computes it only over SpectralSteps
+        np.testing.assert_array_equal(a.drift, drift_of_log(bundle.drift, bundle.classifiers, f))
+
+
 def _options():
     from sessions import IngestOptions
 

@@ -1,0 +1,95 @@
+"""The default family's ensemble over a log's frames: each member once per frame, its logits and its drift from one
+network pass.
+
+A step's input is the last ``window`` frames complete at or before it (:class:`.spectra.SpectralSteps`), so every
+step between two frames asks the same question: at 100 Hz with a frame every 0.2 s, twenty steps in a row. The step
+pass built each step's row, searched the rows for repeats and ran the members on what was left, then the drift ran
+each member again on the frames for its embedding. Here each member runs once per frame and both the probabilities
+and the drift come from that one pass; the caller repeats a frame's answer over its steps (:func:`step_frames`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from .spectra import SpectralSteps, last_frame, stacked_frames
+from .window_classifier import WindowClassifier
+from .window_drift import QUERY_CHUNK, DriftReference, _distances
+
+
+@dataclass(frozen=True, eq=False)
+class FrameChunk:
+    """The members' answers for frames ``[start, start + n)`` of one log.
+
+    Attributes:
+        start: First frame.
+        probs: ``(M, n, K)`` float32 each member's class probabilities.
+        drift: ``(n,)`` float32 the members' mean drift (:mod:`.window_drift`), or ``None`` without a reference.
+    """
+
+    start: int
+    probs: np.ndarray
+    drift: np.ndarray | None
+
+
+@torch.inference_mode()
+def frame_chunks(
+    models: Sequence[WindowClassifier],
+    steps: SpectralSteps,
+    *,
+    drift: DriftReference | None = None,
+    chunk: int = QUERY_CHUNK,
+) -> Iterator[FrameChunk]:
+    """Every member over every frame of one log, ``chunk`` frames at a time.
+
+    The numbers are those of the step pass and :func:`.window_drift.drift_of_log` (the same operations on the same
+    rows; the probabilities may differ in the last bits where the matrix products batch rows differently).
+
+    Args:
+        models: The ``M`` members.
+        steps: The log's stage-2 inputs (its frames are read a chunk at a time).
+        drift: The bundle's drift reference: each frame's drift is computed from the same pooled features.
+        chunk: Frames per network call.
+    """
+    cfg = steps.config
+    n = len(steps.frames)
+    device = models[0].in_mean.device
+    for model in models:
+        model.eval()
+    for c in range(0, n, chunk):
+        idx = np.arange(c, min(c + chunk, n))
+        lo = max(c - cfg.window + 1, 0)
+        block = np.asarray(steps.frames[lo : int(idx[-1]) + 1], np.float32)  # read only what is used
+        rows = torch.from_numpy(stacked_frames(block, idx - lo, cfg.window)).to(device)  # (n, W·F)
+        probs = np.empty((len(models), len(idx), models[0].config.n_classes), np.float32)
+        total = np.zeros(len(idx), np.float32) if drift is not None else None
+        for m, model in enumerate(models):
+            frames = model.standardise(rows)  # (n, W, F)
+            pooled = model.pooled(frames)  # (n, 2H)
+            probs[m] = torch.softmax(model.head(pooled), -1).cpu().numpy()
+            if drift is not None and total is not None:
+                views = (
+                    torch.nn.functional.normalize(pooled, dim=1).cpu().numpy(),  # (n, 2H) the embedding's view
+                    frames.mean(dim=1).cpu().numpy(),  # (n, F) the inputs' view
+                )
+                ref = (drift.references[m], drift.inputs[m])
+                total += (_distances(ref, views, drift.neighbours, skip_self=False) / drift.scales[m]).max(axis=1)
+        yield FrameChunk(c, probs, None if total is None else total / len(models))
+
+
+@torch.inference_mode()
+def blank_probs(models: Sequence[WindowClassifier]) -> np.ndarray:
+    """``(M, K)`` each member's probabilities for a step before the log's first frame completes (its input is
+    zeros, as :class:`.spectra.SpectralSteps` gives it)."""
+    device = models[0].in_mean.device
+    zeros = torch.zeros((1, models[0].config.n_features), device=device)  # (1, W·F)
+    return np.stack([torch.softmax(m.eval().logits(zeros), -1)[0].cpu().numpy() for m in models])
+
+
+def step_frames(steps: SpectralSteps) -> np.ndarray:
+    """``(T,)`` the frame each step of the log reads last (``-1`` before the first frame completes)."""
+    return last_frame(np.arange(len(steps), dtype=np.int64), steps.config)
