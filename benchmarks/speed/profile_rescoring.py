@@ -8,9 +8,10 @@ process, nothing else running) on a session that ``bench_fleet.py`` built and tr
     python benchmarks/speed/profile_rescoring.py /tmp/f10/session [--top 25]
 
 Each part is the cumulative time of the functions that do it (a part's time includes what it calls, so parts that
-nest are said so). The arithmetic's limit of the members' part is the ensemble's multiply-adds over the distinct
-frames, at the rate this machine multiplies matrices (measured in the same run, a float32 matrix product of the
-network's shape).
+nest are said so). The arithmetic's limit of the networks is the ensemble's multiply-adds over the frames (each
+frame's 7-frame window through both convolutions and the head), of the drift's search each frame's distances to
+every member's reference rows in both views, both at the rate this machine multiplies matrices (measured in the same
+run, a float32 matrix product of the network's shape).
 """
 
 from __future__ import annotations
@@ -28,11 +29,14 @@ sys.path.insert(0, str(ROOT))
 # part -> (module path fragment, function name) pairs whose cumulative time is the part's
 PARTS: dict[str, tuple[tuple[str, str], ...]] = {
     "stage-1 outputs (read from the cache)": (("frame_outputs.py", "__init__"), ("scores.py", "stage1_embedding")),
-    "frames for the classifier (SpectralSteps.at)": (("spectra.py", "at"),),
-    "the ensemble pass (members, softmax, reduce)": (("passes.py", "ensemble_pass"),),
-    "  of it: the members' forward": (("window_classifier.py", "forward"), ("passes.py", "per_distinct_row")),
-    "  of it: mean, BALD, agreement": (("scores.py", "reduce"),),
-    "drift": (("window_drift.py", "drift_of_log"),),
+    "the default family's scores (the parts below, and each frame's answer repeated over its steps)": (
+        ("scores.py", "_frame_scores"),
+    ),
+    "  the members over the frames (frame_chunks: networks, softmax, drift)": (("frame_scores.py", "frame_chunks"),),
+    "    of it: the members' networks": (("window_classifier.py", "pooled"), ("window_classifier.py", "standardise")),
+    "    of it: the drift's nearest labelled frames": (("window_drift.py", "_distances"),),
+    "  mean, BALD, agreement (per frame)": (("scores.py", "reduce"),),
+    "the step pass (another family's members)": (("passes.py", "ensemble_pass"),),
     "writing the kept scores": (("score_store.py", "_write_array"),),
     "tracks ranked over the session": (("tracks.py", "normalised_tracks"),),
 }
@@ -64,8 +68,12 @@ def main() -> int:
         steps = sum(x.n_samples for x in logs)
         version = s.active_model("classifier")
         bundle = load_bundle(s.path / version.path)
-        weights = sum(int(w.numel()) for m in bundle.classifiers for w in m.parameters())
         frames = steps // bundle.spectral.hop if bundle.spectral is not None else steps
+        cfg = bundle.classifiers[0].config
+        w, f, h, k = cfg.window, cfg.frame_width, cfg.hidden, cfg.n_classes
+        per_frame = len(bundle.classifiers) * (w * f * h + w * 3 * h * h + 2 * h * k)  # multiply-adds
+        refs = () if bundle.drift is None else (*bundle.drift.references, *bundle.drift.inputs)
+        searched = sum(r.size for r in refs)  # each frame's multiply-adds against every reference row, both views
         for folder in s.path.glob("cache/scores-*"):  # the rescoring a Retrain starts: nothing kept for it yet
             (folder / "meta.json").unlink(missing_ok=True)
         profile = cProfile.Profile()
@@ -78,14 +86,15 @@ def main() -> int:
     rate = matmul_rate()
     print(f"{len(logs)} logs, {steps / 100 / 3600:.1f} h at 100 Hz, {frames:,} frames; rescoring {total:.1f} s")
     members = len(bundle.classifiers)
-    print(f"ensemble: {members} members, {weights:,} weights; this machine: {rate / 1e9:.1f} G mult-adds/s")
-    limit = weights * frames / rate
+    print(f"ensemble: {members} members, {per_frame:,} multiply-adds a frame; drift: {searched:,} a frame")
+    print(f"this machine: {rate / 1e9:.1f} G mult-adds/s")
+    limits = {"networks": per_frame * frames / rate, "nearest": searched * frames / rate}
     print("\n| part | seconds | share of the rescoring | the arithmetic's limit |\n| --- | --- | --- | --- |")
     for part, keys in PARTS.items():
         cum = sum(
             v[3] for (file, _, name), v in stats.stats.items() if any(file.endswith(f) and name == n for f, n in keys)
         )
-        said = f"{limit:.1f} s (every weight once per frame)" if "forward" in part else "–"
+        said = next((f"{v:.1f} s" for key, v in limits.items() if key in part), "–")
         print(f"| {part} | {cum:.1f} | {cum / total:.0%} | {said} |")
     print(f"\nthe {args.top} functions with the most time of their own:\n")
     stats.sort_stats("tottime").print_stats(args.top)
