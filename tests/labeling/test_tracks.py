@@ -107,3 +107,14 @@ def test_highlight_intervals_find_the_surprising_stretch() -> None:
     got = highlight_intervals([t], 0.9)
     assert len(got) == 1 and got[0].kind == "surprise"
     assert 195 <= got[0].start <= 200 and 240 <= got[0].stop <= 245
+
+
+def test_the_session_rank_is_the_mid_rank_of_ties_and_the_plain_rank_elsewhere() -> None:
+    norm = session_normaliser([np.array([1.0, 2.0, 2.0, 2.0, 3.0]), np.array([4.0])])
+    # six reference values: 2.0 ties over ranks 1..4 -> (1 + 4) / 12; a value between two ranks sits at its edge
+    np.testing.assert_allclose(norm(np.array([2.0, 2.5, 0.0, 9.0, 1.0])), [5 / 12, 4 / 6, 0.0, 1.0, 1 / 12])
+    rng = np.random.default_rng(1)
+    ref = np.sort(np.round(rng.normal(size=3000), 1))  # many ties
+    x = np.round(rng.normal(size=5000), 2)
+    want = (np.searchsorted(ref, x, "left") + np.searchsorted(ref, x, "right")) / (2.0 * len(ref))
+    np.testing.assert_array_equal(session_normaliser([ref])(x), want)
