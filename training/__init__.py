@@ -98,6 +98,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "SpectralConfig",
             "SpectralSteps",
             "SpectralStream",
+            "StackedWindows",
             "StepRows",
             "Stretch",
             "WindowClassifier",
