@@ -98,7 +98,6 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "SpectralConfig",
             "SpectralSteps",
             "SpectralStream",
-            "StackedWindows",
             "StepRows",
             "Stretch",
             "WindowClassifier",

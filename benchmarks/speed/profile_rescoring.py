@@ -33,10 +33,7 @@ PARTS: dict[str, tuple[tuple[str, str], ...]] = {
         ("scores.py", "_frame_scores"),
     ),
     "  the members over the frames (frame_chunks: networks, softmax, drift)": (("frame_scores.py", "frame_chunks"),),
-    "    of it: the members' networks (as one: StackedWindows)": (
-        ("stacked_members.py", "forward"),
-        ("stacked_members.py", "inputs_view"),
-    ),
+    "    of it: the members' networks": (("window_classifier.py", "pooled"), ("window_classifier.py", "standardise")),
     "    of it: the drift's nearest labelled frames": (("window_drift.py", "_distances"),),
     "  mean, BALD, agreement (per frame)": (("scores.py", "reduce"),),
     "the step pass (another family's members)": (("passes.py", "ensemble_pass"),),

@@ -13,10 +13,9 @@ Modules: ``spectra`` (the front end), ``window_config`` (fit settings), ``window
 on training rows), ``window_classifier`` (the network), ``fit_window`` / ``window_finetune`` (the fits),
 ``stretch_pool`` (self-training's rows of the unlabelled stretches), ``window_rows`` (their labelled rows, held as
 the frames they read), ``window_calibration`` (the ensemble's temperature), ``window_drift`` (how unlike the
-labelled frames a step is), ``frame_scores`` (the members and the drift once per frame), ``stacked_members`` (the
-members as one network), ``window_step`` (one sample at a time), ``frame_predictor`` (a stage 1 over the frames: the
-next frame from the ones before), ``frame_outputs`` (its outputs per sample step), ``cnn_family`` (what the registry
-reads).
+labelled frames a step is), ``frame_scores`` (the members and the drift once per frame), ``window_step`` (one sample
+at a time), ``frame_predictor`` (a stage 1 over the frames: the next frame from the ones before), ``frame_outputs``
+(its outputs per sample step), ``cnn_family`` (what the registry reads).
 """
 
 from ..lazy_names import lazy_exports
@@ -48,7 +47,6 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "window_calibration": ("fit_temperature", "scale_head"),
         "window_drift": ("DRIFTED", "DriftReference", "drift_of_log", "drift_of_rows", "fit_drift"),
         "frame_scores": ("FrameChunk", "blank_probs", "frame_chunks", "step_frames"),
-        "stacked_members": ("StackedWindows",),
         "window_step": ("WindowStep", "WindowStepModel"),
         "frame_outputs": ("FrameOutputs", "StepRows"),
         "frame_predictor": (

@@ -4,9 +4,8 @@ network pass.
 A step's input is the last ``window`` frames complete at or before it (:class:`.spectra.SpectralSteps`), so every
 step between two frames asks the same question: at 100 Hz with a frame every 0.2 s, twenty steps in a row. The step
 pass built each step's row, searched the rows for repeats and ran the members on what was left, then the drift ran
-each member again on the frames for its embedding. Here the members run once per frame, as one network
-(:class:`.stacked_members.StackedWindows`), and both the probabilities and the drift come from that one pass; the
-caller repeats a frame's answer over its steps (:func:`step_frames`).
+each member again on the frames for its embedding. Here each member runs once per frame and both the probabilities
+and the drift come from that one pass; the caller repeats a frame's answer over its steps (:func:`step_frames`).
 """
 
 from __future__ import annotations
@@ -18,7 +17,6 @@ import numpy as np
 import torch
 
 from .spectra import SpectralSteps, last_frame, stacked_frames
-from .stacked_members import StackedWindows
 from .window_classifier import WindowClassifier
 from .window_drift import QUERY_CHUNK, DriftReference, _distances
 
@@ -48,8 +46,8 @@ def frame_chunks(
 ) -> Iterator[FrameChunk]:
     """Every member over every frame of one log, ``chunk`` frames at a time.
 
-    The numbers are those of the step pass and :func:`.window_drift.drift_of_log` to float rounding (the members'
-    standardising folded into their mixing weights, their products batched together).
+    The numbers are those of the step pass and :func:`.window_drift.drift_of_log` (the same operations on the same
+    rows; the probabilities may differ in the last bits where the matrix products batch rows differently).
 
     Args:
         models: The ``M`` members.
@@ -59,25 +57,28 @@ def frame_chunks(
     """
     cfg = steps.config
     n = len(steps.frames)
-    stacked = StackedWindows(models).to(models[0].in_mean.device)
+    device = models[0].in_mean.device
+    for model in models:
+        model.eval()
     for c in range(0, n, chunk):
         idx = np.arange(c, min(c + chunk, n))
         lo = max(c - cfg.window + 1, 0)
         block = np.asarray(steps.frames[lo : int(idx[-1]) + 1], np.float32)  # read only what is used
-        rows = torch.from_numpy(stacked_frames(block, idx - lo, cfg.window)).to(stacked.mix.device)  # (n, W·F)
-        logits, pooled = stacked(rows)  # (M, n, K), (M, n, 2H)
-        probs = torch.softmax(logits, -1).cpu().numpy()
-        total = None
-        if drift is not None:
-            embedded = torch.nn.functional.normalize(pooled, dim=2).cpu().numpy()  # (M, n, 2H) the embedding's view
-            inputs = stacked.inputs_view(rows).cpu().numpy()  # (M, n, F) the inputs' view
-            total = np.zeros(len(idx), np.float32)
-            for m in range(len(models)):
+        rows = torch.from_numpy(stacked_frames(block, idx - lo, cfg.window)).to(device)  # (n, W·F)
+        probs = np.empty((len(models), len(idx), models[0].config.n_classes), np.float32)
+        total = np.zeros(len(idx), np.float32) if drift is not None else None
+        for m, model in enumerate(models):
+            frames = model.standardise(rows)  # (n, W, F)
+            pooled = model.pooled(frames)  # (n, 2H)
+            probs[m] = torch.softmax(model.head(pooled), -1).cpu().numpy()
+            if drift is not None and total is not None:
+                views = (
+                    torch.nn.functional.normalize(pooled, dim=1).cpu().numpy(),  # (n, 2H) the embedding's view
+                    frames.mean(dim=1).cpu().numpy(),  # (n, F) the inputs' view
+                )
                 ref = (drift.references[m], drift.inputs[m])
-                dist = _distances(ref, (embedded[m], inputs[m]), drift.neighbours, skip_self=False)  # (n, 2)
-                total += (dist / drift.scales[m]).max(axis=1)
-            total /= len(models)
-        yield FrameChunk(c, probs, total)
+                total += (_distances(ref, views, drift.neighbours, skip_self=False) / drift.scales[m]).max(axis=1)
+        yield FrameChunk(c, probs, None if total is None else total / len(models))
 
 
 @torch.inference_mode()
