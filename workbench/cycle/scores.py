@@ -75,6 +75,8 @@ def score_logs(
     if len(windows) == len(classifiers) and all(isinstance(f, SpectralSteps) for f in features):
         # the default family: each member once per frame, its answer repeated over the frame's steps
         steps = [f for f in features if isinstance(f, SpectralSteps)]
+        for model in windows:  # where the members run, as the step pass puts them
+            model.to(device)
         return [_frame_scores(windows, f, s, drift) for f, s in zip(steps, surprise, strict=True)]
     k = classifiers[0].config.n_classes
     mean = [np.empty((len(f), k), np.float32) for f in features]
