@@ -18,7 +18,7 @@ import torch
 
 from .spectra import SpectralSteps, last_frame, stacked_frames
 from .window_classifier import WindowClassifier
-from .window_drift import QUERY_CHUNK, DriftReference, _distances
+from .window_drift import QUERY_CHUNK, DriftReference, views_drift, views_of
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,12 +72,7 @@ def frame_chunks(
             pooled = model.pooled(frames)  # (n, 2H)
             probs[m] = torch.softmax(model.head(pooled), -1).cpu().numpy()
             if drift is not None and total is not None:
-                views = (
-                    torch.nn.functional.normalize(pooled, dim=1).cpu().numpy(),  # (n, 2H) the embedding's view
-                    frames.mean(dim=1).cpu().numpy(),  # (n, F) the inputs' view
-                )
-                ref = (drift.references[m], drift.inputs[m])
-                total += (_distances(ref, views, drift.neighbours, skip_self=False) / drift.scales[m]).max(axis=1)
+                total += views_drift(drift, m, views_of(pooled, frames))  # the drift's views of the same pass
         yield FrameChunk(c, probs, None if total is None else total / len(models))
 
 

@@ -98,9 +98,10 @@ def member_views(model: WindowClassifier, rows: np.ndarray) -> tuple[np.ndarray,
     emb, inp = [], []
     for c in range(0, len(rows), QUERY_CHUNK):
         x = torch.from_numpy(np.ascontiguousarray(rows[c : c + QUERY_CHUNK], np.float32))  # (n, W·F)
-        emb.append(torch.nn.functional.normalize(model.embedding(x), dim=1).numpy())
-        frames = x.unflatten(1, (cfg.window, cfg.frame_width))  # (n, W, F)
-        inp.append(((frames - model.in_mean) * model.in_scale).mean(dim=1).numpy())
+        frames = model.standardise(x)  # (n, W, F)
+        e, i = views_of(model.pooled(frames), frames)
+        emb.append(e)
+        inp.append(i)
     if not emb:
         return np.zeros((0, 2 * cfg.hidden), np.float32), np.zeros((0, cfg.frame_width), np.float32)
     return np.concatenate(emb), np.concatenate(inp)
@@ -181,11 +182,22 @@ def fit_drift(
     return DriftReference(tuple(refs), tuple(inputs), np.asarray(scales, np.float32), neighbours, quantile)
 
 
+def views_of(pooled: torch.Tensor, frames: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+    """A member's two views of its rows from what its network computed of them: the unit-length embedding of its
+    pooled features ``(N, 2H)`` and the window mean of its standardised frames ``(N, W, F)``."""
+    return torch.nn.functional.normalize(pooled, dim=1).cpu().numpy(), frames.mean(dim=1).cpu().numpy()
+
+
+def views_drift(reference: DriftReference, m: int, views: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Drift ``(N,)`` of rows as member ``m`` alone scores them, from their two views (:func:`views_of`)."""
+    ref = (reference.references[m], reference.inputs[m])
+    dist = _distances(ref, views, reference.neighbours, skip_self=False)  # (N, 2)
+    return (dist / reference.scales[m]).max(axis=1)
+
+
 def member_drift(reference: DriftReference, m: int, model: WindowClassifier, rows: np.ndarray) -> np.ndarray:
     """Drift ``(N,)`` of stacked-frame rows ``(N, W·F)`` as member ``m`` alone scores them."""
-    ref = (reference.references[m], reference.inputs[m])
-    dist = _distances(ref, member_views(model, rows), reference.neighbours, skip_self=False)  # (N, 2)
-    return (dist / reference.scales[m]).max(axis=1)
+    return views_drift(reference, m, member_views(model, rows))
 
 
 def drift_of_rows(reference: DriftReference, models: Sequence[WindowClassifier], rows: np.ndarray) -> np.ndarray:
