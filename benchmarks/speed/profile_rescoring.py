@@ -9,9 +9,9 @@ process, nothing else running) on a session that ``bench_fleet.py`` built and tr
 
 Each part is the cumulative time of the functions that do it (a part's time includes what it calls, so parts that
 nest are said so). The arithmetic's limit of the networks is the ensemble's multiply-adds over the frames (each
-frame's 7-frame window through both convolutions and the head), of the drift's search each frame's distances to
-every member's reference rows in both views, both at the rate this machine multiplies matrices (measured in the same
-run, a float32 matrix product of the network's shape).
+frame through the 1x1 mixing once, its 7-frame window through the 3-frame convolution, the head), of the drift's
+search each frame's distances to every member's reference rows in both views, both at the rate this machine
+multiplies matrices (measured in the same run, a float32 matrix product of the network's shape).
 """
 
 from __future__ import annotations
@@ -33,7 +33,12 @@ PARTS: dict[str, tuple[tuple[str, str], ...]] = {
         ("scores.py", "_frame_scores"),
     ),
     "  the members over the frames (frame_chunks: networks, softmax, drift)": (("frame_scores.py", "frame_chunks"),),
-    "    of it: the members' networks": (("window_classifier.py", "pooled"), ("window_classifier.py", "standardise")),
+    "    of it: the members' networks": (
+        ("window_classifier.py", "mixed"),
+        ("window_classifier.py", "windowed"),
+        ("window_classifier.py", "pool"),
+        ("window_classifier.py", "standardise"),
+    ),
     "    of it: the drift's nearest labelled frames": (("window_drift.py", "_distances"),),
     "  mean, BALD, agreement (per frame)": (("scores.py", "reduce"),),
     "the step pass (another family's members)": (("passes.py", "ensemble_pass"),),
@@ -71,7 +76,7 @@ def main() -> int:
         frames = steps // bundle.spectral.hop if bundle.spectral is not None else steps
         cfg = bundle.classifiers[0].config
         w, f, h, k = cfg.window, cfg.frame_width, cfg.hidden, cfg.n_classes
-        per_frame = len(bundle.classifiers) * (w * f * h + w * 3 * h * h + 2 * h * k)  # multiply-adds
+        per_frame = len(bundle.classifiers) * (f * h + w * 3 * h * h + 2 * h * k)  # multiply-adds, mixing once a frame
         refs = () if bundle.drift is None else (*bundle.drift.references, *bundle.drift.inputs)
         searched = sum(r.size for r in refs)  # each frame's multiply-adds against every reference row, both views
         for folder in s.path.glob("cache/scores-*"):  # the rescoring a Retrain starts: nothing kept for it yet

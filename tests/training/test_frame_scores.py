@@ -60,11 +60,12 @@ def test_a_frame_pass_gives_the_step_pass_numbers_and_the_drift_of_log() -> None
     assert (per_step.argmax(-1) == stepped.argmax(-1)).all()
     assert not np.allclose(blank[:, 0], per_frame[:, 0], atol=1e-3)  # the blank input is not the first frame's
 
-    # the drift: bit for bit at the default chunk (the same frames batched together as drift_of_log's); batched
-    # otherwise, the last bits of an embedding move and the nearest distances' |q|² + |r|² - 2 q·r magnifies them
+    # the drift: to 1e-5 at the default chunk (measured 1.3e-7: the 1x1 mixing runs once per frame, a product over
+    # other rows than drift_of_log's windows); batched otherwise, the last bits of an embedding move and the nearest
+    # distances' |q|² + |r|² - 2 q·r magnifies them
     expected = drift_of_log(drift, models, steps)  # (T,)
     whole = np.concatenate([p.drift for p in frame_chunks(models, steps, drift=drift)])[np.clip(which, 0, None)]
-    np.testing.assert_array_equal(whole, expected)
+    np.testing.assert_allclose(whole, expected, rtol=1e-5)
     drifted = np.concatenate([p.drift for p in parts])[np.clip(which, 0, None)]  # (T,)
     np.testing.assert_allclose(drifted, expected, rtol=1e-3)
     assert all(p.drift is None for p in frame_chunks(models, steps, chunk=500))  # no reference, no drift

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .spectra import SpectralSteps, last_frame, stacked_frames
+from .spectra import SpectralSteps, last_frame, window_index
 from .window_classifier import WindowClassifier
 from .window_drift import QUERY_CHUNK, DriftReference, views_drift, views_of
 
@@ -46,8 +46,9 @@ def frame_chunks(
 ) -> Iterator[FrameChunk]:
     """Every member over every frame of one log, ``chunk`` frames at a time.
 
-    The numbers are those of the step pass and :func:`.window_drift.drift_of_log` (the same operations on the same
-    rows; the probabilities may differ in the last bits where the matrix products batch rows differently).
+    The numbers are those of the step pass and :func:`.window_drift.drift_of_log` (the same operations; the
+    standardising and the 1x1 mixing run once per frame rather than once per window holding it, so the probabilities
+    and the drift may differ in the last bits where the matrix products batch rows differently).
 
     Args:
         models: The ``M`` members.
@@ -63,15 +64,18 @@ def frame_chunks(
     for c in range(0, n, chunk):
         idx = np.arange(c, min(c + chunk, n))
         lo = max(c - cfg.window + 1, 0)
-        block = np.asarray(steps.frames[lo : int(idx[-1]) + 1], np.float32)  # read only what is used
-        rows = torch.from_numpy(stacked_frames(block, idx - lo, cfg.window)).to(device)  # (n, W·F)
+        block = torch.from_numpy(np.array(steps.frames[lo : int(idx[-1]) + 1], np.float32)).to(device)  # (b, F) a copy
+        # each frame's window as indices into the block, as stacked_frames lays the rows out
+        window = torch.from_numpy(window_index(idx - lo, cfg.window)).to(device)  # (n, W)
         probs = np.empty((len(models), len(idx), models[0].config.n_classes), np.float32)
         total = np.zeros(len(idx), np.float32) if drift is not None else None
         for m, model in enumerate(models):
-            frames = model.standardise(rows)  # (n, W, F)
-            pooled = model.pooled(frames)  # (n, 2H)
+            # standardising and the 1x1 mixing read one frame each: once per frame, not once per window it sits in
+            standard = (block - model.in_mean) * model.in_scale  # (b, F)
+            pooled = model.pool(model.windowed(model.mixed(standard)[window]))  # (n, 2H)
+            frames = standard[window] if drift is not None else None  # (n, W, F) the drift's inputs view
             probs[m] = torch.softmax(model.head(pooled), -1).cpu().numpy()
-            if drift is not None and total is not None:
+            if drift is not None and total is not None and frames is not None:
                 total += views_drift(drift, m, views_of(pooled, frames))  # the drift's views of the same pass
         yield FrameChunk(c, probs, None if total is None else total / len(models))
 

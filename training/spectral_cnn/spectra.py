@@ -298,8 +298,14 @@ def stacked_frames(frames: np.ndarray, which: np.ndarray, window: int) -> np.nda
     A window short of frames at a log's start repeats its first frame: the streaming step fills its ring with the
     first frame it sees, so both compute the same input.
     """
-    idx = np.maximum(np.asarray(which, np.int64)[:, None] - window + 1 + np.arange(window)[None, :], 0)  # (n, W)
+    idx = window_index(which, window)  # (n, W)
     return np.asarray(frames[idx.reshape(-1)], np.float32).reshape(len(idx), -1)
+
+
+def window_index(which: np.ndarray, window: int) -> np.ndarray:
+    """``(n, window)`` the frames of each window :func:`stacked_frames` stacks, oldest first (the first frame repeated
+    where a log's start leaves the window short)."""
+    return np.maximum(np.asarray(which, np.int64)[:, None] - window + 1 + np.arange(window)[None, :], 0)
 
 
 def last_frame(steps: np.ndarray, config: SpectralConfig) -> np.ndarray:

@@ -92,32 +92,39 @@ class WindowClassifier(nn.Module):
         self, frames: torch.Tensor, *, keep: torch.Tensor | None = None, generator: torch.Generator | None = None
     ) -> torch.Tensor:
         """Standardised ``frames (N, W, F)`` -> the pooled features ``(N, 2H)``: the mean and spread over the window
-        of :meth:`convolved`'s outputs."""
-        x = self.convolved(frames, keep=keep, generator=generator)  # (N, W, H)
+        of both convolutions' outputs (:meth:`mixed`, :meth:`windowed`, :meth:`pool`)."""
+        return self.pool(self.windowed(self.mixed(frames, keep=keep, generator=generator)))  # (N, 2H)
+
+    def pool(self, x: torch.Tensor) -> torch.Tensor:
+        """Both convolutions' outputs ``x (N, W, H)`` -> their mean and spread over the window ``(N, 2H)``."""
         mean = x.mean(dim=1)  # (N, H)
         std = ((x - mean[:, None]).pow(2).mean(dim=1) + SPREAD_EPS).sqrt()  # finite gradient at no spread
         return torch.cat([mean, std], dim=1)  # (N, 2H)
 
-    def convolved(
+    def mixed(
         self, frames: torch.Tensor, *, keep: torch.Tensor | None = None, generator: torch.Generator | None = None
     ) -> torch.Tensor:
-        """Standardised ``frames (N, W, F)`` -> both convolutions' outputs ``(N, W, H)``; while training, dropout on
-        the frames: the values ``keep (N, W, F)`` holds ``True`` for kept, or a mask drawn from ``generator``
-        (default: torch's global one).
-
-        Both convolutions run as matrix products over the window's frames (the 3-frame one on each frame and its
-        two neighbours side by side, zero beyond the window's ends, as ``padding=1``): the same numbers as
-        ``Conv1d`` on ``(N, F, W)`` with the same weights, in 0.68 of the time forward and backward on a CPU
-        (a 128 × 7 × 220 batch, one thread), where seven frames are too few for a convolution kernel.
-        """
-        w, h = self.config.window, self.config.hidden
+        """Standardised frames ``(..., F)`` -> the 1x1 convolution's outputs ``(..., H)``: each frame on its own, so
+        a log's frames can go through it once rather than once per window they sit in. While training, dropout on
+        the frames: the values ``keep`` (the frames' shape) holds ``True`` for kept, or a mask drawn from
+        ``generator`` (default: torch's global one)."""
         mix = self.mix.weight[:, :, 0]  # (H, F)
         p = self.config.dropout
         if self.training and p > 0.0:
             # dropout's 1 / (1 - p) on the mixing weights, (H, F), rather than on every frame value, (N, W, F)
             frames = frames * (_kept(frames, p, generator) if keep is None else keep)
             mix = mix * (1.0 / (1.0 - p))
-        x = F.gelu(F.linear(frames, mix, self.mix.bias), approximate="tanh")  # (N, W, H)
+        return F.gelu(F.linear(frames, mix, self.mix.bias), approximate="tanh")  # (..., H)
+
+    def windowed(self, x: torch.Tensor) -> torch.Tensor:
+        """The 1x1 convolution's outputs over a window ``x (N, W, H)`` -> the 3-frame convolution's ``(N, W, H)``.
+
+        It runs as a matrix product over the window's frames (each frame and its two neighbours side by side, zero
+        beyond the window's ends, as ``padding=1``): the same numbers as ``Conv1d`` on ``(N, H, W)`` with the same
+        weights, in 0.68 of the time forward and backward on a CPU (a 128 × 7 × 220 batch, one thread), where seven
+        frames are too few for a convolution kernel.
+        """
+        w, h = self.config.window, self.config.hidden
         padded = F.pad(x, (0, 0, 1, 1))  # (N, W + 2, H)
         taps = torch.cat([padded[:, k : k + w] for k in range(3)], dim=2)  # (N, W, 3H): frames t-1, t, t+1
         conv = self.conv.weight.permute(0, 2, 1).reshape(h, 3 * h)  # (H, 3H) tap-major, as ``taps``
