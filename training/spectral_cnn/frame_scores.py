@@ -73,10 +73,9 @@ def frame_chunks(
             # standardising and the 1x1 mixing read one frame each: once per frame, not once per window it sits in
             standard = (block - model.in_mean) * model.in_scale  # (b, F)
             pooled = model.pool(model.windowed(model.mixed(standard)[window]))  # (n, 2H)
-            frames = standard[window] if drift is not None else None  # (n, W, F) the drift's inputs view
             probs[m] = torch.softmax(model.head(pooled), -1).cpu().numpy()
-            if drift is not None and total is not None and frames is not None:
-                total += views_drift(drift, m, views_of(pooled, frames))  # the drift's views of the same pass
+            if drift is not None and total is not None:  # the drift's views of the same pass; (n, W, F) its inputs'
+                total += views_drift(drift, m, views_of(pooled, standard[window]))
         yield FrameChunk(c, probs, None if total is None else total / len(models))
 
 
