@@ -39,7 +39,7 @@ from .window_augment import augment_rows
 from .window_calibration import fit_temperature, scale_head
 from .window_classifier import WindowClassifier, WindowClassifierConfig
 from .window_config import WindowFitConfig
-from .window_drift import REFERENCE_ROWS, fit_drift, held_out_relation
+from .window_drift import fit_drift, held_out_relation
 from .window_rows import WindowRows, at_most, window_rows
 
 BLOCK_GUARDS = 4  # a block is four guards long: a fold's guard never takes more than half of a block next to it
@@ -347,16 +347,16 @@ def fit_window_classifier(
 
     def member(f: int) -> tuple:
         """Blocked fold ``f``'s model, the stretches it took, the classes it saw, the labelled rows the drift
-        reference keeps (``REFERENCE_ROWS`` of those it trained on), its held-out block's logits and classes, which
-        of those rows the drift's relation to accuracy reads (at most ``HELD_ROWS``) and those rows, and its steps'
-        truth and prediction."""
+        reference keeps (``config.reference_rows`` of those it trained on), its held-out block's logits and classes,
+        which of those rows the drift's relation to accuracy reads (at most ``HELD_ROWS``) and those rows, and its
+        steps' truth and prediction."""
         held = [pieces[j] for j in blocked.held_out(f)]
         train = blocked.training(f) if blocked.k > 1 else pieces
         if not any(b > a and b >= front.frame for _, a, b, _ in train):  # a piece has rows once it reaches a frame
             # tiny labels close together: the guards took every other piece; this one fold trains on them whole
             train = [pieces[j] for j, g in enumerate(blocked.fold_of) if g != f] or pieces
         model, taken, seen, labelled = fit_on(train, set(), config.seed + f + 1)
-        pick = at_most(len(labelled), REFERENCE_ROWS, (config.seed, f))  # what the drift reference keeps of them
+        pick = at_most(len(labelled), config.reference_rows, (config.seed, f))  # what the drift reference keeps of them
         rows, rows_y = held_rows(held, seen) if blocked.k > 1 else held_rows([], seen)
         logits = row_logits(model, rows)  # every held-out row: the calibration's
         some = at_most(len(rows), HELD_ROWS, (config.seed, f, 1))  # the drift's figures read a sample
@@ -483,7 +483,7 @@ def fit_window_classifier(
     for model in models:
         scale_head(model, temperature)
     metrics["calibration"] = {"temperature": temperature, "on": source if temperature != 1.0 else None, "n": len(truth)}
-    drift = fit_drift(models, trained_rows, oof_rows, seed=config.seed)
+    drift = fit_drift(models, trained_rows, oof_rows, seed=config.seed, rows_kept=config.reference_rows)
     if blocked.k > 1 and (relation := held_out_relation(drift, models, oof_rows, right)):
         metrics["drift_accuracy"] = relation
     return ClassifierFit(

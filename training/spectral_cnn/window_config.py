@@ -72,6 +72,10 @@ class WindowFitConfig:
             part of a fit that grew with a fleet's hours (benchmarks/results/fleet.md). 0: no bound.
         pool_share: At most this share of the pool's bytes, drawn as ``pool_mib`` draws: what the budget keeps of a
             fleet's hours, reproduced on a small set to measure its cost (1: all).
+        reference_rows: Labelled frames each member keeps for the drift score (``window_drift``): its search is
+            linear in them. On BorealTC's inner folds with half the partitions labelled (so the sample binds) the
+            drift told wrong predictions with AUROC 0.832 at 2,048, 0.831 at 1,024 and 0.824 at 512
+            (``benchmarks/studies/drift_reference_screen.py``); 1,024 halved a rescoring's search.
         held_out: Also measure accuracy on held-out logs (folds over logs: as many fits again).
         calibrate: Divide the members' logits by a temperature fitted on held-out predictions.
         seed: Seed of the folds, initial weights and batches.
@@ -94,6 +98,7 @@ class WindowFitConfig:
     unit_agree: float = 0.0
     pool_mib: float = 512.0
     pool_share: float = 1.0
+    reference_rows: int = 1024
     held_out: bool = True
     calibrate: bool = True
     seed: int = 0

@@ -18,9 +18,8 @@ one-minute walks, 15 % labelled; share of a new walk's time above 1, raw embeddi
 (``tests/workbench/cycle/test_drift_session.py``), and a vibration of an unseen frequency at four times the
 amplitude, which unit embeddings scored 0.9 (``tests/training/test_window_drift.py``).
 
-Each member keeps ``REFERENCE_ROWS`` of its labelled frames: the search is linear in them (half a rescoring's time at
-2,048). On inner folds with half the partitions labelled, so the sample binds, the AUROC was 0.832 at 2,048, 0.831
-at 1,024, 0.824 at 512 (``benchmarks/studies/drift_reference_screen.py``).
+Each member keeps ``WindowFitConfig.reference_rows`` of its labelled frames (1,024): the search is linear in them
+(half a rescoring's time at 2,048); on inner folds the AUROC was 0.832 at 2,048, 0.831 at 1,024, 0.824 at 512.
 
 Nothing here reads sessions or files; the bundle stores a :class:`DriftReference` beside the weights.
 """
@@ -40,8 +39,7 @@ from .window_classifier import WindowClassifier
 DRIFT_NEIGHBOURS = 5
 DRIFT_QUANTILE = 0.95
 DRIFTED = 1.0  # a step above this is called drifted
-REFERENCE_ROWS = 1024  # labelled frames kept per member: half the search of 2048, the same AUROC (module docstring)
-QUERY_CHUNK = 2048  # frames per distance block: QUERY_CHUNK × REFERENCE_ROWS floats at a time
+QUERY_CHUNK = 2048  # frames per distance block: QUERY_CHUNK × reference rows floats at a time
 VIEWS = ("embedding", "inputs")
 INPUT_MARGIN = 2.0  # the inputs' view counts from twice its held-out quantile: it catches what is far off, no more
 
@@ -149,6 +147,7 @@ def fit_drift(
     held: Sequence[np.ndarray],
     *,
     seed: int = 0,
+    rows_kept: int = 1024,
     neighbours: int = DRIFT_NEIGHBOURS,
     quantile: float = DRIFT_QUANTILE,
 ) -> DriftReference:
@@ -156,10 +155,11 @@ def fit_drift(
 
     Args:
         models: The ``M`` members.
-        trained: Per member, ``(N, W·F)`` labelled rows it trained on (a sample of ``REFERENCE_ROWS`` is kept).
+        trained: Per member, ``(N, W·F)`` labelled rows it trained on (a sample of ``rows_kept`` is kept).
         held: Per member, labelled rows it never trained on (its held-out blocks); empty for a single model, whose
             scales then come from its reference with each row's own match left out.
         seed: Seed of the sample.
+        rows_kept: Most rows of a member's reference (``WindowFitConfig.reference_rows``).
         neighbours: Nearest reference rows averaged.
         quantile: The held-out quantile that scores 1.
     """
@@ -171,8 +171,8 @@ def fit_drift(
     for model, rows, out in zip(models, trained, held, strict=True):
         if len(rows) == 0:  # a member that trained on no labelled row of its own: every labelled row stands in
             rows, out = np.concatenate(every), rows
-        if len(rows) > REFERENCE_ROWS:
-            rows = rows[np.sort(rng.choice(len(rows), REFERENCE_ROWS, replace=False))]
+        if len(rows) > rows_kept:
+            rows = rows[np.sort(rng.choice(len(rows), rows_kept, replace=False))]
         ref = member_views(model, rows)
         if len(out):
             dist = _distances(ref, member_views(model, out), neighbours, skip_self=False)  # (N, 2)

@@ -30,7 +30,7 @@ from .spectra import SpectralSteps
 from .stretch_pool import every_row
 from .window_classifier import WindowClassifier
 from .window_config import WindowFitConfig
-from .window_drift import REFERENCE_ROWS, fit_drift, held_out_relation
+from .window_drift import fit_drift, held_out_relation
 from .window_rows import at_most, window_rows
 
 
@@ -152,12 +152,12 @@ def fine_tune_window_classifier(
         return every.take(idx[pick]), y[pick]
 
     # the members' embeddings moved: the drift reference is drawn again from the rows each one trained on
-    trained = [stacked(np.flatnonzero(fold_of != m), REFERENCE_ROWS, m)[0] for m in range(k)]
+    trained = [stacked(np.flatnonzero(fold_of != m), config.reference_rows, m)[0] for m in range(k)]
     held_xy = [stacked(np.flatnonzero(fold_of == m) if k > 1 else [], HELD_ROWS, k + m) for m in range(k)]
     held = [x for x, _ in held_xy]
     if not any(len(t) for t in trained):  # a single fold model trains on its own fold
-        trained = [stacked(np.arange(len(segments)), REFERENCE_ROWS, 2 * k)[0]] * k
-    drift = fit_drift(models, trained, held, seed=config.seed)
+        trained = [stacked(np.arange(len(segments)), config.reference_rows, 2 * k)[0]] * k
+    drift = fit_drift(models, trained, held, seed=config.seed, rows_kept=config.reference_rows)
     if k > 1:
         right = [row_logits(model, x).argmax(1) == y for model, (x, y) in zip(models, held_xy, strict=True)]
         if relation := held_out_relation(drift, models, held, right):
