@@ -35,6 +35,7 @@ import torch
 from ..figures import accuracy_by_drift
 from .spectra import SpectralSteps, stacked_frames
 from .window_classifier import WindowClassifier
+from .window_config import WindowFitConfig
 
 DRIFT_NEIGHBOURS = 5
 DRIFT_QUANTILE = 0.95
@@ -147,7 +148,7 @@ def fit_drift(
     held: Sequence[np.ndarray],
     *,
     seed: int = 0,
-    rows_kept: int = 1024,
+    rows_kept: int = WindowFitConfig.reference_rows,
     neighbours: int = DRIFT_NEIGHBOURS,
     quantile: float = DRIFT_QUANTILE,
 ) -> DriftReference:
