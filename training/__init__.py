@@ -42,11 +42,13 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "runtime": (
             "MAX_DWELL_S",
             "ModelBundle",
+            "ScoringBundle",
             "StreamingClassifier",
             "TerrainFilter",
             "check_onnx",
             "export_onnx",
             "load_bundle",
+            "load_scoring_bundle",
             "parameter_count",
             "run_onnx",
             "save_bundle",
@@ -58,6 +60,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "normalizer": ("Normalizer", "Rows"),
         "passes": ("ensemble_pass", "padded_groups", "run_classifiers"),
         "training_errors": ("BundleError", "TrainingError"),
+        "lazy_names": ("lazy_exports",),  # the same for workbench's rooms
         # the paper family's room
         "paper_lstm": (
             "Classifier",
@@ -94,6 +97,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "FramePredictor",
             "FramePredictorConfig",
             "FramePredictorFit",
+            "NumpyMembers",
             "RowAugment",
             "SpectralConfig",
             "SpectralSteps",

@@ -1,6 +1,8 @@
 """Change points and snapping."""
 
 import itertools
+import subprocess
+import sys
 
 import numpy as np
 from hypothesis import given
@@ -110,3 +112,28 @@ def test_spans_cut_each_stretch_into_equal_pieces_as_linspace_does(
         cuts = np.linspace(a, b, n + 1).round().astype(int)
         want += [(int(x), int(y)) for x, y in itertools.pairwise(cuts) if y - x >= min_len]
     assert spans(length, np.array(points, np.int64), max_len=max_len, min_len=min_len) == want
+
+
+def test_the_cuts_are_ruptures_kernel_cpd_s_without_importing_ruptures_or_scipy_stats() -> None:
+    """The compiled search is loaded alone (ruptures' package imports scipy.stats: 1.3 s of a short classify); its
+    cuts are those of ``KernelCPD(kernel="linear").predict(pen=...)`` on the same summaries."""
+    import ruptures as rpt
+
+    from labeling.changepoints import _robust_scale
+
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        x = rng.normal(size=(int(rng.integers(300, 4000)), 3))
+        for start in rng.integers(0, len(x), 4):
+            x[start:] += rng.normal(size=3) * 1.5
+        z = _robust_scale(block_summary(x, 5))
+        pen = 3.0 * z.shape[1] * np.log(len(z))
+        expected = np.asarray(rpt.KernelCPD(kernel="linear", min_size=4).fit(z).predict(pen=pen)[:-1]) * 5
+        np.testing.assert_array_equal(change_points(x, block=5), expected)
+    code = (
+        "import sys, numpy as np, labeling\n"
+        "x = np.r_[np.zeros((400, 2)), np.ones((400, 2))] + np.random.default_rng(0).normal(size=(800, 2)) * 0.1\n"
+        "print(labeling.change_points(x, block=10).tolist(), 'scipy.stats' in sys.modules, 'ruptures' in sys.modules)"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["[400]", "False", "False"]

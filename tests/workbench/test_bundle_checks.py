@@ -9,7 +9,7 @@ import pytest
 
 from workbench.cycle import ChecksSummary
 from workbench.export.bundle_checks import read_checks, write_checks
-from workbench.export.session_export import _checks_lines
+from workbench.export.file_classify import _checks_lines
 
 
 def test_the_counts_round_trip_and_no_checks_write_no_file(tmp_path: Path) -> None:

@@ -1,25 +1,23 @@
-"""What ships to a robot: load a bundle (``bundle``), run it one sample at a time (``stream``, with an optional HMM
-over its probabilities: ``terrain_filter``), export it to ONNX and check the export against the stream
+"""What ships to a robot: load a bundle (``bundle``; ``bundle_files`` its files' checks), run it one sample at a time
+(``stream``, with an optional HMM over its probabilities: ``terrain_filter``), score log files with a default-family
+bundle in NumPy alone (``scoring_bundle``), export it to ONNX and check the export against the stream
 (``onnx_export``). A person integrating the model on a robot reads this room; the families' rooms say how the models
 are built and trained.
 
-Used through ``training`` (``from training import StreamingClassifier, load_bundle``), whose names load on first use.
+Used through ``training`` (``from training import StreamingClassifier, load_bundle``), whose names load on first use;
+so do this room's: ``load_scoring_bundle`` never loads PyTorch.
 """
 
-from .bundle import ModelBundle, load_bundle, parameter_count, save_bundle
-from .onnx_export import check_onnx, export_onnx, run_onnx
-from .stream import StreamingClassifier
-from .terrain_filter import MAX_DWELL_S, TerrainFilter
+from ..lazy_names import lazy_exports
 
-__all__ = [
-    "MAX_DWELL_S",
-    "ModelBundle",
-    "StreamingClassifier",
-    "TerrainFilter",
-    "check_onnx",
-    "export_onnx",
-    "load_bundle",
-    "parameter_count",
-    "run_onnx",
-    "save_bundle",
-]
+__all__, __getattr__, __dir__ = lazy_exports(
+    __name__,
+    {
+        "bundle": ("ModelBundle", "load_bundle", "parameter_count", "save_bundle"),
+        "onnx_export": ("check_onnx", "export_onnx", "run_onnx"),
+        "scoring_bundle": ("ScoringBundle", "load_scoring_bundle"),
+        "stream": ("StreamingClassifier",),
+        "terrain_filter": ("MAX_DWELL_S", "TerrainFilter"),
+    },
+    globals(),
+)

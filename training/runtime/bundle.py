@@ -5,12 +5,10 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import stat
 import uuid
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import numpy as np
 import torch
 from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
@@ -21,15 +19,18 @@ from ..paper_lstm import FeatureMode, Predictor, PredictorConfig
 from ..registry import Family, family_of_kind
 from ..spectral_cnn import FRAME_PREDICTOR_KIND, DriftReference, FramePredictor, FramePredictorConfig, SpectralConfig
 from ..training_errors import BundleError
-
-BUNDLE_SCHEMA = 1
-CONFIG_FILE = "model.json"
-PREDICTOR_FILE = "predictor.safetensors"
-CLASSIFIER_FILE = "classifier.safetensors"
-DRIFT_FILE = "drift.safetensors"
-MAX_CONFIG_BYTES = 32 << 20
-"""``model.json`` on disk: sizes, class names and the model card's metrics are kilobytes (a bundle trained on 72 runs:
-about 100 KB); a larger one is damage or tampering, refused before it is read (a 300 MB one took 1 GB to parse)."""
+from .bundle_files import (
+    BUNDLE_SCHEMA,
+    CLASSIFIER_FILE,
+    CONFIG_FILE,
+    DRIFT_FILE,
+    PREDICTOR_FILE,
+    check_finite,
+    classifier_kind,
+    drift_of,
+    read_config,
+    spectral_of,
+)
 
 
 @dataclass
@@ -83,7 +84,7 @@ class ModelBundle:
         """The registry's entry for the family of the classifier (found by its config's ``kind``)."""
         if not self.classifiers:
             raise BundleError("the bundle has no classifier: train stage 2 first")
-        return family_of_kind(_kind(asdict(self.classifiers[0].config)))
+        return family_of_kind(classifier_kind(asdict(self.classifiers[0].config)))
 
     def config(self) -> dict:
         """Everything but the weights, as JSON-able data."""
@@ -104,16 +105,6 @@ class ModelBundle:
         }
 
 
-def _kind(cfg: dict) -> str:
-    """The family ``kind`` a classifier config names: bundles saved before the paper family named its own lack it."""
-    return str(cfg.get("kind", "lstm"))
-
-
-def _frame_kind(cfg: dict) -> bool:
-    """``model.json``'s predictor is the next-frame predictor."""
-    return isinstance(cfg.get("predictor"), dict) and cfg["predictor"].get("kind") == FRAME_PREDICTOR_KIND
-
-
 def _predictor(cfg: dict) -> Predictor | FramePredictor:
     """An untrained stage-1 module of the kind and sizes ``cfg`` (a bundle's ``predictor`` entry) names: the LSTM's
     config has no ``kind`` (bundles saved before the frame predictor)."""
@@ -124,7 +115,7 @@ def _predictor(cfg: dict) -> Predictor | FramePredictor:
 
 def _classifier(cfg: dict, directory: Path) -> nn.Module:
     """An untrained stage-2 module of the family and sizes ``cfg`` (a bundle's ``classifier`` entry) names."""
-    return family_of_kind(_kind(cfg), where=str(directory)).new_classifier(cfg)
+    return family_of_kind(classifier_kind(cfg), where=str(directory)).new_classifier(cfg)
 
 
 def save_bundle(bundle: ModelBundle, directory: str | Path) -> Path:
@@ -167,16 +158,12 @@ def load_bundle(directory: str | Path) -> ModelBundle:
         BundleError: Missing or damaged files, or a newer schema.
     """
     directory = Path(directory)
-    cfg = _read_config(directory)
-    for name in (PREDICTOR_FILE, CLASSIFIER_FILE, DRIFT_FILE):
-        _regular_file(directory / name, missing_ok=True)  # a FIFO would block its reader for ever
-    if int(cfg.get("schema", 0)) > BUNDLE_SCHEMA:
-        raise BundleError(f"{directory}: bundle schema {cfg['schema']} is newer than this workbench ({BUNDLE_SCHEMA})")
+    cfg = read_config(directory)
     if cfg.get("classifier"):
-        family_of_kind(_kind(cfg["classifier"]), where=str(directory))  # an unknown or retired kind: refused here
+        family_of_kind(classifier_kind(cfg["classifier"]), where=str(directory))  # unknown or retired: refused here
     try:
         _check_shapes(directory, cfg)  # before any module is built: model.json's sizes allocate memory
-        spectral = _spectral(directory, cfg)
+        spectral = spectral_of(directory, cfg)
         predictor = _predictor(cfg["predictor"])
         predictor.load_state_dict(load_file(directory / PREDICTOR_FILE))
         classifiers = []
@@ -191,7 +178,7 @@ def load_bundle(directory: str | Path) -> ModelBundle:
                         state.setdefault(key, value)
                 model.load_state_dict(state)
                 classifiers.append(model.eval())
-        drift = _drift(directory, cfg)
+        drift = drift_of(directory, cfg)
         normalizer = Normalizer.from_dict(cfg["normalizer"])
     except (OSError, KeyError, TypeError, RuntimeError, ValueError, SafetensorError) as exc:
         raise BundleError(f"{directory}: damaged model bundle ({type(exc).__name__}: {exc})") from None
@@ -211,102 +198,18 @@ def load_bundle(directory: str | Path) -> ModelBundle:
     )
 
 
-def _regular_file(path: Path, *, missing_ok: bool = False) -> int:
-    """The size of ``path``, refused unless it is a regular file (a FIFO, a device or a folder named as a weights
-    file is damage or tampering: opening a FIFO waits for a writer for ever). Returns -1 for a missing file when
-    ``missing_ok``."""
-    try:
-        st = path.stat()
-    except FileNotFoundError:
-        if missing_ok:
-            return -1
-        raise BundleError(f"{path.parent}: not a model bundle ({path.name} is missing)") from None
-    except OSError as exc:
-        raise BundleError(f"{path}: cannot read it ({exc.strerror or exc})") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise BundleError(f"{path}: not a regular file; a model bundle holds plain files only")
-    return st.st_size
-
-
-def _read_config(directory: Path) -> dict:
-    """``model.json``, refused in one line when it is not a plain file, too large, nested too deep or not JSON."""
-    path = directory / CONFIG_FILE
-    if (size := _regular_file(path)) > MAX_CONFIG_BYTES:
-        raise BundleError(f"{path}: {size:,} bytes; a model.json is at most {MAX_CONFIG_BYTES:,} (damaged or changed)")
-    try:
-        cfg = json.loads(path.read_text(encoding="utf-8"))
-    except RecursionError:
-        raise BundleError(f"{path}: JSON nested deeper than the parser allows; not a model bundle") from None
-    except (OSError, ValueError) as exc:
-        raise BundleError(f"{directory}: not a model bundle ({type(exc).__name__}: {exc})") from None
-    if not isinstance(cfg, dict):
-        raise BundleError(f"{path}: not a model bundle (its top level is no JSON object)")
-    return cfg
-
-
 def _check_finite(
     directory: Path, predictor: nn.Module, classifiers: list[nn.Module], drift: DriftReference | None, norm: Normalizer
 ) -> None:
-    """Refuse weights holding NaN or inf: every probability would be NaN, and NaN's argmax reads as the first
-    terrain (measured: a bundle of NaN weights classified every row as the first class, exit 0)."""
-    tensors = [(f"{PREDICTOR_FILE}: {k}", v) for k, v in predictor.state_dict().items()]
+    """Refuse weights holding NaN or inf (:func:`.bundle_files.check_finite`), and a normalizer scale not above 0."""
+    arrays = [(f"{PREDICTOR_FILE}: {k}", v.numpy()) for k, v in predictor.state_dict().items()]
     for i, model in enumerate(classifiers):
-        tensors += [(f"{CLASSIFIER_FILE}: fold{i}.{k}", v) for k, v in model.state_dict().items()]
-    arrays = {f"{DRIFT_FILE}: {k}": v for k, v in (drift.arrays() if drift is not None else {}).items()}
-    arrays |= {"model.json: the normalizer's mean": norm.mean, "model.json: the normalizer's std": norm.std}
-    tensors += [(k, torch.from_numpy(np.asarray(v))) for k, v in arrays.items()]
-    for name, value in tensors:
-        if value.is_floating_point() and not bool(torch.isfinite(value).all()):
-            bad = int((~torch.isfinite(value)).sum())
-            raise BundleError(
-                f"{directory}: {name} holds {bad:,} NaN or infinite value(s); the bundle is damaged (export it again)"
-            )
+        arrays += [(f"{CLASSIFIER_FILE}: fold{i}.{k}", v.numpy()) for k, v in model.state_dict().items()]
+    arrays += [(f"{DRIFT_FILE}: {k}", v) for k, v in (drift.arrays() if drift is not None else {}).items()]
+    arrays += [("model.json: the normalizer's mean", norm.mean), ("model.json: the normalizer's std", norm.std)]
+    check_finite(directory, arrays)
     if not bool((norm.std > 0).all()):
         raise BundleError(f"{directory}: model.json's normalizer has a scale not above 0; the bundle is damaged")
-
-
-def _drift(directory: Path, cfg: dict) -> DriftReference | None:
-    """The drift reference, when the bundle has one whose embeddings are as wide as its classifier's."""
-    if not cfg.get("drift") or not cfg.get("classifier"):
-        return None
-    arrays = {k: v.numpy() for k, v in load_file(directory / DRIFT_FILE).items()}
-    drift = DriftReference.from_arrays(arrays, cfg["drift"])
-    width = 2 * int(cfg["classifier"].get("hidden", 0))
-    frame = int(cfg["classifier"]["n_features"]) // int(cfg["classifier"].get("window", 1))
-    fits = all(r.shape[1] == width for r in drift.references) and all(x.shape[1] == frame for x in drift.inputs)
-    if int(cfg["drift"]["members"]) != int(cfg["n_folds"]) or not fits:
-        raise ValueError("the drift reference does not match the classifier")
-    return drift
-
-
-def _spectral(directory: Path, cfg: dict) -> SpectralConfig | None:
-    """The front end of ``model.json``, refused when its sizes disagree with the channels and the classifier."""
-    if not cfg.get("spectral"):
-        if _frame_kind(cfg):
-            raise BundleError(f"{directory}: model.json has a next-frame predictor but no spectral front end")
-        return None
-    spectral = SpectralConfig.from_dict(cfg["spectral"])
-    n = len(cfg["channels"])
-    sane = (
-        0 < spectral.hop <= spectral.frame <= 1 << 16
-        and 0 < spectral.window <= 1 << 12
-        and all(0 <= c < n for c in (*spectral.fast, *spectral.slow))
-        and _reads_front_end(cfg.get("classifier"), spectral, n)
-        and (not _frame_kind(cfg) or cfg["predictor"]["n_features"] == spectral.width)
-    )
-    if not sane:
-        raise BundleError(f"{directory}: model.json's spectral front end does not fit its channels and classifier")
-    return spectral
-
-
-def _reads_front_end(classifier: dict | None, spectral: SpectralConfig, channels: int) -> bool:
-    """The classifier's inputs fit the bundle: a frames classifier's width is the front end's step, a windows
-    classifier (MiniRocket, whose config has no ``n_features``) reads the bundle's channels."""
-    if not classifier:
-        return True
-    if "n_features" in classifier:
-        return classifier["n_features"] == spectral.step_width
-    return int(classifier.get("channels", channels)) == channels
 
 
 def _header_shapes(path: Path) -> dict[str, tuple[int, ...]]:

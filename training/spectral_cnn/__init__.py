@@ -12,10 +12,12 @@ from the ones before, trained on all logs without labels; :mod:`.frame_outputs` 
 Modules: ``spectra`` (the front end), ``window_config`` (fit settings), ``window_augment`` (run-to-run changes drawn
 on training rows), ``window_classifier`` (the network), ``fit_window`` / ``window_finetune`` (the fits),
 ``stretch_pool`` (self-training's rows of the unlabelled stretches), ``window_rows`` (their labelled rows, held as
-the frames they read), ``window_calibration`` (the ensemble's temperature), ``window_drift`` (how unlike the
-labelled frames a step is), ``frame_scores`` (the members and the drift once per frame), ``window_step`` (one sample
-at a time), ``frame_predictor`` (a stage 1 over the frames: the next frame from the ones before), ``frame_outputs``
-(its outputs per sample step), ``cnn_family`` (what the registry reads).
+the frames they read), ``window_calibration`` (the ensemble's temperature), ``drift_reference`` and
+``window_drift`` (how unlike the labelled frames a step is), ``frame_scores`` (the members and the drift once per
+frame), ``frame_numpy`` (the same in NumPy: scoring files without PyTorch), ``kinds`` (the modules' names in a
+bundle's config), ``window_step`` (one sample at a time), ``frame_predictor`` (a stage 1 over the frames: the
+next frame from the ones before), ``frame_outputs`` (its outputs per sample step), ``cnn_family`` (what the
+registry reads).
 """
 
 from ..lazy_names import lazy_exports
@@ -45,12 +47,14 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "stretch_pool": ("Stretch", "frame_rows"),
         "window_finetune": ("assign_folds", "fine_tune_window_classifier"),
         "window_calibration": ("fit_temperature", "scale_head"),
-        "window_drift": ("DRIFTED", "DriftReference", "drift_of_log", "drift_of_rows", "fit_drift"),
-        "frame_scores": ("FrameChunk", "blank_probs", "frame_chunks", "step_frames"),
+        "drift_reference": ("DRIFTED", "DriftReference"),
+        "window_drift": ("drift_of_log", "drift_of_rows", "fit_drift"),
+        "frame_numpy": ("FrameChunk", "NumpyMembers", "step_frames"),
+        "frame_scores": ("blank_probs", "frame_chunks"),
         "window_step": ("WindowStep", "WindowStepModel"),
         "frame_outputs": ("FrameOutputs", "StepRows"),
+        "kinds": ("FRAME_PREDICTOR_KIND", "WINDOW_KIND"),
         "frame_predictor": (
-            "FRAME_PREDICTOR_KIND",
             "FramePredictor",
             "FramePredictorConfig",
             "FramePredictorFit",

@@ -6,7 +6,8 @@ from typing import TYPE_CHECKING, Any
 
 from ..registry import Family
 from .frame_predictor import FramePredictor
-from .window_classifier import OLD_WINDOW_KINDS, WINDOW_KIND, WindowClassifier, WindowClassifierConfig
+from .kinds import OLD_WINDOW_KINDS, WINDOW_KIND
+from .window_classifier import WindowClassifier, WindowClassifierConfig
 from .window_step import INPUTS, OUTPUTS, WindowStep, WindowStepModel, zero_state
 
 if TYPE_CHECKING:

@@ -23,9 +23,9 @@ from torch import nn
 from torch.nn import functional as F
 
 from ..running import CancelFn, Cancelled, Progress, ProgressFn, never
+from .kinds import FRAME_PREDICTOR_KIND
 from .spectra import drop_pages, frame_moments
 
-FRAME_PREDICTOR_KIND = "next-frame"  # the ``kind`` a bundle's predictor config carries for this module
 RESIDUAL_FRAMES = 4096  # frames of each log that measure the features' residuals after training
 
 

@@ -5,35 +5,21 @@ A step's input is the last ``window`` frames complete at or before it (:class:`.
 step between two frames asks the same question: at 100 Hz with a frame every 0.2 s, twenty steps in a row. The step
 pass built each step's row, searched the rows for repeats and ran the members on what was left, then the drift ran
 each member again on the frames for its embedding. Here each member runs once per frame and both the probabilities
-and the drift come from that one pass; the caller repeats a frame's answer over its steps (:func:`step_frames`).
+and the drift come from that one pass; the caller repeats a frame's answer over its steps
+(:func:`.frame_numpy.step_frames`). The same pass in NumPy, without PyTorch: :class:`.frame_numpy.NumpyMembers`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from .spectra import SpectralSteps, last_frame, window_index
+from .frame_numpy import FrameChunk
+from .spectra import SpectralSteps, window_index
 from .window_classifier import WindowClassifier
 from .window_drift import QUERY_CHUNK, DriftReference, views_drift, views_of
-
-
-@dataclass(frozen=True, eq=False)
-class FrameChunk:
-    """The members' answers for frames ``[start, start + n)`` of one log.
-
-    Attributes:
-        start: First frame.
-        probs: ``(M, n, K)`` float32 each member's class probabilities.
-        drift: ``(n,)`` float32 the members' mean drift (:mod:`.window_drift`), or ``None`` without a reference.
-    """
-
-    start: int
-    probs: np.ndarray
-    drift: np.ndarray | None
 
 
 @torch.inference_mode()
@@ -86,8 +72,3 @@ def blank_probs(models: Sequence[WindowClassifier]) -> np.ndarray:
     device = models[0].in_mean.device
     zeros = torch.zeros((1, models[0].config.n_features), device=device)  # (1, W·F)
     return np.stack([torch.softmax(m.eval().logits(zeros), -1)[0].cpu().numpy() for m in models])
-
-
-def step_frames(steps: SpectralSteps) -> np.ndarray:
-    """``(T,)`` the frame each step of the log reads last (``-1`` before the first frame completes)."""
-    return last_frame(np.arange(len(steps), dtype=np.int64), steps.config)

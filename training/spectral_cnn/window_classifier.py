@@ -9,7 +9,8 @@ same way. On BorealTC's inner folds it beat a linear model (and a one-layer MLP)
 
 The model keeps no state: a step's probabilities depend on its input alone. It has the paper classifier's call
 signature (features and a state in, logits and a state out; the state is always ``None``), so the offline passes run
-both families. GELU is the tanh form so the NumPy streaming step computes the same numbers without ``erf``.
+both families. GELU is the tanh form so the NumPy passes (:mod:`.frame_numpy`, the streaming step) compute the same
+numbers without ``erf``.
 """
 
 from __future__ import annotations
@@ -22,10 +23,8 @@ from torch import nn
 from torch.nn import functional as F
 
 from ..passes import per_distinct_row
-
-WINDOW_KIND = "frames"  # the ``kind`` in a bundle's classifier config that names this module
-SPREAD_EPS = 1e-6  # added to the pooled variance: a window of identical frames (a log's start) has none
-OLD_WINDOW_KINDS = ("window",)  # the linear model on summaries that preceded it: refused with a hint to retrain
+from .frame_numpy import SPREAD_EPS
+from .kinds import WINDOW_KIND
 
 
 @dataclass(frozen=True)
@@ -169,18 +168,3 @@ def _kept(x: torch.Tensor, p: float, generator: torch.Generator | None) -> torch
     Bernoulli sampler is 2.4 times slower on a CPU (a 128 × 7 × 220 batch: 1.14 ms against 0.48). A fit draws its
     masks itself (:mod:`.row_draws`); this one serves a caller that trains the module on its own."""
     return torch.rand(x.shape, device=x.device, generator=generator) >= p  # (N, W, F)
-
-
-def gelu_tanh(x: np.ndarray) -> np.ndarray:
-    """PyTorch's ``gelu(x, approximate="tanh")`` in NumPy, float32, in one scratch array (the streaming step calls it
-    on small arrays, where each temporary costs as much as the arithmetic)."""
-    out = x * x
-    out *= x
-    out *= np.float32(0.044715)
-    out += x
-    out *= np.float32(0.7978845608028654)
-    np.tanh(out, out=out)
-    out += np.float32(1.0)
-    out *= x
-    out *= np.float32(0.5)
-    return out

@@ -27,70 +27,15 @@ Nothing here reads sessions or files; the bundle stores a :class:`DriftReference
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from ..figures import accuracy_by_drift
+from .drift_reference import DRIFT_NEIGHBOURS, DRIFT_QUANTILE, INPUT_MARGIN, QUERY_CHUNK, DriftReference, scaled_drift
 from .spectra import SpectralSteps, stacked_frames
 from .window_classifier import WindowClassifier
 from .window_config import WindowFitConfig
-
-DRIFT_NEIGHBOURS = 5
-DRIFT_QUANTILE = 0.95
-DRIFTED = 1.0  # a step above this is called drifted
-QUERY_CHUNK = 2048  # frames per distance block: QUERY_CHUNK × reference rows floats at a time
-VIEWS = ("embedding", "inputs")
-INPUT_MARGIN = 2.0  # the inputs' view counts from twice its held-out quantile: it catches what is far off, no more
-
-
-@dataclass(frozen=True)
-class DriftReference:
-    """What the drift score compares a frame with.
-
-    Attributes:
-        references: Per ensemble member, ``(N_m, E)`` embeddings of labelled frames it trained on.
-        inputs: Per member, ``(N_m, F)`` the same frames' window-mean standardised inputs.
-        scales: ``(M, 2)`` per member, the divisor of each view's neighbour distance (embedding, inputs).
-        neighbours: Nearest reference rows averaged.
-        quantile: The held-out quantile that scores 1.
-    """
-
-    references: tuple[np.ndarray, ...]
-    inputs: tuple[np.ndarray, ...]
-    scales: np.ndarray
-    neighbours: int = DRIFT_NEIGHBOURS
-    quantile: float = DRIFT_QUANTILE
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        """As named arrays for a safetensors file."""
-        out = {}
-        for i, (r, x) in enumerate(zip(self.references, self.inputs, strict=True)):
-            out[f"member{i}.reference"] = np.ascontiguousarray(r, np.float32)
-            out[f"member{i}.inputs"] = np.ascontiguousarray(x, np.float32)
-        out["scales"] = np.asarray(self.scales, np.float32)
-        return out
-
-    def settings(self) -> dict:
-        """The JSON-able settings stored beside the arrays."""
-        return {"neighbours": self.neighbours, "quantile": self.quantile, "members": len(self.references)}
-
-    @classmethod
-    def from_arrays(cls, arrays: dict[str, np.ndarray], settings: dict) -> DriftReference:
-        """Rebuild from :meth:`arrays` and :meth:`settings`.
-
-        Raises:
-            ValueError: The arrays do not match the settings.
-        """
-        members = int(settings["members"])
-        refs = tuple(np.asarray(arrays[f"member{i}.reference"], np.float32) for i in range(members))
-        inputs = tuple(np.asarray(arrays[f"member{i}.inputs"], np.float32) for i in range(members))
-        scales = np.asarray(arrays["scales"], np.float32)
-        shapes_ok = all(r.ndim == 2 and x.ndim == 2 and len(r) == len(x) > 0 for r, x in zip(refs, inputs, strict=True))
-        if scales.shape != (members, len(VIEWS)) or not shapes_ok or not (scales > 0).all():
-            raise ValueError("the drift reference's arrays do not match its settings")
-        return cls(refs, inputs, scales, int(settings["neighbours"]), float(settings["quantile"]))
 
 
 @torch.inference_mode()
@@ -195,9 +140,7 @@ def views_of(pooled: torch.Tensor, frames: torch.Tensor) -> tuple[np.ndarray, np
 
 def views_drift(reference: DriftReference, m: int, views: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """Drift ``(N,)`` of rows as member ``m`` alone scores them, from their two views (:func:`views_of`)."""
-    ref = (reference.references[m], reference.inputs[m])
-    dist = _distances(ref, views, reference.neighbours, skip_self=False)  # (N, 2)
-    return (dist / reference.scales[m]).max(axis=1)
+    return scaled_drift(reference, m, views, distance=neighbour_distance)
 
 
 def member_drift(reference: DriftReference, m: int, model: WindowClassifier, rows: np.ndarray) -> np.ndarray:

@@ -20,8 +20,8 @@ import torch
 from torch import nn
 
 from ..training_errors import BundleError
+from .frame_numpy import SPREAD_EPS, gelu_tanh
 from .spectra import SpectralConfig, SpectralStream
-from .window_classifier import SPREAD_EPS, gelu_tanh
 
 if TYPE_CHECKING:
     from ..runtime import ModelBundle

@@ -1,4 +1,5 @@
-"""Each log's change points, kept in the session per predictor, so that a restart does not find them again.
+"""Each log's change points (:func:`log_change_points`), kept in the session per predictor, so that a restart does
+not find them again.
 
 The suggestion queue cuts every log at its change points, found over the log's channels and its stage-1 surprise:
 at 100 hours of logs, 25 s of the worker's time before the first queue after a restart could be ranked, and again
@@ -15,7 +16,17 @@ from pathlib import Path
 
 import numpy as np
 
+import labeling
 from sessions import LogInfo, Session
+
+
+def log_change_points(samples: np.ndarray, surprise: np.ndarray | None, *, rate_hz: float) -> np.ndarray:
+    """Change points (sample indices) of one log over its z-scored channels and, when known, its surprise."""
+    x = np.asarray(samples, np.float32)
+    z = (x - x.mean(axis=0)) / (x.std(axis=0) + 1e-6)  # (T, C)
+    if surprise is not None:
+        z = np.column_stack([z, surprise])
+    return labeling.change_points(z, block=max(1, round(0.25 * rate_hz)))
 
 
 def _folder(session: Session, predictor: int) -> Path:

@@ -11,13 +11,15 @@ from __future__ import annotations
 
 from collections.abc import Collection
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 import labeling
 from sessions import COUNTED_KINDS, Check, Session
 
-from .scores import SessionScores
+if TYPE_CHECKING:  # the scoring path loads PyTorch; a check's record does not need it
+    from .scores import SessionScores
 
 
 def record_check(

@@ -28,9 +28,9 @@ from training import (
     ensemble_pass,
     frame_chunks,
     load_bundle,
-    step_frames,
 )
 
+from .frame_reduce import frame_log_scores
 from .front_end import input_span, spectral_features, window_features, window_sizes
 from .run_votes import with_run_votes
 from .stage_inputs import stage1_outputs
@@ -100,34 +100,9 @@ def score_logs(
 def _frame_scores(
     classifiers: Sequence[WindowClassifier], features: SpectralSteps, surprise: np.ndarray, drift: DriftReference | None
 ) -> labeling.LogScores:
-    """One log's scores from the members' answers once per frame, each repeated over the steps that read that frame
-    last (a step before the first frame reads zeros; its drift is the first frame's, as ``drift_of_log`` gives)."""
-    n, k, pairs = len(features.frames), classifiers[0].config.n_classes, len(classifiers) >= 2
-    mean, mi = np.empty((n + 1, k), np.float32), np.empty(n + 1, np.float32)  # the last row: the blank input's
-    agreement = np.empty(n + 1, np.float32) if pairs else None
-    drifts = np.zeros(max(n, 1), np.float32) if drift is not None else None
-
-    def reduce(a: int, b: int, probs: np.ndarray) -> None:  # probs: (M, b - a, K)
-        mean[a:b] = probs.mean(axis=0)
-        mi[a:b] = labeling.mutual_information(probs)
-        if agreement is not None:
-            agreement[a:b] = labeling.member_agreement(probs)
-
-    for part in frame_chunks(classifiers, features, drift=drift):
-        reduce(part.start, part.start + part.probs.shape[1], part.probs)
-        if drifts is not None and part.drift is not None:
-            drifts[part.start : part.start + len(part.drift)] = part.drift
-    reduce(n, n + 1, blank_probs(classifiers)[:, None])
-    features.release()  # its mapped frames not held over the logs
-    which = step_frames(features)  # (T,)
-    rows = np.where(which >= 0, which, n)  # (T,) a blank step reads the last row
-    return labeling.LogScores(
-        np.asarray(surprise),
-        mean[rows],
-        mi[rows],
-        None if drifts is None else drifts[np.clip(which, 0, max(n - 1, 0))],
-        None if agreement is None else agreement[rows],
-    )
+    """One log's scores from the members' answers once per frame (:func:`.frame_reduce.frame_log_scores`)."""
+    chunks = frame_chunks(classifiers, features, drift=drift)
+    return frame_log_scores(chunks, blank_probs(classifiers), features, surprise, drift=drift is not None)
 
 
 @dataclass(frozen=True)

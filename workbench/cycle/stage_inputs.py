@@ -11,7 +11,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-import labeling
 from sessions import FileRows, LogInfo, ModelVersion, NpyWriter, Session
 from training import (
     FRAME_PREDICTOR_KIND,
@@ -29,6 +28,7 @@ from training import (
     predictor_pass,
 )
 
+from .change_point_store import log_change_points
 from .front_end import log_frame_files
 
 PREDICTOR_BATCH = 64  # logs per stage-1 call when filling the cache
@@ -167,15 +167,6 @@ def stage2_features(
         _features.clear()
         _features[key] = features
     return features
-
-
-def log_change_points(samples: np.ndarray, surprise: np.ndarray | None, *, rate_hz: float) -> np.ndarray:
-    """Change points (sample indices) of one log over its z-scored channels and, when known, its surprise."""
-    x = np.asarray(samples, np.float32)
-    z = (x - x.mean(axis=0)) / (x.std(axis=0) + 1e-6)  # (T, C)
-    if surprise is not None:
-        z = np.column_stack([z, surprise])
-    return labeling.change_points(z, block=max(1, round(0.25 * rate_hz)))
 
 
 def consistency_pairs(

@@ -1,10 +1,10 @@
-"""Export for the robot: model bundle + model card + ONNX (checked against PyTorch on real logs) + label files."""
+"""Export for the robot: model bundle + model card + ONNX (checked against PyTorch on real logs) + label files.
+
+``classify`` (a bundle on log files, no session) lives in :mod:`.file_classify`."""
 
 from __future__ import annotations
 
 import shutil
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -14,70 +14,30 @@ import labeling
 from sessions import (
     LABEL_TOPIC,
     PREDICTION_TOPIC,
-    IngestError,
-    IngestOptions,
     LogClock,
     LogInfo,
     ModelVersion,
     Session,
     TerrainPredictions,
     WorkbenchError,
-    align,
-    check_new_target,
     per_log_paths,
-    plan_sources,
-    read_source,
-    refuse_existing,
     safe_file_name,
     write_frame,
     write_terrain_mcap,
 )
 from training import (
-    MAX_DWELL_S,
-    BundleError,
     ModelBundle,
-    TerrainFilter,
-    load_bundle,
-    run_predictor,
-    unseen_words,
 )
 
-from ..cycle import ChecksSummary, estimate_disagrees
-from ..expectations import card_accuracy, file_expectation, stretch_share
-from .bundle_checks import read_checks, write_checks
+from ..expectations import file_expectation, stretch_share
+from .bundle_checks import write_checks
 from .export_staging import check_target, staged
-from .model_card import model_card
+from .file_classify import prediction_frame
+from .model_cards import model_card
 from .predictions_stream import PredictionsWriter, scored_logs, with_drift_column
 
 ONNX_TOLERANCE = 1e-4
 CHECK_SAMPLES = 1500  # per log, for the ONNX check: a per-sample loop in onnxruntime
-
-
-OUTPUT_TYPES = (".csv", ".parquet", ".json", ".mcap")  # classify's --out
-
-
-def prediction_frame(
-    log: str, probs: np.ndarray, classes: Sequence[str], rate_hz: float, drift: np.ndarray | None = None
-) -> pd.DataFrame:
-    """Per-timestep predictions of one log: sample, time, most probable terrain, ``p_<terrain>`` columns and, when
-    the model gives one, ``drift`` (how unlike the labelled data the step is; above 1: drifted).
-
-    Args:
-        log: The log's name.
-        probs: ``(T, K)`` class probabilities.
-        classes: The ``K`` terrain names.
-        rate_hz: The log's sample rate.
-        drift: ``(T,)`` drift scores, or ``None``.
-    """
-    t = np.arange(len(probs))
-    frame = pd.DataFrame(
-        {"log": log, "sample": t, "t_s": t / rate_hz, "terrain": np.asarray(classes)[probs.argmax(-1)]}
-    )
-    for k, c in enumerate(classes):
-        frame[f"p_{c}"] = probs[:, k]
-    if drift is not None:
-        frame["drift"] = np.asarray(drift, np.float32)
-    return frame
 
 
 def export_all(
@@ -229,198 +189,3 @@ def _write_mcap(
         about={"model_version": str(version.id), "session": session.path.name, "source_file": log.source_path},
     )
     return path, f"{log.name}: topics {PREDICTION_TOPIC} and {LABEL_TOPIC} on the log's clock"
-
-
-@dataclass(frozen=True)
-class ReadLogs:
-    """Log files read for a bundle: per log its name, ``(T, C)`` samples in the bundle's channel order at its rate,
-    and its start on the source's clock; and the files refused, each an error naming it."""
-
-    names: tuple[str, ...]
-    arrays: tuple[np.ndarray, ...]
-    starts: tuple[float, ...]
-    errors: tuple[IngestError, ...]
-
-
-def read_logs(bundle: ModelBundle, files: Sequence[Path], options: IngestOptions) -> ReadLogs:
-    """Read log files as ``workbench ingest`` does, aligned at the bundle's rate, in its channel order."""
-    sources, errors = plan_sources(list(files))
-    names, arrays, starts = [], [], []
-    for src in sources:
-        try:
-            parsed, _ = read_source(src, options)
-        except IngestError as exc:
-            errors.append(exc)
-            continue
-        for p in parsed:
-            try:
-                a = align(p, replace(options, rate_hz=bundle.rate_hz))  # the rate the model was trained at
-            except IngestError as exc:
-                errors.append(exc)
-                continue
-            have = [c.name for c in a.channels]
-            missing = [c for c in bundle.channels if c not in have]
-            if missing:
-                errors.append(IngestError(src.path, f"lacks channels the model needs: {', '.join(missing[:5])}"))
-                continue
-            names.append(p.name)
-            arrays.append(a.data[:, [have.index(c) for c in bundle.channels]])
-            starts.append(a.t0)
-    return ReadLogs(tuple(names), tuple(arrays), tuple(starts), tuple(errors))
-
-
-def score_arrays(bundle: ModelBundle, arrays: Sequence[np.ndarray]) -> list:
-    """Each log scored by the bundle alone, as ``classify`` and the robot score it (no session: no labels, no
-    votes): per log a ``labeling.LogScores`` (probabilities, members' agreement, drift)."""
-    from ..cycle import in_memory_features, score_logs
-
-    if bundle.stage2_family().stage2_inputs in ("frames", "windows"):
-        # the predictions file holds no surprise: these families' stage 2 never reads stage 1, so it is skipped
-        features = in_memory_features(list(arrays), bundle, bundle.spectral)
-        surprise = [np.zeros(len(a), np.float32) for a in arrays]
-    else:
-        outs = run_predictor(bundle.predictor, bundle.normalizer, list(arrays))
-        features = [o.lazy(bundle.feature_mode) for o in outs]
-        surprise = [o.surprise() for o in outs]
-    return score_logs(bundle.classifiers, features, surprise, drift=bundle.drift)
-
-
-def _finite_only(names: list[str], scored: list, lines: list[str]) -> list[int]:
-    """The files whose every probability is finite; an error line for each other one. A NaN is no terrain (its
-    argmax reads as the first class), so such a file gets no output at all."""
-    kept = []
-    for i, (name, s) in enumerate(zip(names, scored, strict=True)):
-        bad = int((~np.isfinite(s.probs).all(axis=1)).sum())
-        if bad:
-            lines.append(f"error: {name}: the model gave {bad:,} step(s) no finite probability; nothing written for it")
-        else:
-            kept.append(i)
-    return kept
-
-
-def _checks_lines(bundle_dir: Path, card: float | None) -> tuple[ChecksSummary | None, list[str]]:
-    """The bundle's checks, and what ``classify`` says of them first: the spot checks (else every check) beside the
-    card's estimate, warned of when the estimate lies outside the spot checks' interval by 10 points or more."""
-    checks, damaged = read_checks(bundle_dir)
-    if checks is None:
-        return None, [] if damaged is None else [f"warning: {damaged}"]
-    if checks.spot is not None:
-        lines = [f"your checks in the session (at export): {checks.spot.words('spot checks')}"]
-        if estimate_disagrees(card, checks.spot):
-            lines.append(
-                f"warning: the card's estimate ({card:.0%}) lies outside your spot checks' interval by 10 points or "
-                "more: trust the spot checks"
-            )
-        return checks, lines
-    counted = checks.all or checks.suggested  # a hand-edited file may hold either alone
-    if counted is None:
-        return None, []
-    return checks, [
-        f"your checks in the session (at export): {counted.words()}, none of them a spot check (the checks of "
-        "suggestions are where the model was doubted, and run low)"
-    ]
-
-
-def classify_files(
-    bundle_dir: Path, files: Sequence[Path], out: Path, options: IngestOptions, *, smooth_s: float | None = None
-):
-    """Per-timestep predictions for log files; returns (exit code, lines to print).
-
-    ``out`` is a table (.csv, .parquet, .json) of every log, or an ``.mcap`` file per log on the log's own clock
-    (``sessions.terrain_mcap``); an MCAP output that exists is refused before the model runs. ``smooth_s``: the
-    probabilities written are forward–backward over an HMM whose terrain lasts that many seconds on average
-    (:class:`training.TerrainFilter`); each file's line says the delay the causal filter costs on a robot.
-    """
-    if smooth_s is not None and not 0 < smooth_s <= MAX_DWELL_S:
-        return 2, [
-            f"error: --smooth {smooth_s:g}: the time on a terrain is a number of seconds above 0 and at most "
-            f"{MAX_DWELL_S:g} (a day)"
-        ]
-    if Path(out).suffix.lower() not in OUTPUT_TYPES:
-        return 2, [f"error: {out}: unknown output type {Path(out).suffix!r}; use {', '.join(OUTPUT_TYPES)}"]
-    try:
-        if Path(out).suffix.lower() != ".mcap":  # an MCAP output's names are per log, checked once they are known
-            check_new_target(Path(out))
-        bundle = load_bundle(bundle_dir)
-    except (BundleError, WorkbenchError) as exc:
-        return 2, [f"error: {exc}"]
-    if not bundle.classifiers:
-        return 2, [f"error: {bundle_dir}: the bundle has no classifier"]
-    if options.target_rate is not None and abs(options.target_rate - bundle.rate_hz) > 1e-9:
-        return 2, [
-            f"error: {bundle_dir}: the model runs at {bundle.rate_hz:g} Hz, so logs are aligned at that rate; "
-            f"--rate {options.target_rate:g} would feed it another (leave --rate out)"
-        ]
-    as_mcap = Path(out).suffix.lower() == ".mcap"
-    checks, lines = _checks_lines(bundle_dir, card_accuracy(bundle.metrics))
-    if unseen := unseen_words(bundle.metrics.get("unseen_runs")):
-        lines.append(f"this bundle on a run it never saw (folds over the session's runs): {unseen}")
-    spot = None if checks is None else checks.spot
-    read = read_logs(bundle, files, options)
-    lines += [f"error: {e}" for e in read.errors]
-    names, arrays, starts = list(read.names), list(read.arrays), list(read.starts)
-    paths = per_log_paths(Path(out), names) if as_mcap else []
-    try:
-        refuse_existing(paths)
-    except WorkbenchError as exc:
-        return 2, [*lines, f"error: {exc}"]
-    if arrays:
-        from ..cycle import log_change_points
-
-        scored = score_arrays(bundle, arrays)
-        kept = _finite_only(names, scored, lines)
-        names, arrays, scored = [names[i] for i in kept], [arrays[i] for i in kept], [scored[i] for i in kept]
-        starts, paths = [starts[i] for i in kept], [paths[i] for i in kept] if as_mcap else paths
-        own_surprise = bundle.stage2_family().stage2_inputs not in ("frames", "windows")
-        for name, a, s in zip(names, arrays, scored, strict=True):  # per file: its drift and what to expect on it
-            points = log_change_points(a, s.surprise if own_surprise else None, rate_hz=bundle.rate_hz)
-            expect = file_expectation(
-                name,
-                s.drift,
-                bundle.metrics,
-                predicted=s.probs.argmax(1),
-                change_points=points,
-                rate_hz=bundle.rate_hz,
-                members=s.agreement,
-            )
-            if expect is not None:
-                lines += [expect.line(), *filter(None, [expect.warning()])]
-            if (mine := None if checks is None else checks.per_run.get(name)) is not None:
-                lines.append(  # most of them sit where the model was doubted: a fact beside the figure, no verdict
-                    f"{name}: your checks in the session's run of this name found the model {mine.words()}; "
-                    "suggestions are placed where the model is doubted, so these run low"
-                )
-                if estimate_disagrees(expect.expected, spot):
-                    lines.append(
-                        f"warning: {name}: expected accuracy {expect.expected:.0%}, but your spot checks in the "
-                        f"session found the model {spot.words('spot checks')}: trust the checks"
-                    )
-        if smooth_s is not None:
-            hmm = TerrainFilter.for_dwell(smooth_s, bundle.rate_hz, len(bundle.classes))
-            for name, s in zip(names, scored, strict=True):
-                delay = hmm.delay_steps(float(np.median(s.probs.max(axis=1)))) / bundle.rate_hz
-                lines.append(
-                    f"{name}: smoothed (an HMM, {smooth_s:g} s on a terrain on average); on a robot the causal "
-                    f"filter would follow a terrain change {delay:.2f} s late at this file's median confidence"
-                )
-            scored = [replace(s, probs=hmm.smooth(s.probs).astype(np.float32)) for s in scored]
-        kept = _finite_only(names, scored, lines)
-        names, scored, starts = [names[i] for i in kept], [scored[i] for i in kept], [starts[i] for i in kept]
-        paths = [paths[i] for i in kept] if as_mcap else paths
-        if as_mcap:
-            for name, s, t0, path in zip(names, scored, starts, paths, strict=True):
-                clock = LogClock(name, t0, bundle.rate_hz, len(s.probs))
-                predictions = TerrainPredictions(tuple(bundle.classes), s.probs, s.drift)
-                write_terrain_mcap(path, clock, predictions=predictions, about={"bundle": str(bundle_dir)})
-                lines.append(
-                    f"wrote {path}: {name}, topic {PREDICTION_TOPIC}, {clock.n_samples} messages, {clock.span()}"
-                )
-        else:
-            frames = [
-                prediction_frame(name, s.probs, bundle.classes, bundle.rate_hz, s.drift)
-                for name, s in zip(names, scored, strict=True)
-            ]
-            if frames:
-                write_frame(pd.concat(frames), out)
-                lines.append(f"wrote predictions for {len(frames)} log(s) to {out}")
-    return (2 if any(x.startswith("error:") for x in lines) else 0), lines

@@ -1,0 +1,45 @@
+"""``workbench classify`` with a default-family bundle: scored in NumPy, never loading PyTorch, and writing what the
+session's PyTorch path scores for the same file."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from sessions import IngestOptions
+from training import load_bundle, load_scoring_bundle
+from workbench.export import read_logs, score_arrays
+
+from ..training.test_scoring_bundle import RATE, _log, bundle_dir  # noqa: F401 (a fixture)
+
+
+def test_classify_scores_a_file_in_numpy_as_the_pytorch_path_does(bundle_dir: Path, tmp_path: Path) -> None:  # noqa: F811
+    x = _log(3000, 5)
+    log = tmp_path / "run.csv"
+    table = pd.DataFrame(x, columns=["fast", "noise", "held"])
+    table.insert(0, "time", np.arange(len(x)) / RATE)
+    table.to_csv(log, index=False)
+    out = tmp_path / "p.csv"
+    code = (
+        "import sys\n"
+        "from workbench.cli import main\n"
+        f"code = main(['classify', {str(bundle_dir)!r}, {str(log)!r}, '--out', {str(out)!r}])\n"
+        "print(code, 'torch' in sys.modules)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split()[-2:] == ["0", "False"], done.stdout + done.stderr
+    written = pd.read_csv(out)
+    read = read_logs(load_bundle(bundle_dir), [log], IngestOptions(camera_fps=0))
+    (expected,) = score_arrays(load_bundle(bundle_dir), read.arrays)  # the session's scoring path, in PyTorch
+    probs = written[[f"p_{c}" for c in ("a", "b", "c", "d")]].to_numpy()
+    assert len(written) == len(x) == len(expected.probs)
+    np.testing.assert_allclose(probs, expected.probs, atol=1e-5)
+    np.testing.assert_array_equal(written["terrain"], np.asarray(["a", "b", "c", "d"])[expected.probs.argmax(1)])
+    np.testing.assert_allclose(written["drift"], expected.drift, rtol=1e-5, atol=1e-5)
+    (ours,) = score_arrays(load_scoring_bundle(bundle_dir), read.arrays)
+    np.testing.assert_allclose(ours.agreement, expected.agreement, atol=1e-5)
+    np.testing.assert_allclose(ours.disagreement, expected.disagreement, atol=1e-5)
