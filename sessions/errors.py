@@ -26,3 +26,12 @@ class IngestError(WorkbenchError):
         self.where = where
         at = f" ({where})" if where else ""
         super().__init__(f"{self.path}: {reason}{at}")
+
+    def __reduce__(self) -> tuple:
+        """Pickled with its own arguments (``args`` holds the message alone): a file read in another process
+        (``classify --jobs``) hands its refusal back whole."""
+        return _ingest_error, (self.path, self.reason, self.where)
+
+
+def _ingest_error(path: str, reason: str, where: str | None) -> IngestError:
+    return IngestError(path, reason, where=where)

@@ -8,6 +8,8 @@
 - **classify of a 10-minute IMU run**: a quadruped-shaped CSV (6 channels at 50 Hz, ``speed_common.write_imu_logs``)
   classified by a bundle of a session of three such runs trained by ``workbench train`` (the default family, 10 % of
   the time labelled), beside ``ingest --dry-run`` of the same file: what a new user tries first, start-up included.
+- **four runs at once**: four such runs in one ``classify``, each read and scored in a process of its own (one per
+  core, the default), beside the same command with ``--jobs 1``.
 - **--help**: ``workbench --help`` beside ``python -c pass`` (the interpreter's own start-up), best of 5.
 """
 
@@ -25,7 +27,7 @@ from sessions import Session
 from training import TrainConfig
 from workbench import cycle
 from workbench.demo import TERRAINS, generate_walk, seed_labels, write_walk
-from workbench.export import export_all
+from workbench.export import default_jobs, export_all
 
 WORKBENCH = [sys.executable, "-m", "workbench.cli"]
 
@@ -84,7 +86,7 @@ def main() -> None:
                 classify <= 1.5 * read if minutes == 60.0 else None,
             )
         )
-        rows.append(_imu_run(folder / "imu", quick=args.quick))
+        rows += _imu_runs(folder / "imu", quick=args.quick)
     help_s = wall([*WORKBENCH, "--help"], repeat=5)
     bare = wall([sys.executable, "-c", "pass"], repeat=5)
     rows.append(
@@ -100,11 +102,13 @@ def main() -> None:
     record("classify", rows, device=args.device)
 
 
-def _imu_run(folder: Path, *, quick: bool) -> Row:
-    """``classify`` of one IMU run (6 channels, 50 Hz CSV) beside reading it, with a bundle trained on three others."""
+def _imu_runs(folder: Path, *, quick: bool) -> list[Row]:
+    """``classify`` of one IMU run (6 channels, 50 Hz CSV) beside reading it, with a bundle trained on three others;
+    and of four such runs at once, a process per core (the default), beside the same command with ``--jobs 1``."""
     minutes = 2.0 if quick else 10.0
     files, reference = write_imu_logs(folder / "logs", n_logs=3, minutes=(5.0, 6.0), seed=3)
     (run,), _ = write_imu_logs(folder / "new", n_logs=1, minutes=(minutes, minutes), seed=4)
+    fleet, _ = write_imu_logs(folder / "fleet", n_logs=4, minutes=(minutes, minutes), seed=5)
     with Session.create(folder / "s") as s:
         s.ingest(files)
         s.import_reference(reference, create_terrains=True)
@@ -113,19 +117,30 @@ def _imu_run(folder: Path, *, quick: bool) -> Row:
     subprocess.run(
         [*WORKBENCH, "export", str(folder / "s"), "--out", str(folder / "model")], check=True, capture_output=True
     )
-    out = folder / "predictions.csv"
-    classify = wall(
-        [*WORKBENCH, "classify", str(folder / "model" / "bundle"), str(run), "--out", str(out)], repeat=3, clear=out
-    )
+    bundle, out = str(folder / "model" / "bundle"), folder / "predictions.csv"
+    classify = wall([*WORKBENCH, "classify", bundle, str(run), "--out", str(out)], repeat=3, clear=out)
     read = wall([*WORKBENCH, "ingest", str(folder / "scratch"), str(run), "--dry-run"], repeat=3)
-    return Row(
-        f"workbench classify of a {minutes:g}-minute IMU run (6 channels, 50 Hz CSV), start-up included",
-        fmt_s(classify),
-        f"reading the same file alone (ingest --dry-run): {fmt_s(read)}",
-        f"{classify / read:.1f}× the read",
-        "≤ 2× the read",
-        classify <= 2.0 * read if not quick else None,
-    )
+    many = [*WORKBENCH, "classify", bundle, *map(str, fleet), "--out", str(out)]
+    cores = wall(many, repeat=2, clear=out)
+    one = wall([*many, "--jobs", "1"], repeat=2, clear=out)
+    return [
+        Row(
+            f"workbench classify of a {minutes:g}-minute IMU run (6 channels, 50 Hz CSV), start-up included",
+            fmt_s(classify),
+            f"reading the same file alone (ingest --dry-run): {fmt_s(read)}",
+            f"{classify / read:.1f}× the read",
+            "≤ 2× the read",
+            classify <= 2.0 * read if not quick else None,
+        ),
+        Row(
+            f"workbench classify of four {minutes:g}-minute IMU runs, a process per core ({default_jobs(4)})",
+            fmt_s(cores),
+            f"the same with --jobs 1: {fmt_s(one)}",
+            f"{one / cores:.2f}× faster",
+            "faster than one process where there are two cores or more",
+            cores < one if default_jobs(4) > 1 and not quick else None,
+        ),
+    ]
 
 
 if __name__ == "__main__":

@@ -43,3 +43,30 @@ def test_classify_scores_a_file_in_numpy_as_the_pytorch_path_does(bundle_dir: Pa
     (ours,) = score_arrays(load_scoring_bundle(bundle_dir), read.arrays)
     np.testing.assert_allclose(ours.agreement, expected.agreement, atol=1e-5)
     np.testing.assert_allclose(ours.disagreement, expected.disagreement, atol=1e-5)
+
+
+def test_several_files_are_read_and_scored_in_processes_as_one_process_does(
+    bundle_dir: Path,  # noqa: F811
+    tmp_path: Path,
+) -> None:
+    """Each file in a forked process: the same table, the same lines (a refused file named in its place among them)
+    as the files one after another; a `--jobs` under 1 is refused in one line."""
+    from workbench.cli import main
+
+    files = []
+    for i in range(3):
+        table = pd.DataFrame(_log(1500 + 500 * i, 10 + i), columns=["fast", "noise", "held"])
+        table.insert(0, "time", np.arange(len(table)) / RATE)
+        files.append(tmp_path / f"run{i}.csv")
+        table.to_csv(files[-1], index=False)
+    broken = tmp_path / "broken.csv"
+    broken.write_text("time,fast\n0,1\n")
+    files.insert(1, broken)
+    outs = []
+    for jobs in (1, 3):
+        out = tmp_path / f"p{jobs}.csv"
+        assert main(["classify", str(bundle_dir), *map(str, files), "--out", str(out), "--jobs", str(jobs)]) == 2
+        outs.append(pd.read_csv(out))
+    pd.testing.assert_frame_equal(outs[0], outs[1])
+    assert sorted(set(outs[0]["log"])) == ["run0", "run1", "run2"]
+    assert main(["classify", str(bundle_dir), str(files[0]), "--out", str(tmp_path / "x.csv"), "--jobs", "0"]) == 2

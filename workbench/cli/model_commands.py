@@ -379,6 +379,7 @@ def classify(
     allow_gaps: bool = False,
     rate: float | None = None,
     smooth: float | None = None,
+    jobs: int | None = None,
 ) -> int:
     """Per-timestep terrain predictions for log files with an exported bundle (no session needed).
 
@@ -397,6 +398,8 @@ def classify(
         smooth: Smooth the probabilities with an HMM whose terrain lasts this many seconds on average
             (forward-backward over each file; each file's line says how late the robot's causal filter would
             follow a change). Off by default.
+        jobs: Files read and scored at once, each in a process of its own (default: one per core). A bundle of
+            the default family runs in NumPy alone; one of another family scores in the main process.
     """
     from sessions import check_new_target, load_mapping
 
@@ -410,7 +413,7 @@ def classify(
         allow_gaps=allow_gaps,
         camera_fps=0,  # predictions need no pictures: image topics are not decoded
     )
-    code, lines = classify_files(bundle, files, out, options, smooth_s=smooth)
+    code, lines = classify_files(bundle, files, out, options, smooth_s=smooth, jobs=jobs)
     for line in lines:
         print(shown(line), file=sys.stderr if line.startswith(("error:", "warning:")) else sys.stdout)
     return code

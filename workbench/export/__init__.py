@@ -17,6 +17,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "OUTPUT_TYPES",
             "ReadLogs",
             "classify_files",
+            "default_jobs",
             "load_for_scoring",
             "prediction_frame",
             "read_logs",

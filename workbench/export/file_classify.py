@@ -8,10 +8,15 @@ imports neither PyTorch nor the session's scoring path at its top.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import multiprocessing
+import os
+import sys
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 import pandas as pd
@@ -21,6 +26,7 @@ from sessions import (
     IngestError,
     IngestOptions,
     LogClock,
+    Source,
     TerrainPredictions,
     WorkbenchError,
     align,
@@ -50,6 +56,9 @@ from .bundle_checks import read_checks
 if TYPE_CHECKING:
     import labeling
     from training import ModelBundle
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 
 OUTPUT_TYPES = (".csv", ".parquet", ".json", ".mcap")  # classify's --out
@@ -90,47 +99,74 @@ class ReadLogs:
     errors: tuple[IngestError, ...]
 
 
-def read_logs(bundle: ModelBundle | ScoringBundle, files: Sequence[Path], options: IngestOptions) -> ReadLogs:
-    """Read log files as ``workbench ingest`` does, aligned at the bundle's rate, in its channel order."""
+def read_logs(
+    bundle: ModelBundle | ScoringBundle, files: Sequence[Path], options: IngestOptions, *, jobs: int = 1
+) -> ReadLogs:
+    """Read log files as ``workbench ingest`` does, aligned at the bundle's rate, in its channel order; ``jobs``
+    sources at once, each in a process of its own (reading a log is Python: one core's work)."""
     sources, errors = plan_sources(list(files))
+    read = partial(_read_source, float(bundle.rate_hz), tuple(bundle.channels), options)
     names, arrays, starts = [], [], []
-    for src in sources:
-        try:
-            parsed, _ = read_source(src, options)
-        except IngestError as exc:
-            errors.append(exc)
-            continue
-        for p in parsed:
-            try:
-                a = align(p, replace(options, rate_hz=bundle.rate_hz))  # the rate the model was trained at
-            except IngestError as exc:
-                errors.append(exc)
-                continue
-            have = [c.name for c in a.channels]
-            missing = [c for c in bundle.channels if c not in have]
-            if missing:
-                errors.append(IngestError(src.path, f"lacks channels the model needs: {', '.join(missing[:5])}"))
-                continue
-            names.append(p.name)
-            arrays.append(a.data[:, [have.index(c) for c in bundle.channels]])
-            starts.append(a.t0)
+    for got in in_processes(read, sources, jobs=jobs):
+        names += got.names
+        arrays += got.arrays
+        starts += got.starts
+        errors += got.errors
     return ReadLogs(tuple(names), tuple(arrays), tuple(starts), tuple(errors))
 
 
-def score_arrays(bundle: ModelBundle | ScoringBundle, arrays: Sequence[np.ndarray]) -> list[labeling.LogScores]:
+def _read_source(rate_hz: float, channels: tuple[str, ...], options: IngestOptions, src: Source) -> ReadLogs:
+    """One planned source's logs at ``rate_hz`` in ``channels``' order, or the errors that refused them."""
+    names, arrays, starts, errors = [], [], [], []
+    try:
+        parsed, _ = read_source(src, options)
+    except IngestError as exc:
+        return ReadLogs((), (), (), (exc,))
+    for p in parsed:
+        try:
+            a = align(p, replace(options, rate_hz=rate_hz))  # the rate the model was trained at
+        except IngestError as exc:
+            errors.append(exc)
+            continue
+        have = [c.name for c in a.channels]
+        missing = [c for c in channels if c not in have]
+        if missing:
+            errors.append(IngestError(src.path, f"lacks channels the model needs: {', '.join(missing[:5])}"))
+            continue
+        names.append(p.name)
+        arrays.append(a.data[:, [have.index(c) for c in channels]])
+        starts.append(a.t0)
+    return ReadLogs(tuple(names), tuple(arrays), tuple(starts), tuple(errors))
+
+
+def in_processes(fn: Callable[[T], R], items: Sequence[T], *, jobs: int) -> list[R]:
+    """``[fn(x) for x in items]`` in that order, in up to ``jobs`` forked processes where there are several items.
+
+    Forked, so each child starts with what the parent loaded (the bundle's arrays, the modules) rather than importing
+    it again; on Linux, and in this process elsewhere.
+    """
+    jobs = min(jobs, len(items))
+    if jobs <= 1 or sys.platform != "linux":
+        return [fn(x) for x in items]
+    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork")) as pool:
+        return list(pool.map(fn, items))
+
+
+def default_jobs(files: int) -> int:
+    """Processes for ``files`` files: one per core this process may use, never more than the files."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return max(1, min(files, cores))
+
+
+def score_arrays(
+    bundle: ModelBundle | ScoringBundle, arrays: Sequence[np.ndarray], *, jobs: int = 1
+) -> list[labeling.LogScores]:
     """Each log scored by the bundle alone, as ``classify`` and the robot score it (no session: no labels, no
     votes): per log a ``labeling.LogScores`` (probabilities, members' agreement, drift). A :class:`ScoringBundle`
-    runs in NumPy; a ``ModelBundle`` along the session's scoring path."""
+    runs in NumPy, ``jobs`` logs at once in processes of their own; a ``ModelBundle`` along the session's scoring
+    path, in this process."""
     if isinstance(bundle, ScoringBundle):
-        scored = []
-        for a in arrays:
-            steps = SpectralSteps(log_frames(a, bundle.spectral, transform=bundle.normalizer), len(a), bundle.spectral)
-            chunks = bundle.members.chunks(steps, drift=bundle.drift)
-            surprise = np.zeros(len(a), np.float32)  # the family's stage 2 never reads stage 1: none is written
-            scored.append(
-                frame_log_scores(chunks, bundle.members.blank(), steps, surprise, drift=bundle.drift is not None)
-            )
-        return scored
+        return in_processes(partial(_numpy_scores, bundle), list(arrays), jobs=jobs)
     from training import run_predictor
 
     from ..cycle import in_memory_features, score_logs
@@ -144,6 +180,15 @@ def score_arrays(bundle: ModelBundle | ScoringBundle, arrays: Sequence[np.ndarra
         features = [o.lazy(bundle.feature_mode) for o in outs]
         surprise = [o.surprise() for o in outs]
     return score_logs(bundle.classifiers, features, surprise, drift=bundle.drift)
+
+
+def _numpy_scores(bundle: ScoringBundle, samples: np.ndarray) -> labeling.LogScores:
+    """One log's scores from a :class:`ScoringBundle`'s members over its frames."""
+    front = bundle.spectral
+    steps = SpectralSteps(log_frames(samples, front, transform=bundle.normalizer), len(samples), front)
+    chunks = bundle.members.chunks(steps, drift=bundle.drift)
+    surprise = np.zeros(len(samples), np.float32)  # the family's stage 2 never reads stage 1: none is written
+    return frame_log_scores(chunks, bundle.members.blank(), steps, surprise, drift=bundle.drift is not None)
 
 
 def load_for_scoring(bundle_dir: Path) -> ModelBundle | ScoringBundle:
@@ -200,7 +245,13 @@ def _checks_lines(bundle_dir: Path, card: float | None) -> tuple[ChecksSummary |
 
 
 def classify_files(
-    bundle_dir: Path, files: Sequence[Path], out: Path, options: IngestOptions, *, smooth_s: float | None = None
+    bundle_dir: Path,
+    files: Sequence[Path],
+    out: Path,
+    options: IngestOptions,
+    *,
+    smooth_s: float | None = None,
+    jobs: int | None = None,
 ):
     """Per-timestep predictions for log files; returns (exit code, lines to print).
 
@@ -208,12 +259,16 @@ def classify_files(
     (``sessions.terrain_mcap``); an MCAP output that exists is refused before the model runs. ``smooth_s``: the
     probabilities written are forward–backward over an HMM whose terrain lasts that many seconds on average
     (:class:`training.TerrainFilter`); each file's line says the delay the causal filter costs on a robot.
+    ``jobs``: files read and scored at once, each in a process of its own (default: one per core); a bundle that runs
+    in PyTorch (not the default family) scores in this process.
     """
     if smooth_s is not None and not 0 < smooth_s <= MAX_DWELL_S:
         return 2, [
             f"error: --smooth {smooth_s:g}: the time on a terrain is a number of seconds above 0 and at most "
             f"{MAX_DWELL_S:g} (a day)"
         ]
+    if jobs is not None and jobs < 1:
+        return 2, [f"error: --jobs {jobs}: the files read at once are a whole number of at least 1"]
     if Path(out).suffix.lower() not in OUTPUT_TYPES:
         return 2, [f"error: {out}: unknown output type {Path(out).suffix!r}; use {', '.join(OUTPUT_TYPES)}"]
     try:
@@ -232,7 +287,8 @@ def classify_files(
     if unseen := unseen_words(bundle.metrics.get("unseen_runs")):
         lines.append(f"this bundle on a run it never saw (folds over the session's runs): {unseen}")
     spot = None if checks is None else checks.spot
-    read = read_logs(bundle, files, options)
+    jobs = default_jobs(len(files)) if jobs is None else jobs
+    read = read_logs(bundle, files, options, jobs=jobs)
     lines += [f"error: {e}" for e in read.errors]
     names, arrays, starts = list(read.names), list(read.arrays), list(read.starts)
     paths = per_log_paths(Path(out), names) if as_mcap else []
@@ -241,7 +297,7 @@ def classify_files(
     except WorkbenchError as exc:
         return 2, [*lines, f"error: {exc}"]
     if arrays:
-        scored = score_arrays(bundle, arrays)
+        scored = score_arrays(bundle, arrays, jobs=jobs)
         kept = _finite_only(names, scored, lines)
         names, arrays, scored = [names[i] for i in kept], [arrays[i] for i in kept], [scored[i] for i in kept]
         starts, paths = [starts[i] for i in kept], [paths[i] for i in kept] if as_mcap else paths
