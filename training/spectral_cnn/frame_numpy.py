@@ -126,8 +126,6 @@ class NumpyMembers:
         n = len(window)
         probs = np.empty((len(self), n, self.n_classes), np.float32)
         total = np.zeros(n, np.float32) if drift is not None else None
-        # the drift's inputs view from each window's mean frame, once for every member (as ``frame_chunks``)
-        window_mean = block[window].mean(axis=1) if drift is not None else None  # (n, F)
         for m in range(len(self)):
             standard = (block - self.mean[m]) * self.scale[m]  # (b, F)
             mixed = gelu_tanh(standard @ self.mix[m] + self.mix_b[m])  # (b, H) once per frame
@@ -146,9 +144,9 @@ class NumpyMembers:
             logits -= logits.max(axis=1, keepdims=True)
             e = np.exp(logits)
             probs[m] = e / e.sum(axis=1, keepdims=True)
-            if drift is not None and total is not None and window_mean is not None:
+            if drift is not None and total is not None:
                 unit = pooled / np.maximum(np.linalg.norm(pooled, axis=1, keepdims=True), np.float32(1e-12))
-                total += scaled_drift(drift, m, (unit, (window_mean - self.mean[m]) * self.scale[m]))  # (n,)
+                total += scaled_drift(drift, m, (unit, standard[window].mean(axis=1)))  # (n,)
         return probs, None if total is None else total / len(self)
 
 

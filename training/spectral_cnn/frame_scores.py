@@ -19,7 +19,7 @@ import torch
 from .frame_numpy import FrameChunk
 from .spectra import SpectralSteps, window_index
 from .window_classifier import WindowClassifier
-from .window_drift import QUERY_CHUNK, DriftReference, unit_rows, views_drift
+from .window_drift import QUERY_CHUNK, DriftReference, views_drift, views_of
 
 
 @torch.inference_mode()
@@ -55,17 +55,13 @@ def frame_chunks(
         window = torch.from_numpy(window_index(idx - lo, cfg.window)).to(device)  # (n, W)
         probs = np.empty((len(models), len(idx), models[0].config.n_classes), np.float32)
         total = np.zeros(len(idx), np.float32) if drift is not None else None
-        # the drift's inputs view, each window's mean standardised frame, is each member's standardisation of the
-        # window's mean frame (an affine map commutes with a mean): the windows are averaged once, not per member
-        window_mean = block[window].mean(dim=1) if drift is not None else None  # (n, F)
         for m, model in enumerate(models):
             # standardising and the 1x1 mixing read one frame each: once per frame, not once per window it sits in
             standard = (block - model.in_mean) * model.in_scale  # (b, F)
             pooled = model.pool(model.windowed(model.mixed(standard)[window]))  # (n, 2H)
             probs[m] = torch.softmax(model.head(pooled), -1).cpu().numpy()
-            if drift is not None and total is not None and window_mean is not None:  # the views of the same pass
-                inputs = (window_mean - model.in_mean) * model.in_scale  # (n, F)
-                total += views_drift(drift, m, (unit_rows(pooled), inputs.cpu().numpy()))
+            if drift is not None and total is not None:  # the drift's views of the same pass; (n, W, F) its inputs'
+                total += views_drift(drift, m, views_of(pooled, standard[window]))
         yield FrameChunk(c, probs, None if total is None else total / len(models))
 
 

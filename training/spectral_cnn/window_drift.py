@@ -135,12 +135,7 @@ def fit_drift(
 def views_of(pooled: torch.Tensor, frames: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
     """A member's two views of its rows from what its network computed of them: the unit-length embedding of its
     pooled features ``(N, 2H)`` and the window mean of its standardised frames ``(N, W, F)``."""
-    return unit_rows(pooled), frames.mean(dim=1).cpu().numpy()
-
-
-def unit_rows(pooled: torch.Tensor) -> np.ndarray:
-    """The embedding view: pooled features ``(N, 2H)`` scaled to unit length."""
-    return torch.nn.functional.normalize(pooled, dim=1).cpu().numpy()
+    return torch.nn.functional.normalize(pooled, dim=1).cpu().numpy(), frames.mean(dim=1).cpu().numpy()
 
 
 def views_drift(reference: DriftReference, m: int, views: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
