@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 from safetensors.numpy import load_file
 
+from ..normalizer import Normalizer
 from ..spectral_cnn import FRAME_PREDICTOR_KIND, DriftReference, SpectralConfig
 from ..training_errors import BundleError
 
@@ -73,10 +74,21 @@ def read_config(directory: Path) -> dict:
     return cfg
 
 
-def check_finite(directory: Path, arrays: Iterable[tuple[str, np.ndarray]]) -> None:
+def check_finite(
+    directory: Path,
+    weights: Iterable[tuple[str, np.ndarray]],
+    drift: DriftReference | None,
+    normalizer: Normalizer,
+) -> None:
     """Refuse weights holding NaN or inf: every probability would be NaN, and NaN's argmax reads as the first
-    terrain (measured: a bundle of NaN weights classified every row as the first class, exit 0). ``arrays``: each
-    named as the message shows it (``"classifier.safetensors: fold0.mix.weight"``)."""
+    terrain (measured: a bundle of NaN weights classified every row as the first class, exit 0); and a normalizer
+    scale not above 0. ``weights``: the modules' arrays, each named as the message shows it
+    (``"classifier.safetensors: fold0.mix.weight"``); the drift's and the normalizer's are named here."""
+    arrays = [*weights, *((f"{DRIFT_FILE}: {k}", v) for k, v in (drift.arrays() if drift is not None else {}).items())]
+    arrays += [
+        ("model.json: the normalizer's mean", normalizer.mean),
+        ("model.json: the normalizer's std", normalizer.std),
+    ]
     for name, value in arrays:
         value = np.asarray(value)
         if np.issubdtype(value.dtype, np.floating) and not bool(np.isfinite(value).all()):
@@ -84,6 +96,8 @@ def check_finite(directory: Path, arrays: Iterable[tuple[str, np.ndarray]]) -> N
             raise BundleError(
                 f"{directory}: {name} holds {bad:,} NaN or infinite value(s); the bundle is damaged (export it again)"
             )
+    if not bool((normalizer.std > 0).all()):
+        raise BundleError(f"{directory}: model.json's normalizer has a scale not above 0; the bundle is damaged")
 
 
 def drift_of(directory: Path, cfg: dict) -> DriftReference | None:

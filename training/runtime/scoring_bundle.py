@@ -76,13 +76,8 @@ def load_scoring_bundle(directory: str | Path) -> ScoringBundle | None:
         )
     except (OSError, KeyError, TypeError, ValueError, SafetensorError) as exc:
         raise BundleError(f"{directory}: damaged model bundle ({type(exc).__name__}: {exc})") from None
-    named = [(f"{CLASSIFIER_FILE}: fold{i}.{k}", v) for i, s in enumerate(states) for k, v in s.items()]
-    named += [(f"drift.safetensors: {k}", v) for k, v in (drift.arrays() if drift is not None else {}).items()]
-    named += [("model.json: the normalizer's mean", normalizer.mean)]
-    named += [("model.json: the normalizer's std", normalizer.std)]
-    check_finite(directory, named)
-    if not bool((normalizer.std > 0).all()):
-        raise BundleError(f"{directory}: model.json's normalizer has a scale not above 0; the bundle is damaged")
+    weights = [(f"{CLASSIFIER_FILE}: fold{i}.{k}", v) for i, s in enumerate(states) for k, v in s.items()]
+    check_finite(directory, weights, drift, normalizer)
     return bundle
 
 
