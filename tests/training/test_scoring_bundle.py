@@ -92,6 +92,17 @@ def test_the_numpy_members_give_the_pytorch_pass_numbers(bundle_dir: Path) -> No
     np.testing.assert_allclose(drift, np.concatenate([c.drift for c in theirs]), rtol=1e-5, atol=1e-5)
     assert drift.std() > 0.01  # the drift varies: a constant would pass the comparison too
     np.testing.assert_allclose(arrays.members.blank(), blank_probs(torch_bundle.classifiers), atol=1e-5)
+    # on frames the reference holds (a log it was drawn from) a distance is near 0, and its float32 form (squared
+    # norms less twice the products) turns the two passes' last-bit differences into up to 3e-4 of the drift (measured)
+    own = SpectralSteps(log_frames(_log(1500, 0), arrays.spectral, transform=arrays.normalizer), 1500, arrays.spectral)
+    ours, theirs = (
+        np.concatenate([c.drift for c in chunks])
+        for chunks in (
+            arrays.members.chunks(own, drift=arrays.drift),
+            frame_chunks(torch_bundle.classifiers, own, drift=torch_bundle.drift),
+        )
+    )
+    np.testing.assert_allclose(ours, theirs, rtol=1e-3)
 
 
 def test_a_bundle_of_another_family_or_without_a_classifier_is_left_to_load_bundle(tmp_path: Path) -> None:
