@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import re
 import shutil
 import sqlite3
 import threading
@@ -18,26 +17,24 @@ import numpy as np
 from . import labels as _labels
 from .cameras import CameraStore
 from .checks import CheckStore
-from .errors import LabelError, SessionError
+from .errors import SessionError
 from .ingest_lock import sweeping
 from .label_files import LabelImport
 from .log_files import checked_log_file
 from .log_ingest import LOGS_DIR, LogIngest
-from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
+from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment
 from .model_versions import CACHE_DIR, ModelRegistry
 from .rowfiles import FileRows
 from .schema import SCHEMA_VERSION, check_objects, migrate
 from .session_copy import copy_session
-from .terrain_rows import delete_terrain, insert_terrain, names_since, rename_terrain_row
+from .terrain_rows import insert_terrain
+from .terrain_store import TerrainStore
 
 DB_NAME = "session.sqlite"
 _STALE_TMP_S = 600.0  # leftovers older than this are from a crashed ingest, not one in progress
 
-# Terrain colours reach the page as CSS: only this form is stored (a colour is data a session file could carry).
-TERRAIN_COLOR = re.compile(r"#[0-9a-fA-F]{6}")
 
-
-class Session(LogIngest, CameraStore, ModelRegistry, CheckStore):
+class Session(LogIngest, CameraStore, ModelRegistry, CheckStore, TerrainStore):
     """A session folder. Thread-safe: one SQLite connection guarded by a lock; every write is one transaction.
 
     Use :meth:`create` or :meth:`open`, not the constructor.
@@ -50,6 +47,7 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore):
         self._arrays: dict[int, np.ndarray] = {}
         self._camera_index: dict[tuple[int, int], tuple[np.ndarray, Path]] = {}
         self._camera_lock = threading.Lock()
+        self._inherited: sqlite3.Connection | None = None  # a forked child's copy of its parent's (after_fork)
         self._thumbs: OrderedDict[tuple[int, int, int, int], bytes] = OrderedDict()
 
     # ----------------------------------------------------------------------------------------------- lifecycle
@@ -83,14 +81,23 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore):
             raise SessionError(f"{path}: not a session folder (no {DB_NAME}); create one with `workbench new {path}`")
         return cls._connect(path)
 
-    @classmethod
-    def _connect(cls, path: Path) -> Session:
+    @staticmethod
+    def _new_connection(path: Path) -> sqlite3.Connection:
+        conn = sqlite3.connect(path / DB_NAME, isolation_level=None, check_same_thread=False, timeout=30.0)
         try:
-            conn = sqlite3.connect(path / DB_NAME, isolation_level=None, check_same_thread=False, timeout=30.0)
             conn.execute("PRAGMA journal_mode = WAL")
             # FULL: an acknowledged label survives power loss, not only a killed process.
             conn.execute("PRAGMA synchronous = FULL")
             conn.execute("PRAGMA foreign_keys = ON")
+        except BaseException:
+            conn.close()
+            raise
+        return conn
+
+    @classmethod
+    def _connect(cls, path: Path) -> Session:
+        try:
+            conn = cls._new_connection(path)
             try:
                 migrate(conn, where=str(path))
                 check_objects(conn, where=str(path / DB_NAME))
@@ -103,6 +110,31 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore):
         (path / LOGS_DIR).mkdir(exist_ok=True)
         session._sweep_leftovers()
         return session
+
+    @contextlib.contextmanager
+    def fork_guard(self) -> Iterator[None]:
+        """Hold this session's lock: no other thread is inside a query on its connection while a process is forked
+        within (a child forked mid-query would start with SQLite's state half-used)."""
+        with self._lock:
+            yield
+
+    def after_fork(self) -> None:
+        """In a process forked while this session was open: a connection and locks of its own.
+
+        A SQLite connection must not be used on both sides of a fork, and a lock another thread held at the fork
+        stays held in the child. The inherited connection is kept unused and never closed here: closing it in the
+        child could checkpoint and remove the write-ahead log the parent still uses. Fork under :meth:`fork_guard`.
+
+        Raises:
+            SessionError: The database cannot be opened again.
+        """
+        self._inherited = self._conn  # kept referenced: collecting it would close it
+        self._lock = threading.RLock()
+        self._camera_lock = threading.Lock()
+        try:
+            self._conn = self._new_connection(self.path)
+        except sqlite3.DatabaseError as exc:
+            raise SessionError(f"{self.path / DB_NAME}: cannot be opened again in a forked process ({exc})") from None
 
     def close(self) -> None:
         with self._lock:
@@ -253,57 +285,6 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore):
                 "SELECT start, stop, terrain FROM reference WHERE log_id = ? ORDER BY start", (log_id,)
             )
         ]
-
-    # ------------------------------------------------------------------------------------------------ terrains
-    def terrains(self) -> list[Terrain]:
-        """Terrain classes in display order."""
-        return [Terrain(*r) for r in self._read("SELECT id, name, color, position FROM terrains ORDER BY position")]
-
-    def add_terrain(self, name: str, *, color: str | None = None) -> Terrain:
-        """Add a terrain class at the end of the list (colour: a usual one for a usual name, else the next of a
-        palette).
-
-        Raises:
-            LabelError: The name is empty or taken, or the colour is not ``#rrggbb``.
-        """
-        name = name.strip()
-        if color is not None and not TERRAIN_COLOR.fullmatch(color):
-            raise LabelError(f"terrain colour {color!r} is not #rrggbb (six hex digits), e.g. #607d8b")
-        with self._write() as conn:
-            insert_terrain(conn, name, color)
-        return next(t for t in self.terrains() if t.name == name)
-
-    def rename_terrain(self, old: str, new: str) -> None:
-        """Rename a terrain class; its segments, checks and reference rows follow, and the old name is kept for the
-        models and files that used it (:meth:`terrain_names_since`)."""
-        with self._write() as conn:
-            rename_terrain_row(conn, old, new.strip(), at=_labels.now())
-
-    def terrain_names_since(self, at: str) -> dict[str, str]:
-        """Every name a terrain has had since ``at`` (an ISO time stamp, such as a model version's ``created_at``),
-        to its name now: a model's classes and a suggestion file's guesses are named as they were then."""
-        with self._lock:
-            return names_since(self._conn, at)
-
-    def remove_terrains(self, names: Sequence[str]) -> None:
-        """Remove terrain classes no segment uses, in one transaction: all of them or, when any is unknown or used,
-        none.
-
-        Raises:
-            LabelError: Unknown, or still used by segments.
-        """
-        with self._write() as conn:
-            for name in names:
-                delete_terrain(conn, name)
-
-    def remove_terrain(self, name: str) -> None:
-        """Remove a terrain class no segment uses.
-
-        Raises:
-            LabelError: Unknown, or still used by segments.
-        """
-        with self._write() as conn:
-            delete_terrain(conn, name)
 
     # -------------------------------------------------------------------------------------------------- labels
     def add_segment(

@@ -2,7 +2,8 @@
 
 A Retrain's rescoring and the UI's first start are the same work: every log scored by the active models, written to
 the kept scores, the tracks ranked over the session (``cycle.score_and_store``). This profiles it (cProfile, one
-process, nothing else running) on a session that ``bench_fleet.py`` built and trained:
+process: ``jobs=1``, where a rescoring of hours forks a process per core; nothing else running) on a session
+that ``bench_fleet.py`` built and trained:
 
     python benchmarks/speed/bench_fleet.py --hours 10 --keep /tmp/f10 --until train
     python benchmarks/speed/profile_rescoring.py /tmp/f10/session [--top 25]
@@ -42,7 +43,7 @@ PARTS: dict[str, tuple[tuple[str, str], ...]] = {
     "    of it: the drift's nearest labelled frames": (("drift_reference.py", "scaled_drift"),),
     "  mean, BALD, agreement (per frame)": (("frame_reduce.py", "reduce"),),
     "the step pass (another family's members)": (("passes.py", "ensemble_pass"),),
-    "writing the kept scores": (("score_store.py", "_write_array"),),
+    "writing the kept scores": (("score_files.py", "write_array"),),
     "tracks ranked over the session": (("tracks.py", "normalised_tracks"),),
 }
 
@@ -84,7 +85,7 @@ def main() -> int:
         profile = cProfile.Profile()
         t = time.perf_counter()
         profile.enable()
-        cycle.score_and_store(s, score=cycle.compute_scores)
+        cycle.score_and_store(s, score=cycle.compute_scores, jobs=1)  # in this process: where cProfile sees it
         profile.disable()
         total = time.perf_counter() - t
     stats = pstats.Stats(profile)

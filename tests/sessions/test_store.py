@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import sqlite3
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +34,44 @@ def test_create_then_open_round_trip(tmp_path: Path, demo_mcap: Path) -> None:
     conn = sqlite3.connect(path / "session.sqlite")
     assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
     assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+
+
+def test_a_forked_child_reads_and_writes_through_a_connection_of_its_own(tmp_path: Path, demo_mcap: Path) -> None:
+    """A process forked under the session's lock (``fork_guard``) gives itself a connection and locks
+    (``after_fork``): it reads and writes the session while a thread of the parent held the lock at the fork, and
+    the parent's connection, never closed by the child, still reads and writes after it ended."""
+    with Session.create(tmp_path / "s") as s:
+        (log,) = s.ingest([demo_mcap])
+        s.add_terrain("grass")
+        held, release = threading.Event(), threading.Event()
+
+        def hold_the_camera_lock() -> None:  # a thread of the parent inside the camera index at the fork
+            with s._camera_lock:
+                held.set()
+                release.wait(30)
+
+        other = threading.Thread(target=hold_the_camera_lock)
+        other.start()
+        held.wait(30)
+        with s.fork_guard():
+            pid = os.fork()
+            if pid == 0:
+                code = 1
+                try:
+                    s.after_fork()
+                    s.add_segment(log.id, 0, 100, "grass", author="child")
+                    code = 0 if [x.name for x in s.logs()] == ["walk"] else 3
+                    code = code if s._camera_lock.acquire(timeout=5) else 4  # its own, not the one held at the fork
+                finally:
+                    os._exit(code)
+        release.set()
+        other.join()
+        _, status = os.waitpid(pid, 0)
+        assert os.waitstatus_to_exitcode(status) == 0
+        assert [g.author for g in s.segments()] == ["child"]  # the child's write, read through the parent's connection
+        s.add_segment(log.id, 200, 300, "grass", author="parent")
+    with Session.open(tmp_path / "s") as s:
+        assert sorted(g.author for g in s.segments()) == ["child", "parent"]
 
 
 def test_samples_reads_only_the_slice_it_is_asked(session: Session, demo_mcap: Path) -> None:

@@ -23,7 +23,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "save_checkpoint",
         ),
         "cpu_threads": ("free_cpus", "threads_for", "use_free_cpus", "usable_cpus"),
-        "fit_processes": ("fork_safe", "hide_gpus"),
+        "fit_processes": ("fork_safe", "forking", "hide_gpus", "run_forked"),
         "fit_threads": ("INIT_LOCK", "fit_workers", "run_fits"),
         "progress": ("CancelFn", "Cancelled", "Progress", "ProgressFn", "never"),
     },

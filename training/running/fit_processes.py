@@ -27,6 +27,7 @@ import sys
 import traceback
 import warnings
 from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager, nullcontext
 from multiprocessing.connection import Connection, wait
 from typing import Any, TypeVar
 
@@ -127,7 +128,7 @@ def _child(job: Callable[[], Any], pack: Callable[[Any], Any], conn: Connection,
     conn.close()
 
 
-def run_fits_forked(
+def run_forked(
     jobs: Sequence[Callable[[], T]],
     *,
     workers: int,
@@ -135,16 +136,25 @@ def run_fits_forked(
     unpack: Callable[[Any], T],
     done: Callable[[int], None] | None = None,
     cancel: CancelFn = never,
+    what: str = "fit",
+    fork_guard: Callable[[], AbstractContextManager] = nullcontext,
+    warm: bool = True,
 ) -> list[T]:
     """Run ``jobs`` in at most ``workers`` forked children at a time; their results in the jobs' order.
 
     Args:
-        jobs: Independent fits, each drawing from its own generator (the same arithmetic as one after the other).
+        jobs: Independent jobs: fits, each drawing from its own generator (the same arithmetic as one after the
+            other), or a session's logs scored a group at a time.
         workers: Children at a time.
         pack: Turns a job's result into what pickles as plain data (a network into its weights), in the child.
         unpack: The inverse, in the caller.
         done: Called on the calling thread with the number of jobs finished so far, after each one.
         cancel: Polled every ``POLL_S`` seconds; when it answers true the children are ended.
+        what: What a job is, for the messages (``"fit"``).
+        fork_guard: Held while each child is forked: a lock that keeps the parent's other threads out of what the
+            children use (a session's SQLite connection), so that no child starts with it half-used.
+        warm: Import what a fit's first optimizer step imports before forking, once for every child (jobs that
+            train nothing skip its second).
 
     Returns:
         Each job's result, unpacked.
@@ -154,7 +164,8 @@ def run_fits_forked(
         FitProcessError: A child ended without sending a result.
         Exception: The first job's exception, as the job raised it; the other children are ended.
     """
-    _warm()
+    if warm:
+        _warm()
     context = multiprocessing.get_context("fork")
     waiting = list(range(len(jobs)))
     running: dict[Connection, tuple[int, Any]] = {}
@@ -166,9 +177,10 @@ def run_fits_forked(
                 i = waiting.pop(0)
                 receive, send = context.Pipe(duplex=False)
                 child = context.Process(
-                    target=_child, args=(jobs[i], pack, send, os.getpid()), daemon=True, name=f"fit-{i}"
+                    target=_child, args=(jobs[i], pack, send, os.getpid()), daemon=True, name=f"{what}-{i}"
                 )
-                child.start()
+                with fork_guard():
+                    child.start()
                 send.close()  # the child holds the only writer: its end reads as EOF if it dies
                 running[receive] = (i, child)
             for conn in wait(list(running), timeout=POLL_S):
@@ -178,22 +190,22 @@ def run_fits_forked(
                 except EOFError:
                     child.join()
                     raise FitProcessError(
-                        f"fit {i + 1} of {len(jobs)} ended without a result (exit code {child.exitcode}; "
-                        "out of memory?); WORKBENCH_FIT_PROCESSES=0 runs the fits in threads"
+                        f"{what} {i + 1} of {len(jobs)} ended without a result (exit code {child.exitcode}; "
+                        f"out of memory?); WORKBENCH_FIT_PROCESSES=0 runs the {what}s in this process"
                     ) from None
                 finally:
                     conn.close()
                 child.join()
                 if message[0] == "error":
                     error = message[1]
-                    error.add_note(f"raised in the fit's forked process:\n{message[2]}")
+                    error.add_note(f"raised in the {what}'s forked process:\n{message[2]}")
                     raise error
                 results[i] = unpack(message[1])
                 finished += 1
                 if done:
                     done(finished)
             if cancel():
-                raise Cancelled("classifier training cancelled")
+                raise Cancelled(f"cancelled while the {what}s ran")
     finally:
         for conn, (_, child) in running.items():
             child.terminate()

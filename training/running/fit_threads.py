@@ -17,7 +17,7 @@ from typing import Any, TypeVar
 
 import torch
 
-from .fit_processes import fork_safe, give_up_forking, run_fits_forked
+from .fit_processes import fork_safe, give_up_forking, run_forked
 from .progress import CancelFn, never
 
 T = TypeVar("T")
@@ -71,7 +71,7 @@ def run_fits(
     if portable is not None and fork_safe():
         pack, unpack = portable
         try:
-            return run_fits_forked(jobs, workers=workers, pack=pack, unpack=unpack, done=done, cancel=cancel)
+            return run_forked(jobs, workers=workers, pack=pack, unpack=unpack, done=done, cancel=cancel)
         except RuntimeError as e:  # torch refusing to train in a forked child: the fits again, in threads
             give_up_forking(e)  # (not FitProcessError: a job whose child died would take this process down in a thread)
     threads = torch.get_num_threads()

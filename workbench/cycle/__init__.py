@@ -7,7 +7,8 @@ Modules: ``train_stages`` (stage 1 and stage 2 of any family, versions, the acti
 default family's stage 1, and which stage 1 a family trains), ``stage_inputs`` (stage 1's cache per predictor version,
 the paper family's stage-2 features), ``front_end`` (the spectral frames per log, the unlabelled stretches
 self-training reads), ``scores`` (the one scoring path; ``frame_reduce`` a frame's answer over its steps),
-``score_store`` (the last scoring kept in the session), ``change_point_store`` (each log's change points, kept per
+``score_store`` (the last scoring kept in the session; ``score_files`` its files, ``forked_scores`` hours of logs
+scored in a forked process per core), ``change_point_store`` (each log's change points, kept per
 predictor), ``suggestions`` (the queue), ``checks_record`` (each label first a check of the model: test then train),
 ``family_choice`` (``--model auto``: every family over the default stage 1 fitted, the one the session's held-out
 evidence favours kept), ``session_figure`` (how right the session is now: the active version's spot checks corrected
@@ -46,6 +47,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "auto_families",
             "train_best_classifier",
         ),
+        "forked_scores": ("scoring_processes",),
         "frame_stage1": (
             "train_frame_predictor",
             "train_stage1",
@@ -63,10 +65,9 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "window_features",
             "window_sizes",
         ),
+        "score_files": ("GROUP_STEPS", "log_groups"),
         "score_store": (
-            "GROUP_STEPS",
             "StoredScores",
-            "log_groups",
             "queue_key",
             "score_and_store",
             "store_queue",

@@ -16,19 +16,20 @@ import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 import labeling
 from sessions import LogInfo, Session, Terrain
-from training import drop_pages
 
+from .forked_scores import rank_tracks, scored_forked, scoring_processes
+from .score_files import GROUP_STEPS, GroupFirst, Scored, kept_scores, log_groups, score_arrays, write_array
 from .scores import TRACK_WINDOW, SessionScores, stage1_embedding
 
 # 2: one .npy per array, memory-mapped when read (a fleet's hours of scores: gigabytes a zip would read whole)
 STORE_VERSION = 2
 META_FILE = "meta.json"
-GROUP_STEPS = 1 << 22  # samples of logs scored together and written before the next (11.7 h at 100 Hz)
 QUEUE_FILE = "queue.json"
 
 
@@ -43,20 +44,6 @@ class StoredScores:
 
     scores: SessionScores
     complete: bool
-
-
-def log_groups(logs: Sequence[LogInfo], *, group_steps: int = GROUP_STEPS) -> list[list[LogInfo]]:
-    """``logs`` in order, cut into groups of at most ``group_steps`` samples (a longer log is a group alone): what
-    a pass over a fleet's logs scores and hands on before the next, so their scores are never held together."""
-    groups: list[list[LogInfo]] = []
-    size = 0
-    for x in logs:
-        if not groups or (groups[-1] and size + x.n_samples > group_steps):
-            groups.append([])
-            size = 0
-        groups[-1].append(x)
-        size += x.n_samples
-    return groups
 
 
 def _active_versions(session: Session) -> tuple[int, int | None] | None:
@@ -77,28 +64,6 @@ def _write_json(path: Path, value: object) -> None:
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}")
     tmp.write_text(json.dumps(value))
     os.replace(tmp, path)  # whole or not at all: a reader never sees half a file
-
-
-def _write_array(folder: Path, log_id: int, name: str, array: np.ndarray) -> np.ndarray:
-    """Write one array whole or not at all; it comes back memory-mapped (read-only)."""
-    tmp = folder / f".{log_id:06d}.{name}.{uuid.uuid4().hex[:8]}.npy"
-    with open(tmp, "wb") as f:
-        np.save(f, np.asarray(array))
-    path = folder / f"{log_id:06d}.{name}.npy"
-    os.replace(tmp, path)
-    return np.load(path, mmap_mode="r")
-
-
-def _score_arrays(s: labeling.LogScores) -> dict[str, np.ndarray]:
-    arrays = {"surprise": np.asarray(s.surprise)}
-    if s.probs is not None and s.disagreement is not None:
-        arrays["probs"] = np.asarray(s.probs)
-        arrays["disagreement"] = np.asarray(s.disagreement)
-    if s.drift is not None:
-        arrays["drift"] = np.asarray(s.drift)
-    if s.probs is not None and s.agreement is not None:
-        arrays["agreement"] = np.asarray(s.agreement)
-    return arrays
 
 
 def _finish_store(session: Session, folder: Path, scores: SessionScores, names: dict[str, list[str]]) -> None:
@@ -131,11 +96,11 @@ def store_scores(session: Session, scores: SessionScores) -> Path | None:
     folder = session.cache_dir(_folder_name(scores.predictor, scores.classifier))
     names: dict[str, list[str]] = {}
     for log_id, s in scores.scores.items():
-        arrays = _score_arrays(s)
+        arrays = score_arrays(s)
         for kind, track in scores.tracks.get(log_id, {}).items():
             arrays[f"track.{kind}"] = np.asarray(track)
         for name, array in arrays.items():
-            _write_array(folder, log_id, name, array)
+            write_array(folder, log_id, name, array)
         names[str(log_id)] = sorted(arrays)
     _finish_store(session, folder, scores, names)
     return folder
@@ -145,11 +110,12 @@ def score_and_store(
     session: Session,
     *,
     score: Callable[..., SessionScores],
-    run: Callable[..., SessionScores] = lambda fn, *a, **k: fn(*a, **k),
+    run: Callable[..., Any] = lambda fn, *a, **k: fn(*a, **k),
     stop: Callable[[], bool] = lambda: False,
     window: int = TRACK_WINDOW,
     group_steps: int = GROUP_STEPS,
     on_error: Callable[[str], None] = print,
+    jobs: int | None = None,
 ) -> SessionScores | None:
     """Score every log a group at a time, each group's scores written to the kept files as it is scored and held
     memory-mapped, then the tracks ranked over the whole session, one kind at a time, and kept too.
@@ -167,12 +133,15 @@ def score_and_store(
         group_steps: Samples of logs scored together (at least one log).
         on_error: Told when the scores cannot be written (a full disk): every log is then scored in memory, as
             before, and the next start scores them again.
+        jobs: Processes to score in (``None``: :func:`.forked_scores.scoring_processes`, one per core where the
+            logs are hours long); with more than one, the groups are scored in forked children, a few per child,
+            and ``score`` runs there.
 
     Returns:
         The scores of every log, their arrays memory-mapped from the session's kept scores; ``None`` when stopped.
     """
     try:
-        return _score_and_store(session, score, run, stop, window, group_steps)
+        return _score_and_store(session, score, run, stop, window, group_steps, jobs)
     except OSError as exc:  # a full disk costs the next start its head start, nothing more
         on_error(f"could not keep the scores for the next start: {exc}")
         return run(score, session, window=window)
@@ -181,10 +150,11 @@ def score_and_store(
 def _score_and_store(
     session: Session,
     score: Callable[..., SessionScores],
-    run: Callable[..., SessionScores],
+    run: Callable[..., Any],
     stop: Callable[[], bool],
     window: int,
     group_steps: int,
+    jobs: int | None,
 ) -> SessionScores | None:
     from training import load_bundle
 
@@ -197,43 +167,29 @@ def _score_and_store(
     logs = model_logs(session, load_bundle(session.path / p_version.path).channels)
     folder = session.cache_dir(_folder_name(*versions))
     (folder / META_FILE).unlink(missing_ok=True)  # incomplete until every log is written again
-    groups = [[x.id for x in g] for g in log_groups(logs, group_steps=group_steps)]
-    first: SessionScores | None = None
-    scores: dict[int, labeling.LogScores] = {}
-    embeddings: dict = {}
-    names: dict[str, list[str]] = {}
-    for group in groups:
-        if stop() or _active_versions(session) != versions:
-            return None
-        part = run(score, session, log_ids=group, window=window, tracks=False)
-        if (part.predictor, part.classifier) != versions:
-            return None
-        first = first or part
-        embeddings.update(part.embeddings)
-        for log_id, s in part.scores.items():
-            kept = {n: _write_array(folder, log_id, n, a) for n, a in _score_arrays(s).items()}
-            scores[log_id] = labeling.LogScores(
-                kept["surprise"], kept.get("probs"), kept.get("disagreement"), kept.get("drift"), kept.get("agreement")
-            )
-            names[str(log_id)] = sorted(kept)
-        del part
+    processes = scoring_processes(logs) if jobs is None else max(1, min(jobs, len(logs)))
+
+    def cancel() -> bool:
+        return stop() or _active_versions(session) != versions
+
+    if processes > 1:
+        scored = scored_forked(session, logs, score, run, cancel, versions, folder, window, group_steps, processes)
+    else:
+        scored = _scored_here(session, logs, score, run, stop, versions, folder, window, group_steps)
+    if scored is None:  # stopped
+        return None
+    first, scores, embeddings, names = scored
     if first is None:  # no log to score
         return run(score, session, window=window)
     ids = [x.id for x in logs if x.id in scores]
     tracks: dict[int, dict[str, np.ndarray]] = {i: {} for i in ids}
-    for kind in labeling.KINDS:  # one kind of every log at a time: a fleet's tracks of every kind are gigabytes
-        if stop():
-            return None
-        ranked = labeling.normalised_tracks([scores[i] for i in ids], window=window, kinds=(kind,))
-        for i, t in zip(ids, ranked, strict=True):
-            if kind in t:
-                tracks[i][kind] = _write_array(folder, i, f"track.{kind}", t[kind])
-                names[str(i)].append(f"track.{kind}")
-        del ranked
-        for s in scores.values():  # the ranking read every log's kept scores: not held resident for the next kind
-            for array in (s.surprise, s.probs, s.disagreement, s.drift, s.agreement):
-                if array is not None:
-                    drop_pages(array)
+    ranked = rank_tracks(session, folder, ids, scores, run, stop, window, processes)
+    if ranked is None:
+        return None
+    for kind, has in zip(labeling.KINDS, ranked, strict=True):
+        for i in has:
+            tracks[i][kind] = np.load(folder / f"{i:06d}.track.{kind}.npy", mmap_mode="r")
+            names[str(i)].append(f"track.{kind}")
     result = SessionScores(
         first.predictor,
         first.classifier,
@@ -246,6 +202,38 @@ def _score_and_store(
     )
     _finish_store(session, folder, result, {k: sorted(v) for k, v in names.items()})
     return result
+
+
+def _scored_here(
+    session: Session,
+    logs: Sequence[LogInfo],
+    score: Callable[..., SessionScores],
+    run: Callable[..., Any],
+    stop: Callable[[], bool],
+    versions: tuple[int, int | None],
+    folder: Path,
+    window: int,
+    group_steps: int,
+) -> Scored | None:
+    """Each group scored in this process through ``run``, written, and dropped before the next."""
+    first: GroupFirst | None = None
+    scores: dict[int, labeling.LogScores] = {}
+    embeddings: dict = {}
+    names: dict[str, list[str]] = {}
+    for group in ([x.id for x in g] for g in log_groups(logs, group_steps=group_steps)):
+        if stop() or _active_versions(session) != versions:
+            return None
+        part = run(score, session, log_ids=group, window=window, tracks=False)
+        if (part.predictor, part.classifier) != versions:
+            return None
+        first = first or GroupFirst(part.predictor, part.classifier, tuple(part.classes), part.span)
+        embeddings.update(part.embeddings)
+        for log_id, s in part.scores.items():
+            kept = {n: write_array(folder, log_id, n, a) for n, a in score_arrays(s).items()}
+            scores[log_id] = kept_scores(kept)
+            names[str(log_id)] = sorted(kept)
+        del part
+    return first, scores, embeddings, names  # first None: no log to score
 
 
 def stored_scores(session: Session) -> StoredScores | None:

@@ -4,13 +4,14 @@ changed, and used by the shared state so that a restart draws at once instead of
 from __future__ import annotations
 
 import json
+import os
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from sessions import Session
+from sessions import Session, WorkbenchError
 from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained, trained_once  # noqa: F401  (fixtures)
 from workbench import cycle
 from workbench.cycle import compute_scores, queue_key, store_queue, store_scores, stored_queue, stored_scores
@@ -230,3 +231,62 @@ def test_scoring_a_group_at_a_time_stops_when_asked_and_keeps_nothing_incomplete
     )
     assert got is None and len(asked) == 2  # stopped before the second group
     assert stored_scores(trained) is None  # the folder says it is incomplete until a scoring ends
+
+
+def test_scoring_in_forked_processes_keeps_what_one_process_computes(trained: Session, tmp_path: Path) -> None:  # noqa: F811
+    """The groups scored in two forked children, read back memory-mapped: the same scores, tracks and embeddings as
+    one process's, and the children (not this process) did the scoring."""
+    whole = compute_scores(trained)
+    pids = tmp_path / "pids"
+    pids.mkdir()
+
+    def score(session, **kw):
+        (pids / str(os.getpid())).touch()
+        return compute_scores(session, **kw)
+
+    got = cycle.score_and_store(trained, score=score, jobs=2, group_steps=1)  # a log per group
+    assert got is not None
+    children = {int(p.name) for p in pids.iterdir()}
+    assert os.getpid() not in children and len(children) >= 2
+    assert (got.predictor, got.classifier, got.classes, got.span) == (
+        whole.predictor,
+        whole.classifier,
+        whole.classes,
+        whole.span,
+    )
+    assert set(got.scores) == set(whole.scores)
+    for log_id, s in whole.scores.items():
+        g = got.scores[log_id]
+        assert isinstance(g.probs, np.memmap) and not g.probs.flags.writeable
+        for name in ("surprise", "probs", "disagreement", "drift", "agreement"):
+            if getattr(s, name) is None:
+                assert getattr(g, name) is None
+            else:
+                np.testing.assert_allclose(getattr(g, name), getattr(s, name), rtol=1e-6, atol=1e-7)
+        for kind, track in whole.tracks[log_id].items():
+            np.testing.assert_allclose(got.tracks[log_id][kind], track, rtol=1e-6, atol=1e-7)
+        np.testing.assert_array_equal(got.embeddings[log_id][:50], whole.embeddings[log_id][:50])
+    back = stored_scores(trained)
+    assert back is not None and back.complete and set(back.scores.scores) == set(whole.scores)
+    assert trained.active_model("classifier") is not None  # this process's connection still answers
+
+
+def test_scoring_in_forked_processes_stops_when_asked_and_passes_a_childs_error_on(trained: Session) -> None:  # noqa: F811
+    store_scores(trained, compute_scores(trained))
+
+    def slow(session, **kw):
+        time.sleep(30)  # ended by the stop long before
+        return compute_scores(session, **kw)
+
+    t0 = time.monotonic()
+    asked = []
+    stop = lambda: asked.append(1) or len(asked) > 2  # noqa: E731  (during the first batch)
+    got = cycle.score_and_store(trained, score=slow, jobs=2, group_steps=1, stop=stop)
+    assert got is None and time.monotonic() - t0 < 20
+    assert stored_scores(trained) is None  # incomplete until a scoring ends
+
+    def broken(session, **kw):
+        raise WorkbenchError("the classifier's files are damaged")
+
+    with pytest.raises(WorkbenchError, match="the classifier's files are damaged"):
+        cycle.score_and_store(trained, score=broken, jobs=2, group_steps=1)
