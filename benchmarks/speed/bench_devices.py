@@ -8,6 +8,10 @@ run, each on its own copy of the session (the frames are computed anew by each) 
   the processes are worth;
 - with ``--device cuda`` on every CPU, where a CUDA device is present (else the row says "not run").
 
+On the model the every-CPU arm trained, a Retrain's rescoring of every log (``cycle.score_and_store``, nothing kept
+first) in a fresh interpreter three ways: on 2 CPUs (its two processes), on every CPU (a process per core where the
+logs have the samples for it), and on every CPU in one process (``jobs=1``): what the processes are worth there.
+
 Then the paper family's stage 1 (``--model paper --stage predictor``, ``--paper-epochs`` epochs, no early stop) on
 every CPU and with ``--device cuda``: its throughput in timesteps per second (``--no-paper``: not run).
 
@@ -30,6 +34,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from speed_common import ROOT, Row, record
@@ -52,18 +57,20 @@ def _setup(folder: Path, hours: float) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def _pinned(cpus: int | None, env_extra: dict[str, str] | None) -> tuple[dict[str, str], Callable[[], None] | None]:
+    """A child's environment and what pins it to the first ``cpus`` CPUs (``None``: all, nothing pinned)."""
+    env = {**os.environ, **(env_extra or {})}
+    if cpus is None:
+        return env, None
+    chosen = sorted(os.sched_getaffinity(0))[:cpus]
+    env["OMP_NUM_THREADS"] = str(cpus)
+    return env, lambda: os.sched_setaffinity(0, chosen)
+
+
 def _train(session: Path, extra: list[str], *, cpus: int | None, env_extra: dict[str, str] | None = None) -> dict:
     """``workbench train SESSION *extra`` in a fresh interpreter on ``cpus`` CPUs (``None``: all); its seconds, the
     new classifier's out-of-fold accuracy and the stages' own "done in" lines."""
-    env = {**os.environ, **(env_extra or {})}
-    pin = None
-    if cpus is not None:
-        chosen = sorted(os.sched_getaffinity(0))[:cpus]
-        env["OMP_NUM_THREADS"] = str(cpus)
-
-        def pin() -> None:
-            os.sched_setaffinity(0, chosen)
-
+    env, pin = _pinned(cpus, env_extra)
     t = time.perf_counter()
     cmd = [sys.executable, "-m", "workbench.cli", "train", str(session), *extra]
     out = subprocess.run(cmd, capture_output=True, text=True, env=env, preexec_fn=pin, cwd=ROOT)
@@ -79,6 +86,31 @@ def _train(session: Path, extra: list[str], *, cpus: int | None, env_extra: dict
     info = subprocess.run([sys.executable, "-c", code, str(session)], capture_output=True, text=True, cwd=ROOT)
     stages = [line.strip() for line in (out.stdout + out.stderr).splitlines() if "done in" in line]
     return {"seconds": seconds, "stages": stages, **json.loads(info.stdout.strip().splitlines()[-1])}
+
+
+RESCORE = """
+import json, sys, time
+from sessions import Session
+from workbench import cycle
+jobs = None if sys.argv[2] == "auto" else int(sys.argv[2])
+with Session.open(sys.argv[1]) as s:
+    for folder in s.path.glob("cache/scores-*"):
+        (folder / "meta.json").unlink(missing_ok=True)
+    t = time.perf_counter()
+    cycle.score_and_store(s, score=cycle.compute_scores, jobs=jobs)
+    print(json.dumps({"seconds": time.perf_counter() - t}))
+"""
+
+
+def _rescore(session: Path, *, cpus: int | None, jobs: str) -> dict:
+    """A rescoring of every log of ``session`` in a fresh interpreter on ``cpus`` CPUs (``None``: all), ``jobs``
+    processes (``auto``: the session's choice)."""
+    env, pin = _pinned(cpus, None)
+    cmd = [sys.executable, "-c", RESCORE, str(session), jobs]
+    out = subprocess.run(cmd, capture_output=True, text=True, env=env, preexec_fn=pin, cwd=ROOT)
+    if out.returncode != 0:
+        return {"error": (out.stderr or out.stdout).strip().splitlines()[-1:]}
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def _copy(src: Path, dst: Path) -> Path:
@@ -122,6 +154,11 @@ def main() -> None:
             folder = base / name.replace(" ", "-").replace(",", "")
             runs[name] = _train(_copy(session, folder), extra, cpus=n, env_extra=env)
             print(f"default family, {name}: {runs[name]}", flush=True)
+            if name == f"{cpus} cpus" and "error" not in runs[name]:
+                for arm, (n_cpus, jobs) in {"2 cpus": (2, "auto"), f"{cpus} cpus": (None, "auto")}.items():
+                    runs[f"rescore {arm}"] = _rescore(folder, cpus=n_cpus, jobs=jobs)
+                runs[f"rescore {cpus} cpus, one process"] = _rescore(folder, cpus=None, jobs="1")
+                print({k: v for k, v in runs.items() if k.startswith("rescore")}, flush=True)
             shutil.rmtree(folder)
         paper = ["--model", "paper", "--stage", "predictor", "--max-epochs", str(epochs), "--patience", str(epochs + 1)]
         paper_arms = {} if args.no_paper else {f"paper {cpus} cpus": (paper, None)}
@@ -147,6 +184,10 @@ def _rows(runs: dict, epochs: int) -> list[Row]:
             return f"failed: {r['error']}"
         acc = f", out-of-fold accuracy {r['accuracy']:.1%}" if r.get("accuracy") is not None else ""
         return f"{r['seconds']:.0f} s{acc}"
+
+    def secs(name: str) -> str:
+        r = runs.get(name)
+        return "not run" if r is None else f"failed: {r['error']}" if "error" in r else f"{r['seconds']:.1f} s"
 
     def ratio(a: str, b: str) -> tuple[str, float | None]:
         ra, rb = runs.get(a), runs.get(b)
@@ -190,6 +231,14 @@ def _rows(runs: dict, epochs: int) -> list[Row]:
             r_gpu,
             "≥ 2× (H100 against 16 CPUs)",
             None if x_gpu is None else x_gpu >= 2,
+        ),
+        Row(
+            f"a Retrain's rescoring of every log, {shape}: every CPU ({cpus}), a process per core",
+            secs(f"rescore {many}"),
+            f"2 CPUs: {secs('rescore 2 cpus')}; every CPU in one process: {secs(f'rescore {many}, one process')}",
+            ratio(f"rescore {many}", "rescore 2 cpus")[0],
+            "–",
+            None,
         ),
         Row(
             f"paper family's stage 1, {epochs} epoch(s) over {shape}: `--device cuda`",

@@ -47,7 +47,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "auto_families",
             "train_best_classifier",
         ),
-        "forked_scores": ("scoring_processes",),
+        "forked_scores": ("scored_in_processes", "scoring_processes"),
         "frame_stage1": (
             "train_frame_predictor",
             "train_stage1",

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -54,16 +54,18 @@ class GroupScored:
     arrays: dict[int, tuple[str, ...]]
 
 
-def scoring_processes(logs: Sequence[LogInfo], *, fork_steps: int = FORK_STEPS) -> int:
+def scoring_processes(logs: Sequence[LogInfo], *, fork_steps: int | None = None) -> int:
     """Processes to score ``logs`` in: one per core this process may use, but only as many as have ``fork_steps``
-    samples each to score (a fork, and the session read again in each child, cost more than minutes of logs take).
-    One where forking is not allowed (``training.forking``: Linux only, ``WORKBENCH_FIT_PROCESSES=0`` turns it off)."""
+    samples each to score (default :data:`FORK_STEPS`; a fork, and the session read again in each child, cost more
+    than minutes of logs take). One where forking is not allowed (``training.forking``: Linux only,
+    ``WORKBENCH_FIT_PROCESSES=0`` turns it off)."""
     from training import forking
 
     if not forking():
         return 1
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    return max(1, min(cores, len(logs), sum(x.n_samples for x in logs) // max(1, fork_steps)))
+    each = FORK_STEPS if fork_steps is None else fork_steps
+    return max(1, min(cores, len(logs), sum(x.n_samples for x in logs) // max(1, each)))
 
 
 def task_steps(logs: Sequence[LogInfo], processes: int, *, group_steps: int) -> int:
@@ -282,3 +284,52 @@ def _embeddings(session: Session, logs: Sequence[LogInfo]) -> dict:
     assert p_version is not None
     outs = stage1_outputs(session, p_version, load_bundle(session.path / p_version.path), logs)
     return {x.id: stage1_embedding(outs[x.id]) for x in logs}
+
+
+def scored_in_processes(
+    session: Session,
+    logs: Sequence[LogInfo],
+    score: Callable[..., SessionScores],
+    *,
+    processes: int,
+    folder: Path,
+    group_steps: int,
+) -> Iterator[tuple[LogInfo, labeling.LogScores]]:
+    """Each log with its scores, in the order of ``logs``, scored in ``processes`` forked children a few groups per
+    process (``workbench export --predictions``'s pass over every log): each batch's arrays are written to ``folder``
+    and handed on memory-mapped, and their files removed once the next batch is asked for (a mapping outlives its
+    file's name).
+
+    Args:
+        session: The session.
+        logs: The logs, in the order they are handed on.
+        score: Called in each child as ``score(session, log_ids=..., window=..., tracks=False)``.
+        processes: Children at a time.
+        folder: An empty folder for the batches' arrays.
+        group_steps: Samples of logs one process's group may hold.
+    """
+    steps = task_steps(logs, processes, group_steps=group_steps)
+    batches = log_groups([_Group(g) for g in log_groups(logs, group_steps=steps)], group_steps=group_steps * processes)
+
+    def keep(log_id: int, s: labeling.LogScores) -> list[str]:
+        arrays = score_arrays(s)
+        for n, a in arrays.items():
+            write_array(folder, log_id, n, a)
+        return sorted(arrays)
+
+    for batch in batches:
+        groups = [[x.id for x in g.logs] for g in batch]
+        parts = score_groups_forked(
+            session, groups, score=score, keep=keep, window=0, processes=processes, cancel=lambda: False
+        )
+        written = []
+        for g, part in zip(batch, parts, strict=True):
+            for x in g.logs:
+                paths = [folder / f"{x.id:06d}.{n}.npy" for n in part.arrays[x.id]]
+                written += paths
+                yield (
+                    x,
+                    kept_scores({n: np.load(p, mmap_mode="r") for n, p in zip(part.arrays[x.id], paths, strict=True)}),
+                )
+        for p in written:
+            p.unlink(missing_ok=True)

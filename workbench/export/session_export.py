@@ -5,7 +5,9 @@
 from __future__ import annotations
 
 import shutil
+from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -30,11 +32,15 @@ from training import (
 )
 
 from ..expectations import file_expectation, stretch_share
+from . import predictions_stream
 from .bundle_checks import write_checks
 from .export_staging import check_target, staged
 from .file_classify import prediction_frame
 from .model_cards import model_card
 from .predictions_stream import PredictionsWriter, scored_logs, with_drift_column
+
+if TYPE_CHECKING:
+    from ..cycle import SessionScores
 
 ONNX_TOLERANCE = 1e-4
 CHECK_SAMPLES = 1500  # per log, for the ONNX check: a per-sample loop in onnxruntime
@@ -74,7 +80,7 @@ def _write_export(
 ) -> list[tuple[Path, str]]:
     from training import check_onnx, export_onnx
 
-    from ..cycle import FigureTally, checks_summary, model_logs, score_session, signal_change_points
+    from ..cycle import FigureTally, checks_summary, model_logs, signal_change_points
 
     written: list[tuple[Path, str]] = []
     streamed: list[tuple[Path, str]] = []  # the predictions, then each log's MCAP: listed after the bundle's files
@@ -97,7 +103,7 @@ def _write_export(
                     strict=True,
                 )
             )
-        for log, s in scored_logs(logs, lambda ids: score_session(session, ids)):
+        for log, s in _scored(session, logs, out / ".scoring"):
             if s.probs is not None:
                 tally.add(log.id, s.probs)
             if (share := labeling.drifted_share(s.drift)) is not None:
@@ -150,6 +156,33 @@ def _write_export(
     if frames:
         written.append(write_labelled_frames(session, out / "frames"))
     return written
+
+
+def _scored(session: Session, logs: list[LogInfo], folder: Path) -> Iterator[tuple[LogInfo, labeling.LogScores]]:
+    """Every log with the active classifier's scores, in order: hours of logs in a forked process per core
+    (``cycle.scored_in_processes``, the batches' arrays in ``folder``, removed at the end), else a group at a time
+    here."""
+    from .. import cycle
+
+    processes = cycle.scoring_processes(logs)
+    if processes <= 1:
+        yield from scored_logs(logs, lambda ids: cycle.score_session(session, ids))
+        return
+    folder.mkdir()
+    try:
+        steps = predictions_stream.GROUP_STEPS
+        yield from cycle.scored_in_processes(
+            session, logs, _session_scores, processes=processes, folder=folder, group_steps=steps
+        )
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _session_scores(session: Session, *, log_ids: list[int], **_: object) -> SessionScores:
+    """``cycle.score_session`` (the active classifier's scores, as the export writes them) in a forked child."""
+    from .. import cycle
+
+    return cycle.SessionScores(scores=cycle.score_session(session, list(log_ids)))
 
 
 def write_labelled_frames(session: Session, folder: Path) -> tuple[Path, str]:

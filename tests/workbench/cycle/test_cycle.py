@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -187,6 +188,37 @@ def test_export_scores_a_group_of_logs_at_a_time_and_writes_what_one_scoring_of_
         pd.testing.assert_frame_equal(pd.read_parquet(folder / "predictions.parquet"), expected, rtol=1e-6)
         assert len(list((folder / "mcap").glob("*.mcap"))) == len(logs)
     assert (out / "bundle" / "MODEL_CARD.md").read_text() == (whole / "bundle" / "MODEL_CARD.md").read_text()
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="a process per core needs two cores")
+def test_export_of_hours_scores_in_processes_and_writes_what_one_process_writes(
+    trained: Session, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from workbench.cycle import forked_scores
+    from workbench.export import export_all, predictions_stream
+
+    here = tmp_path / "here"
+    export_all(trained, here, predictions=True, mcap=True)
+    pids = tmp_path / "pids"
+    pids.mkdir()
+    real = cycle.score_session
+
+    def recorded(s, ids=None):
+        (pids / str(os.getpid())).touch()
+        return real(s, ids)
+
+    monkeypatch.setattr(cycle, "score_session", recorded)
+    monkeypatch.setattr(forked_scores, "FORK_STEPS", 1)  # the test's minutes of logs scored as hours are
+    monkeypatch.setattr(predictions_stream, "GROUP_STEPS", 1)  # a log per group: several batches
+    out = tmp_path / "forked"
+    export_all(trained, out, predictions=True, mcap=True)
+    assert {int(p.name) for p in pids.iterdir()} - {os.getpid()}, "the logs were scored in forked processes"
+    pd.testing.assert_frame_equal(
+        pd.read_parquet(out / "predictions.parquet"), pd.read_parquet(here / "predictions.parquet"), rtol=1e-6
+    )
+    assert len(list((out / "mcap").glob("*.mcap"))) == len(trained.logs())
+    assert (out / "bundle" / "MODEL_CARD.md").read_text() == (here / "bundle" / "MODEL_CARD.md").read_text()
+    assert not (out / ".scoring").exists()
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".parquet", ".json"])

@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sessions import Session, WorkbenchError
 from tests.conftest import new_session
 from tests.workbench.cycle.test_cycle import TINY, demo_logs, trained, trained_once  # noqa: F401  (fixtures)
-from workbench.cycle import SUGGESTION_S
+from workbench.cycle import SUGGESTION_S, compute_scores
 from workbench.demo import seed_labels
 from workbench.ui.jobs import JobStatus, TrainJob, needs_predictor
 from workbench.ui.state import SharedState
@@ -277,3 +279,36 @@ def test_each_label_is_first_a_check_of_the_model_on_screen_and_the_check_surviv
     state.session.close()
     with Session.open(path) as again:
         assert [(c.id, c.kind) for c in again.checks()] == [(first.id, "suggestion"), (second.id, "spot check")]
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="a process per core needs two cores")
+def test_the_servers_scoring_of_hours_runs_in_processes_and_shows_what_one_process_computes(
+    trained: Session,  # noqa: F811
+    tmp_path: Path,
+    monkeypatch,
+) -> None:
+    from workbench.cycle import forked_scores
+    from workbench.ui import state as state_module
+
+    whole = compute_scores(trained)
+    monkeypatch.setattr(forked_scores, "FORK_STEPS", 1)  # the test's minutes of logs scored as hours are
+    pids = tmp_path / "pids"
+    pids.mkdir()
+
+    def recorded(session, **kw):
+        (pids / str(os.getpid())).touch()
+        return compute_scores(session, **kw)
+
+    monkeypatch.setattr(state_module, "compute_scores", recorded)
+    st = SharedState(trained, on_error=lambda msg: pytest.fail(msg))
+    try:
+        wait_for(lambda: st.scored and not st.busy, timeout=120)
+        assert {int(p.name) for p in pids.iterdir()} - {os.getpid()}, "the logs were scored in forked processes"
+        assert set(st.scores.scores) == set(whole.scores)
+        for log_id, s in whole.scores.items():
+            np.testing.assert_allclose(st.scores.scores[log_id].probs, s.probs, rtol=1e-6, atol=1e-7)
+            for kind, track in whole.tracks[log_id].items():
+                np.testing.assert_allclose(st.scores.tracks[log_id][kind], track, rtol=1e-6, atol=1e-7)
+        assert st.queue, "the queue is ranked from them"
+    finally:
+        st.stop()
