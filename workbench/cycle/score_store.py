@@ -80,6 +80,8 @@ def _finish_store(session: Session, folder: Path, scores: SessionScores, names: 
     }
     for old in folder.glob("*.npz"):  # the first version's files: one zip per log
         old.unlink(missing_ok=True)
+    for half in folder.glob(".*.npy"):  # a forked scorer's array cut short when its scoring was stopped
+        half.unlink(missing_ok=True)
     _write_json(folder / META_FILE, meta)
     for other in folder.parent.glob("scores-p*"):
         if other != folder and other.is_dir():

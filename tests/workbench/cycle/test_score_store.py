@@ -290,3 +290,7 @@ def test_scoring_in_forked_processes_stops_when_asked_and_passes_a_childs_error_
 
     with pytest.raises(WorkbenchError, match="the classifier's files are damaged"):
         cycle.score_and_store(trained, score=broken, jobs=2, group_steps=1)
+    folder = next(trained.path.glob("cache/scores-*"))
+    (folder / ".000001.probs.0badc0de.npy").write_bytes(b"cut short")  # what a stopped child can leave
+    assert cycle.score_and_store(trained, score=compute_scores, jobs=2, group_steps=1) is not None
+    assert not list(folder.glob(".*.npy")), "the next complete scoring removes what a stopped one left"
