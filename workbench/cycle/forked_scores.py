@@ -1,15 +1,15 @@
 """A session's logs scored a group at a time in forked processes, one torch thread each, side by side.
 
 A rescoring in one process leaves cores idle: between torch's products the work is many small operations and NumPy
-per log (the runs' votes, a frame's answer over its steps) that one thread does; on two cores, one process with two
-torch threads scored 10 h of logs in 30.9 s, two processes of one thread each on half the logs in 24.8 s
-(``benchmarks/results/speed.md``), and a machine with more cores gains more. Each child scores its group with the
-scoring function the caller gives (``compute_scores``), writes the arrays where the caller keeps them and sends back
-their names only: the parent reads them memory-mapped, never a log's scores through a pipe.
+per log (the runs' votes, a frame's answer over its steps) that one thread does. On two cores, one process with two
+torch threads scored 10 h of logs (scores alone) in 30.9 s, two processes of one thread each on half the logs in
+24.8 s; the whole rescoring went from 34.6 to 30.3 s (``benchmarks/results/speed.md``). More cores gain more.
 
-Children are forked (``training.run_forked``): they start with the parent's modules and the session's memory-mapped
-caches, and take a SQLite connection of their own (``Session.after_fork``), forked while no other thread is inside a
-query (``Session.fork_guard``).
+Each child scores its group with the scoring function the caller gives (``compute_scores``), writes the arrays where
+the caller keeps them and sends back their names only: the parent reads them memory-mapped, never a log's scores
+through a pipe. Children are forked (``training.run_forked``): they start with the parent's modules and the
+session's memory-mapped caches, and take a SQLite connection of their own (``Session.after_fork``), forked while no
+other thread is inside a query (``Session.fork_guard``).
 """
 
 from __future__ import annotations
