@@ -1,4 +1,5 @@
 """Independent fits in forked processes, one torch thread each, for machines with more cores than threads can use.
+(:func:`run_forked` runs any independent jobs so: the workbench scores hours of logs with it too.)
 
 Threads share one interpreter: a fold network's step is many small torch ops, and between two ops the thread needs
 the GIL back. Sampled on 2 cores (py-spy ``--gil``), a fit thread held the GIL in 18 % of its active samples, so
