@@ -141,6 +141,21 @@ class _Group:
         return sum(x.n_samples for x in self.logs)
 
 
+def _batches(logs: Sequence[LogInfo], processes: int, group_steps: int) -> list[list[_Group]]:
+    """``logs`` cut into a few groups per process, the groups into batches: a batch holds the lane as long as one
+    process's group of ``group_steps`` would, the processes' share together."""
+    tasks = log_groups(logs, group_steps=task_steps(logs, processes, group_steps=group_steps))
+    return log_groups([_Group(g) for g in tasks], group_steps=group_steps * processes)
+
+
+def _keep(folder: Path, log_id: int, s: labeling.LogScores) -> list[str]:
+    """In a child: write a log's arrays to ``folder``; their names."""
+    arrays = score_arrays(s)
+    for n, a in arrays.items():
+        write_array(folder, log_id, n, a)
+    return sorted(arrays)
+
+
 def _rank_kind(
     folder: Path, ids: Sequence[int], scores: dict[int, labeling.LogScores], kind: str, window: int
 ) -> list[int]:
@@ -232,17 +247,8 @@ def scored_forked(
     """
     from training import Cancelled
 
-    steps = task_steps(logs, processes, group_steps=group_steps)
-    tasks = log_groups(logs, group_steps=steps)
-    # a batch holds the lane as long as one process's group would: the processes' share of group_steps together
-    batches = log_groups([_Group(g) for g in tasks], group_steps=group_steps * processes)
-
-    def keep(log_id: int, s: labeling.LogScores) -> list[str]:
-        arrays = score_arrays(s)
-        for n, a in arrays.items():
-            write_array(folder, log_id, n, a)
-        return sorted(arrays)
-
+    batches = _batches(logs, processes, group_steps)
+    keep = partial(_keep, folder)
     first: GroupFirst | None = None
     scores: dict[int, labeling.LogScores] = {}
     names: dict[str, list[str]] = {}
@@ -308,15 +314,8 @@ def scored_in_processes(
         folder: An empty folder for the batches' arrays.
         group_steps: Samples of logs one process's group may hold.
     """
-    steps = task_steps(logs, processes, group_steps=group_steps)
-    batches = log_groups([_Group(g) for g in log_groups(logs, group_steps=steps)], group_steps=group_steps * processes)
-
-    def keep(log_id: int, s: labeling.LogScores) -> list[str]:
-        arrays = score_arrays(s)
-        for n, a in arrays.items():
-            write_array(folder, log_id, n, a)
-        return sorted(arrays)
-
+    batches = _batches(logs, processes, group_steps)
+    keep = partial(_keep, folder)
     for batch in batches:
         groups = [[x.id for x in g.logs] for g in batch]
         parts = score_groups_forked(
