@@ -54,16 +54,16 @@ class GroupScored:
     arrays: dict[int, tuple[str, ...]]
 
 
-def scoring_processes(logs: Sequence[LogInfo], *, fork_steps: int | None = None) -> int:
+def scoring_processes(logs: Sequence[LogInfo], *, fork_steps: int | None = None, min_cores: int = 2) -> int:
     """Processes to score ``logs`` in: one per core this process may use, but only as many as have ``fork_steps``
     samples each to score (default :data:`FORK_STEPS`; a fork, and the session read again in each child, cost more
-    than minutes of logs take). One where forking is not allowed (``training.forking``: Linux only,
-    ``WORKBENCH_FIT_PROCESSES=0`` turns it off)."""
+    than minutes of logs take), and one where this process may use fewer than ``min_cores`` cores or forking is not
+    allowed (``training.forking``: Linux only, ``WORKBENCH_FIT_PROCESSES=0`` turns it off)."""
     from training import forking
 
-    if not forking():
-        return 1
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    if not forking() or cores < min_cores:
+        return 1
     each = FORK_STEPS if fork_steps is None else fork_steps
     return max(1, min(cores, len(logs), sum(x.n_samples for x in logs) // max(1, each)))
 

@@ -44,6 +44,10 @@ if TYPE_CHECKING:
 
 ONNX_TOLERANCE = 1e-4
 CHECK_SAMPLES = 1500  # per log, for the ONNX check: a per-sample loop in onnxruntime
+# The export's scoring forks a process per core only where there are more than two: on two cores 102.4 h exported in
+# 173-178 s forked against 148-154 s in one process (benchmarks/results/fleet.md), the parent writing each batch
+# while its children wait; a Retrain's rescoring, which ranks the tracks in its children too, gains there
+EXPORT_MIN_CORES = 3
 
 
 def export_all(
@@ -159,12 +163,12 @@ def _write_export(
 
 
 def _scored(session: Session, logs: list[LogInfo], folder: Path) -> Iterator[tuple[LogInfo, labeling.LogScores]]:
-    """Every log with the active classifier's scores, in order: hours of logs in a forked process per core
-    (``cycle.scored_in_processes``, the batches' arrays in ``folder``, removed at the end), else a group at a time
-    here."""
+    """Every log with the active classifier's scores, in order: hours of logs in a forked process per core where
+    there are more than two (``cycle.scored_in_processes``, the batches' arrays in ``folder``, removed at the end),
+    else a group at a time here."""
     from .. import cycle
 
-    processes = cycle.scoring_processes(logs)
+    processes = cycle.scoring_processes(logs, min_cores=EXPORT_MIN_CORES)
     if processes <= 1:
         yield from scored_logs(logs, lambda ids: cycle.score_session(session, ids))
         return

@@ -195,7 +195,7 @@ def test_export_of_hours_scores_in_processes_and_writes_what_one_process_writes(
     trained: Session, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from workbench.cycle import forked_scores
-    from workbench.export import export_all, predictions_stream
+    from workbench.export import export_all, predictions_stream, session_export
 
     here = tmp_path / "here"
     export_all(trained, here, predictions=True, mcap=True)
@@ -210,6 +210,7 @@ def test_export_of_hours_scores_in_processes_and_writes_what_one_process_writes(
     monkeypatch.setattr(cycle, "score_session", recorded)
     monkeypatch.setattr(forked_scores, "FORK_STEPS", 1)  # the test's minutes of logs scored as hours are
     monkeypatch.setattr(predictions_stream, "GROUP_STEPS", 1)  # a log per group: several batches
+    monkeypatch.setattr(session_export, "EXPORT_MIN_CORES", 2)  # as on a machine of more cores
     out = tmp_path / "forked"
     export_all(trained, out, predictions=True, mcap=True)
     assert {int(p.name) for p in pids.iterdir()} - {os.getpid()}, "the logs were scored in forked processes"

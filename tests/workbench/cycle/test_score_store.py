@@ -294,3 +294,24 @@ def test_scoring_in_forked_processes_stops_when_asked_and_passes_a_childs_error_
     (folder / ".000001.probs.0badc0de.npy").write_bytes(b"cut short")  # what a stopped child can leave
     assert cycle.score_and_store(trained, score=compute_scores, jobs=2, group_steps=1) is not None
     assert not list(folder.glob(".*.npy")), "the next complete scoring removes what a stopped one left"
+
+
+def test_hours_of_logs_fork_a_process_per_core_where_the_cores_allow(
+    trained: Session,  # noqa: F811
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """One process per core, only as many as have their share of samples, and one where the cores are fewer than
+    the caller's minimum (the export's: more than two) or forking is off."""
+    from workbench.cycle import forked_scores
+
+    logs = trained.logs()
+    monkeypatch.setattr(os, "sched_getaffinity", lambda _: {0, 1}, raising=False)
+    each = sum(x.n_samples for x in logs) // 2
+    assert cycle.scoring_processes(logs, fork_steps=each) == min(2, len(logs))
+    assert cycle.scoring_processes(logs, fork_steps=each, min_cores=3) == 1
+    assert cycle.scoring_processes(logs, fork_steps=each + 1) == 1  # not two processes' worth of samples
+    monkeypatch.setattr(os, "sched_getaffinity", lambda _: set(range(16)), raising=False)
+    assert cycle.scoring_processes(logs, fork_steps=1, min_cores=3) == min(16, len(logs))
+    monkeypatch.setattr(forked_scores, "FORK_STEPS", 1)
+    monkeypatch.setenv("WORKBENCH_FIT_PROCESSES", "0")
+    assert cycle.scoring_processes(logs) == 1
