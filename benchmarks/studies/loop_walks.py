@@ -24,7 +24,7 @@ from study_common import label_runs, loop_arguments, loop_settings
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _far_reference(files: list[Path], out: Path) -> Path:
+def far_reference(files: list[Path], out: Path) -> Path:
     """The far walks' truth as a label file, in seconds from each walk's start (the generator's truth files)."""
     import json
 
@@ -56,7 +56,7 @@ def main() -> int:
             Path(tmp) / "logs", n_logs=opts.walks + opts.far, minutes=opts.minutes, seed=100 + opts.seed
         )
         files, far = made[: opts.walks], made[opts.walks :]
-        reference = _far_reference(far, Path(tmp) / "far-reference.csv") if far else None
+        reference = far_reference(far, Path(tmp) / "far-reference.csv") if far else None
         with Session.create(Path(tmp) / "s") as s:
             logs = s.ingest(files)
             for name in sorted({t for x in logs for _, _, t in s.reference(x.id)}):

@@ -238,7 +238,7 @@ def loop(
         reference: A label file stored as the reference labels of the logs it names (in the copy only).
         strategies: Strategies compared, each from the same start: random, entropy, margin, disagreement, surprise,
             combined, and the ablations (combined-no-unchecked, combined-no-votes, combined-no-wrong-first,
-            combined-no-main-answer, combined-main-answer-new, combined-teacher).
+            combined-no-main-answer, combined-main-answer-new, combined-teacher, combined-teacher-last).
         rounds: Rounds of labelling, each followed by a fit.
         per_round: Suggestions labelled per round.
         person: How the simulated person labels a suggestion: the suggested piece, or also the model's stretch around

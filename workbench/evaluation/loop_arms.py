@@ -19,11 +19,14 @@ class LoopArm:
         policy: The suggestion queue's policy (the session's, ``cycle.SESSION_POLICY``, with a lever changed).
         votes: Whether a run's labels vote over its frames in the scores (``compute_scores(votes=)``).
         teach: Whether each round's fit is taught by the session's scores (``RETRAIN.teach``).
+        teach_last: Whether the last round's fit alone is taught so (the model that ships learns the session's
+            blend once the rounds are done; the rounds before are not fed back their own errors).
     """
 
     policy: labeling.QueuePolicy = SESSION_POLICY
     votes: bool = True
     teach: bool = RETRAIN.teach
+    teach_last: bool = False
 
 
 # What a lever is worth, measured by leaving it out: an arm's name in the loop -> what it runs
@@ -34,6 +37,7 @@ ABLATIONS: dict[str, LoopArm] = {
     "combined-no-main-answer": LoopArm(replace(SESSION_POLICY, main_answer="off")),  # a run's main answer never asked
     "combined-main-answer-new": LoopArm(replace(SESSION_POLICY, main_answer="new")),  # every new run's asked first
     "combined-teacher": LoopArm(teach=True),  # the fit taught by the session's scores (RETRAIN.teach)
+    "combined-teacher-last": LoopArm(teach_last=True),  # the last round's fit alone taught so
 }
 
 

@@ -372,7 +372,7 @@ def run_arm(
             picks_worst = sum(x.name == worst for x, _ in picks)
             _check(s, scores, picks, truth, classes)
             labelled += _label(s, person_labels(picks, scores, truth, person=settings.person), classes)
-            _fit(s, scores=scores, scoring=scoring, teach=arm.teach)
+            _fit(s, scores=scores, scoring=scoring, teach=arm.teach or (arm.teach_last and r + 1 == settings.rounds))
     return rounds
 
 

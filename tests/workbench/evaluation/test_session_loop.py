@@ -285,3 +285,24 @@ def test_verify_is_for_the_loop_and_a_count(tmp_path: Path, capsys) -> None:
     assert "evaluate borealtc takes no --verify (evaluate loop takes it)" in capsys.readouterr().err
     assert main(["evaluate", "loop", str(tmp_path), "--verify", "-1"]) == 2
     assert "--verify -1: a number of checks" in capsys.readouterr().err
+
+
+def test_the_teacher_last_arm_teaches_the_last_rounds_fit_only(
+    loop_session: tuple[Path, Path], monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """``combined-teacher-last``: the rounds before the last are the combined arm's, the last fit alone is taught."""
+    from workbench.evaluation import session_loop
+
+    taught: list[bool] = []
+    real = session_loop._fit
+
+    def recorded(session, **kw):
+        if "scores" in kw:  # a round's fit (the start's fit has no scores yet)
+            taught.append(kw["teach"])
+        return real(session, **kw)
+
+    monkeypatch.setattr(session_loop, "_fit", recorded)
+    session, reference = loop_session
+    args = ["--rounds", "3", "--per-round", "3", "--strategies", "combined-teacher-last"]
+    assert main(["evaluate", "loop", str(session), "--reference", str(reference), *args]) == 0, capsys.readouterr()
+    assert taught == [False, False, True]
