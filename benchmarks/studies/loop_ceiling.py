@@ -24,7 +24,7 @@ from loop_borealtc import DATA, build
 import labeling
 from sessions import Session
 from workbench.cycle import active_bundle, train_classifier, train_stage1
-from workbench.evaluation import read_far_runs, score_far
+from workbench.evaluation import FarScore, read_far_runs, score_far
 
 
 def main() -> int:
@@ -57,7 +57,7 @@ def main() -> int:
     return 0
 
 
-def labelled_by_truth(s: Session, far: list[Path], reference: Path, *, model: str | None) -> tuple:
+def labelled_by_truth(s: Session, far: list[Path], reference: Path, *, model: str | None) -> tuple[FarScore, int]:
     """Every step of ``s``'s runs nobody labelled given its reference terrain, both stages fitted, the bundle scored
     on ``far``; the far runs' figures and the session's run count."""
     for log in s.logs():  # the truth over every step nobody labelled
@@ -92,7 +92,7 @@ def walks_ceiling(seed: int, *, model: str | None) -> int:
     return 0
 
 
-def report(got, n: int, model: str | None, seed: int, t0: float) -> None:
+def report(got: FarScore, n: int, model: str | None, seed: int, t0: float) -> None:
     """Print the far runs' figures."""
     per = ", ".join(f"{k} {100 * v:.1f}" for k, v in sorted(got.per_log.items()))
     family = model or "default family"

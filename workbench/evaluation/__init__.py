@@ -15,7 +15,7 @@ from .evaluate_windows import (
     partitions,
     windows,
 )
-from .far_runs import FarRuns, read_far_runs, score_far
+from .far_runs import FarRuns, FarScore, read_far_runs, score_far
 from .label_efficiency import SimSettings, report, simulate_logs, simulate_partitions
 from .protocol_members import FoldData, Member, RocketMember, cut_windows
 from .protocols import (
@@ -34,6 +34,7 @@ from .session_loop import LoopRound, LoopSettings, evaluate_loop
 __all__ = [
     "BOREALTC_PUBLISHED",
     "FarRuns",
+    "FarScore",
     "FoldData",
     "FoldResult",
     "LoopRound",
