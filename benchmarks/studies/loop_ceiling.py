@@ -22,7 +22,7 @@ from pathlib import Path
 from loop_borealtc import DATA, build
 
 import labeling
-from sessions import Session
+from sessions import IngestOptions, Session
 from workbench.cycle import active_bundle, train_classifier, train_stage1
 from workbench.evaluation import FarScore, read_far_runs, score_far
 
@@ -57,9 +57,11 @@ def main() -> int:
     return 0
 
 
-def labelled_by_truth(s: Session, far: list[Path], reference: Path, *, model: str | None) -> tuple[FarScore, int]:
+def labelled_by_truth(
+    s: Session, far: list[Path], reference: Path, *, model: str | None, options: IngestOptions | None = None
+) -> tuple[FarScore, int]:
     """Every step of ``s``'s runs nobody labelled given its reference terrain, both stages fitted, the bundle scored
-    on ``far``; the far runs' figures and the session's run count."""
+    on ``far`` (read with ``options``); the far runs' figures and the session's run count."""
     for log in s.logs():  # the truth over every step nobody labelled
         covered = [(g.start, g.stop) for g in s.segments(log.id)]
         for a, b, terrain in s.reference(log.id):
@@ -68,7 +70,7 @@ def labelled_by_truth(s: Session, far: list[Path], reference: Path, *, model: st
     train_stage1(s)
     train_classifier(s, warm_start=False, model=model)
     bundle = active_bundle(s)[1]
-    runs = read_far_runs(far, reference, bundle, session_logs=[x.name for x in s.logs()])
+    runs = read_far_runs(far, reference, bundle, session_logs=[x.name for x in s.logs()], options=options)
     return score_far(bundle, runs), len(s.logs())
 
 

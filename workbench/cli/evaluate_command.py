@@ -12,7 +12,7 @@ from typing import Literal
 
 import tyro
 
-from sessions import WorkbenchError, check_new_target
+from sessions import MAX_RATE_HZ, WorkbenchError, check_new_target
 from training import FeatureMode
 
 from ..retrain import RETRAIN
@@ -226,6 +226,9 @@ def loop(
     per_round: int = 12,
     person: Literal["piece", "stretch"] = "piece",
     far: tuple[Path, ...] = (),
+    mapping: Path | None = None,
+    rate: float | None = None,
+    allow_gaps: bool = False,
     verify: int = 0,
     seed: int = 0,
     out: Path | None = None,
@@ -245,6 +248,10 @@ def loop(
             it where the reference agrees (as a range or Y does).
         far: Log files of runs kept out of the session, their truth in --reference: after every round the bundle the
             session would export scores them as `workbench classify` does (what ships to the robot).
+        mapping: TOML or JSON file naming topics/columns to read in the --far files, as `workbench ingest` and
+            `classify` take it (give the one the session's logs were ingested with).
+        rate: Rate (Hz) the --far files are aligned at before the bundle resamples them, as for `ingest`.
+        allow_gaps: Accept NaN/inf samples and dropouts in the --far files, as for `ingest`.
         verify: Before the first round and after each, this many verification checks (uniform pieces of the new
             logs' time nobody labelled, never labelled): the session's accuracy with its 90 % interval as the page
             shows it, and whether it covers the truth.
@@ -258,15 +265,22 @@ def loop(
         raise WorkbenchError(f"--rounds {rounds}: at least one round of labelling")
     if verify < 0:
         raise WorkbenchError(f"--verify {verify}: a number of checks, 0 or more")
-    from sessions import Session
+    if (mapping is not None or rate is not None or allow_gaps) and not far:
+        raise WorkbenchError("--mapping, --rate and --allow-gaps say how the --far files are read; give --far FILE...")
+    if rate is not None and not 0 < rate <= MAX_RATE_HZ:
+        raise WorkbenchError(f"--rate {rate:g}: a rate is above 0 and at most {MAX_RATE_HZ:g} Hz")
+    from sessions import IngestOptions, Session, load_mapping
 
     from ..evaluation import LoopSettings, evaluate_loop
 
     settings = LoopSettings(
         rounds=rounds, per_round=per_round, person=person, strategies=strategies, seed=seed, verify=verify
     )
+    options = IngestOptions(
+        mapping=load_mapping(mapping) if mapping else IngestOptions().mapping, rate_hz=rate, allow_gaps=allow_gaps
+    )
     with Session.open(folder) as s:
-        print(evaluate_loop(s, reference=reference, settings=settings, out=out, far=far))
+        print(evaluate_loop(s, reference=reference, settings=settings, out=out, far=far, far_options=options))
 
 
 PROTOCOLS = {"borealtc": borealtc, "qcat": qcat, "demo": demo, "session": session, "loop": loop}

@@ -6,7 +6,7 @@ no votes of a run's own labels). The robot gets the bundle, not the session: thi
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -44,14 +44,27 @@ class FarScore:
 
 
 def read_far_runs(
-    files: Sequence[Path], reference: Path, bundle: ModelBundle, *, session_logs: Sequence[str]
+    files: Sequence[Path],
+    reference: Path,
+    bundle: ModelBundle,
+    *,
+    session_logs: Sequence[str],
+    options: IngestOptions | None = None,
 ) -> FarRuns:
     """Read the far runs as ``classify`` reads log files, their truth from ``reference`` (a label file naming them).
+
+    Args:
+        files: The far runs' log files.
+        reference: A label file naming them (columns log, terrain, start_s, end_s).
+        bundle: The bundle whose channels and rate the runs are read in.
+        session_logs: The session's log names (a far run is none of them).
+        options: How the files are read, as ``ingest`` and ``classify`` take them (``--mapping``, ``--rate``,
+            ``--allow-gaps``); camera frames are never decoded. Default: ``ingest``'s defaults.
 
     Raises:
         WorkbenchError: A file is refused, a run is in the session, or a run has no row in the reference.
     """
-    read = read_logs(bundle, files, IngestOptions(camera_fps=0))
+    read = read_logs(bundle, files, replace(options or IngestOptions(), camera_fps=0))
     if read.errors:
         raise WorkbenchError(f"--far: {read.errors[0]}")
     if not read.names:

@@ -40,8 +40,8 @@ def loop_report(
         "",
         "| strategy | round | labelled s (in new logs) | picks in new logs | in the worst new log | accuracy (%) | "
         "balanced (%) | the fit's figure on the labelled pieces (%) | checks in new logs right (spot checks) | the "
-        "shipped model on far runs (%) (balanced) | its figure for runs it never saw (%) (90 % interval) | answers "
-        "changed (%): the most the round moved it |",
+        "shipped model on far runs (%) (balanced; mean per run) | its figure for runs it never saw (%) (90 % "
+        "interval) | answers changed (%): the most the round moved it |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for strategy, rounds in arms.items():
@@ -49,7 +49,7 @@ def loop_report(
             picks = f"{r.picks_new} of {r.picks}" if r.round else "–"
             worst = f"{r.picks_worst} ({r.worst})" if r.round else "–"
             checks = f"{r.checks[0]} of {r.checks[1]} ({r.spot[0]} of {r.spot[1]})" if r.checks[1] else "–"
-            far = "–" if r.far is None else f"{_pct(r.far[0])} ({_pct(r.far[1])})"
+            far = "–" if r.far is None else f"{_pct(r.far[0])} ({_pct(r.far[1])}; {_pct(_per_run(r.far_per_log))})"
             acc, low, high = r.unseen
             unseen = "–" if acc is None else _pct(acc) + ("" if low is None else f" ({_pct(low)}–{_pct(high)})")
             lines.append(
@@ -66,10 +66,12 @@ def loop_report(
     far_names = list(next(iter(arms.values()))[-1].far_per_log)
     if far_names:
         lines += ["", "The shipped model per far run (kept out of the session), before the loop and after it (%):", ""]
-        lines += ["| strategy | " + " | ".join(far_names) + " |", "| --- |" + " --- |" * len(far_names)]
+        head = [*far_names, "mean per run"]
+        lines += ["| strategy | " + " | ".join(head) + " |", "| --- |" + " --- |" * len(head)]
         for strategy, rounds in arms.items():
             first, last = rounds[0].far_per_log, rounds[-1].far_per_log
             cells = [f"{_pct(first.get(n))} → {_pct(last.get(n))}" for n in far_names]
+            cells.append(f"{_pct(_per_run(first))} → {_pct(_per_run(last))}")
             lines.append(f"| {strategy} | " + " | ".join(cells) + " |")
     verified = {k: v[-1].verified for k, v in arms.items() if v[-1].verified is not None}
     if verified:
@@ -114,3 +116,8 @@ def loop_report(
             lines.append(f"| {strategy} | all | | {covered} of {checked} runs' intervals cover the truth | | | |")
     lines += ["", *said_table({k: [(r.per_log, r.said) for r in v] for k, v in arms.items()})]
     return "\n".join(lines) + "\n"
+
+
+def _per_run(per_log: dict[str, float]) -> float | None:
+    """The mean of the far runs' accuracies, each run counted once (beside the mean over every step)."""
+    return sum(per_log.values()) / len(per_log) if per_log else None

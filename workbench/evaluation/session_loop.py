@@ -26,7 +26,7 @@ from typing import Literal
 import numpy as np
 
 import labeling
-from sessions import LogInfo, Session, WorkbenchError, new_file, read_frame, write_frame
+from sessions import IngestOptions, LogInfo, Session, WorkbenchError, new_file, read_frame, write_frame
 
 from ..cycle import (
     SessionScores,
@@ -385,6 +385,7 @@ def evaluate_loop(
     workdir: Path | None = None,
     log: Callable[[str], None] = print,
     far: Sequence[Path] = (),
+    far_options: IngestOptions | None = None,
 ) -> str:
     """Run the loop for each strategy from the same start; returns a Markdown report.
 
@@ -398,6 +399,8 @@ def evaluate_loop(
         log: Where progress lines go.
         far: Log files of runs kept out of the session (their truth in ``reference``): after every round the bundle
             the session would export scores them as ``classify`` does, the figure of what ships to the robot.
+        far_options: How the far runs' files are read (a mapping, a rate, gaps allowed), as the session's logs were
+            ingested; default: ``ingest``'s defaults.
 
     Raises:
         WorkbenchError: No log without labels has reference labels, or the labels cover fewer than two terrains.
@@ -433,7 +436,13 @@ def evaluate_loop(
             if far:
                 if reference is None:
                     raise WorkbenchError("--far: the far runs' truth comes from --reference FILE; give it")
-                far_runs = read_far_runs(far, reference, active_bundle(s)[1], session_logs=[x.name for x in s.logs()])
+                far_runs = read_far_runs(
+                    far,
+                    reference,
+                    active_bundle(s)[1],
+                    session_logs=[x.name for x in s.logs()],
+                    options=far_options,
+                )
                 log(f"far runs: {len(far_runs.names)} kept out of the session ({', '.join(far_runs.names)})")
         arms = {
             strategy: run_arm(

@@ -263,8 +263,10 @@ def test_far_runs_are_scored_by_the_shipped_bundle_every_round_and_never_enter_t
     assert set(per_run) == {"w2", "odd"} and sum(r[3] for r in per_run.values()) == 6
     assert "runs' intervals cover the truth" in text
     assert arm[0]["far"][0] > 0.5, arm[0]  # the bundle reads the far runs: above chance on two terrains
-    assert "the shipped model on far runs (%) (balanced)" in text and "| combined | x0 | x1 |" not in text
-    assert re.search(r"\| combined \| \d+\.\d → \d+\.\d \| \d+\.\d → \d+\.\d \|", text), text
+    assert "the shipped model on far runs (%) (balanced; mean per run)" in text and "| combined | x0 | x1 |" not in text
+    assert re.search(r"\| combined \| \d+\.\d → \d+\.\d \| \d+\.\d → \d+\.\d \| \d+\.\d → \d+\.\d \|", text), text
+    mean = sum(arm[-1]["far_per_log"].values()) / 2  # the mean per run, each run once
+    assert f"; {100 * mean:.1f})" in text
     with Session.open(session) as s:
         assert {x.name for x in s.logs()} == {"w0", "w1", "w2", "odd"}
     # refused in one line: a far run that is a log of the session, far runs without their truth
@@ -306,3 +308,31 @@ def test_the_teacher_last_arm_teaches_the_last_rounds_fit_only(
     args = ["--rounds", "3", "--per-round", "3", "--strategies", "combined-teacher-last"]
     assert main(["evaluate", "loop", str(session), "--reference", str(reference), *args]) == 0, capsys.readouterr()
     assert taught == [False, False, True]
+
+
+def test_far_runs_are_read_with_the_mapping_rate_and_gaps_the_session_was_ingested_with(
+    loop_session: tuple[Path, Path], tmp_path: Path, capsys
+) -> None:
+    """Issue 98, item 5: a far run that needs a mapping (a headerless CSV) is read as `ingest` would read it."""
+    session, reference = loop_session
+    path, truth = _walk(tmp_path / "bare.csv", 30, gain=1.5, seconds=40.0)
+    frame = pd.read_csv(path)
+    frame[["a", "b", "c", "time"]].to_csv(path, index=False, header=False)  # no header, time last
+    mapping = tmp_path / "bare.toml"
+    mapping.write_text(
+        '[csv]\nheader = false\ncolumns = ["a", "b", "c", "stamp"]\ntime_column = "stamp"\ntime_unit = "s"\n'
+    )
+    both = tmp_path / "truth.csv"
+    rows = pd.read_csv(reference)
+    pd.concat([rows, pd.DataFrame(truth, columns=rows.columns)]).to_csv(both, index=False)
+    args = ["evaluate", "loop", str(session), "--reference", str(both), "--rounds", "1", "--per-round", "3"]
+    args += ["--strategies", "combined", "--far", str(path)]
+    assert main(args) == 2  # read as a CSV with a header, it has none of the bundle's channels
+    assert "bare.csv" in capsys.readouterr().err
+    out = tmp_path / "loop.json"
+    assert main([*args, "--mapping", str(mapping), "--rate", "50", "--out", str(out)]) == 0, capsys.readouterr()
+    arm = json.loads(out.read_text())["arms"]["combined"]
+    assert all(set(r["far_per_log"]) == {"bare"} for r in arm) and arm[0]["far"][0] > 0.5, arm[0]
+    # the read options belong to --far: alone they are refused in one line
+    assert main(["evaluate", "loop", str(session), "--reference", str(reference), "--mapping", str(mapping)]) == 2
+    assert "--mapping, --rate and --allow-gaps say how the --far files are read" in capsys.readouterr().err
