@@ -351,8 +351,20 @@ def _print_estimate(version: int, model: str, m: dict, estimate: dict) -> None:
         print(f"  probabilities calibrated on {cal['on']}: logits divided by {cal['temperature']:.2f}")
 
 
-def export(session: Pos[Path], out: Path, predictions: bool = False, mcap: bool = False, frames: bool = False) -> None:
-    """Export the active model (bundle, ONNX, model card) and the label files for the robot.
+def export(
+    session: Pos[Path],
+    out: Path,
+    predictions: bool = False,
+    mcap: bool = False,
+    frames: bool = False,
+    untaught: bool = False,
+) -> None:
+    """Export the model that ships (bundle, ONNX, model card) and the label files for the robot.
+
+    The model that ships is the active classifier taught by what the session knows: stage 2 fitted once more from
+    scratch, every label plus the terrain the session is sure of over each unlabelled stretch (its labels' votes
+    and the model together, as the page shows them). It is fitted on the first export after a Retrain or a label
+    change and kept in the session beside the active version (which it never replaces), so a second export reuses it.
 
     Args:
         session: The session folder.
@@ -362,11 +374,18 @@ def export(session: Pos[Path], out: Path, predictions: bool = False, mcap: bool 
             labels (/terrain/labels) on the log's own clock, to open beside the log in Foxglove.
         frames: Also write the camera frames inside labelled segments to OUT/frames, a folder per terrain, with
             their index (frames/index.csv: file, log, camera, time, terrain).
+        untaught: Ship the active version as it is, not taught by the session.
     """
+    from sessions import check_new_target
+
+    from ..cycle import kept_taught, teachable
     from ..export import export_all
 
+    check_new_target(out, what="folder")  # before a taught fit of minutes: a target that exists is refused first
     with Session.open(session) as s:
-        written = export_all(s, out, predictions=predictions, mcap=mcap, frames=frames)
+        if not untaught and teachable(s) is None and kept_taught(s) is None:
+            print("the model that ships: fitting stage 2 taught by the session (once; kept until the labels change)")
+        written = export_all(s, out, predictions=predictions, mcap=mcap, frames=frames, taught=not untaught)
     for path, what in written:
         print(f"{shown(path)}  {what}")
 

@@ -13,7 +13,7 @@ predictor), ``suggestions`` (the queue), ``checks_record`` (each label first a c
 ``family_choice`` (``--model auto``: every family over the default stage 1 fitted, the one the session's held-out
 evidence favours kept), ``session_figure`` (how right the session is now: the active version's spot checks corrected
 by its confidence), ``unseen_changes`` (whether a new version's figure for a run it never saw fell below the last one's
-interval).
+interval), ``taught_fit`` (the model that ships: the active version taught by what the session knows, kept beside it).
 
 Names load on first use (PEP 562, as ``training``'s): ``classify`` reads its checks and change points from here
 without loading PyTorch.
@@ -111,6 +111,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
             "suggestion_lengths",
             "verification_queue",
         ),
+        "taught_fit": ("kept_taught", "labels_key", "shipped_version", "teachable"),
         "train_stages": (
             "MODEL_FAMILIES",
             "active_bundle",

@@ -217,10 +217,15 @@ def compute_scores(
     )
 
 
-def score_session(session: Session, log_ids: Sequence[int] | None = None) -> dict[int, labeling.LogScores]:
-    """What the export predicts: logs (default: all the model uses) scored with the active classifier and the
-    predictor it was trained on, from cached stage-1 outputs."""
-    c_version, bundle = active_bundle(session)
+def score_session(
+    session: Session, log_ids: Sequence[int] | None = None, *, version: ModelVersion | None = None
+) -> dict[int, labeling.LogScores]:
+    """What the export predicts: logs (default: all the model uses) scored with the active classifier (or
+    ``version``, the taught one the export ships) and the predictor it was trained on, from cached stage-1 outputs."""
+    if version is None:
+        c_version, bundle = active_bundle(session)
+    else:
+        c_version, bundle = version, load_bundle(session.path / version.path)
     p_version = next((v for v in session.model_versions("predictor") if v.id == c_version.config["predictor"]), None)
     if p_version is None:
         raise WorkbenchError(f"{session.path}: the predictor classifier v{c_version.id} was trained on is gone")

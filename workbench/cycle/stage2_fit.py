@@ -56,8 +56,11 @@ def train_classifier(
     cancel: CancelFn = never,
     scores: SessionScores | None = None,
     teach: bool = RETRAIN.teach,
+    activate: bool = True,
+    recipe: dict | None = None,
 ) -> ModelVersion:
-    """Stage 2 on the session's labels over the active predictor's cached features; a new, active version.
+    """Stage 2 on the session's labels over the active predictor's cached features; a new version, the active one
+    unless ``activate`` is off.
 
     The family says what it reads (``Family.stage2_inputs``) and how it fits; this gathers those inputs from the
     session and saves what the family's ``fit`` (or, for a quick Retrain, ``fine_tune``) returns.
@@ -85,7 +88,11 @@ def train_classifier(
             runs on it beside their labels: the version's ``unseen_runs``, what the model that ships is expected to
             score on a run it never saw. Without them, on the labels alone.
         teach: With ``scores``, the fit also takes the terrain the session knows over a stretch as its pseudo-label
-            instead of its own agreement there (``RETRAIN.teach``: off, a screen not kept).
+            instead of its own agreement there (``RETRAIN.teach``: off for the session's own fits; the version the
+            export ships is taught, ``taught_fit.shipped_version``).
+        activate: A frames or windows family's fit from scratch: make the new version the active one (off: it is
+            kept beside the active version, as the taught one the export ships is).
+        recipe: A frames or windows family's fit from scratch: more to record in the version's config.
     """
     inputs = fit_inputs(session, stage1_family(session, model))
     if inputs.family.stage2_inputs == "stage1":
@@ -107,7 +114,16 @@ def train_classifier(
             return quick
     device = (config or TrainConfig()).device
     return _train_window(
-        session, inputs, settings, progress=progress, cancel=cancel, device=device, scores=scores, teach=teach
+        session,
+        inputs,
+        settings,
+        progress=progress,
+        cancel=cancel,
+        device=device,
+        scores=scores,
+        teach=teach,
+        activate=activate,
+        recipe=recipe,
     )
 
 
@@ -194,11 +210,14 @@ def _train_window(
     device: str = "cpu",
     scores: SessionScores | None = None,
     teach: bool = False,
+    activate: bool = True,
+    recipe: dict | None = None,
 ) -> ModelVersion:
     """Stage 2 of a family on the front end's frames or on the samples a window per frame (the default family's
     window network, MiniRocket), with self-training over the unlabelled stretches of every log where the family
     learns from them (its held-out runs judged, and with ``teach`` it taught, by ``scores`` where they are sure); a
-    new, active version (the predictor's bundle with it)."""
+    new version (the predictor's bundle with it), the active one unless ``activate`` is off; ``recipe`` adds to
+    what its config records."""
     fam, p_version, bundle, logs = inputs.family, inputs.predictor, inputs.bundle, inputs.logs
     classes, used, segments = inputs.classes, inputs.used, inputs.segments
     front = inputs.front_end(session)
@@ -248,7 +267,9 @@ def _train_window(
                 "self_training_stretches": len(stretches),
                 "known_stretches": int((np.asarray(spans["known"]) >= 0).sum()) if "known" in spans else 0,
                 "taught": "taught" in spans,
+                **(recipe or {}),
             },
+            activate=activate,
         )
         result["version"] = version.id
     return version
@@ -331,12 +352,15 @@ def _save_classifier(
     segments: Sequence[tuple[int, int, int, int]],
     stage2: dict,
     recipe: dict,
+    *,
+    activate: bool = True,
 ) -> ModelVersion:
-    """Save a fitted stage 2 with its predictor as a new, active classifier version.
+    """Save a fitted stage 2 with its predictor as a new classifier version, the active one unless ``activate``.
 
     Args:
         stage2: The bundle's stage-2 fields beside the models (classes, features, front end).
         recipe: The version's config: how it was trained; the labels it saw are added.
+        activate: Make it the active version (off: a version kept beside the active one, as the taught one is).
     """
     labelled = sum(s[2] - s[1] for s in segments)
     total = sum(x.n_samples for x in logs)
@@ -349,7 +373,8 @@ def _save_classifier(
         info={**bundle.info, "predictor_version": recipe["predictor"], "history": fit.history},
         **stage2,
     )
-    return save_version(session, "classifier", full, {**recipe, "labels": labels_record(fit, used, segments)})
+    record = {**recipe, "labels": labels_record(fit, used, segments)}
+    return save_version(session, "classifier", full, record, activate=activate)
 
 
 def taught_classes(

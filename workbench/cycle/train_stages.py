@@ -48,7 +48,9 @@ def model_logs(session: Session, channels: Sequence[str] | None = None) -> list[
     return [log for log in logs if log.channel_names == tuple(channels)]
 
 
-def save_version(session: Session, stage: str, bundle: ModelBundle, extra: dict) -> ModelVersion:
+def save_version(
+    session: Session, stage: str, bundle: ModelBundle, extra: dict, *, activate: bool = True
+) -> ModelVersion:
     path = session.next_model_dir()
     if path.exists():  # a crashed save that got as far as the rename but not the catalog
         shutil.rmtree(path)
@@ -59,7 +61,7 @@ def save_version(session: Session, stage: str, bundle: ModelBundle, extra: dict)
             f"{session.path}: cannot save the {stage} model ({exc.strerror or exc}); the active models are unchanged"
         ) from None
     try:
-        return session.register_model(stage, path, config=extra, metrics=bundle.metrics)
+        return session.register_model(stage, path, config=extra, metrics=bundle.metrics, activate=activate)
     except BaseException:
         shutil.rmtree(path, ignore_errors=True)
         raise

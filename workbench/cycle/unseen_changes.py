@@ -17,5 +17,16 @@ def unseen_change(session: Session, version: ModelVersion) -> str | None:
     """One line when ``version``'s figure for a run it never saw fell below the interval of the latest earlier
     classifier version that stated one; ``None`` when it did not, or either has no such figure."""
     after = version.metrics.get("unseen_runs")
-    earlier = [v for v in session.model_versions("classifier") if v.id < version.id and v.metrics.get("unseen_runs")]
-    return unseen_fell(earlier[-1].metrics["unseen_runs"], after) if earlier else None
+    earlier = compared_version(session, version)
+    return unseen_fell(earlier.metrics["unseen_runs"], after) if earlier is not None else None
+
+
+def compared_version(session: Session, version: ModelVersion) -> ModelVersion | None:
+    """The version ``version``'s figure is compared with: the latest earlier one of the session's own line that
+    stated a figure (a taught version kept for the export is not in that line)."""
+    earlier = [
+        v
+        for v in session.model_versions("classifier")
+        if v.id < version.id and v.metrics.get("unseen_runs") and "taught_from" not in v.config
+    ]
+    return earlier[-1] if earlier else None

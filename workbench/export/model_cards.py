@@ -231,6 +231,7 @@ def model_card(
     checks: ChecksSummary | None = None,
     figure: SessionFigure | None = None,
     logs: int = 0,
+    which: str | None = None,
 ) -> str:
     """A Markdown description of a bundle: what it is, what it was trained on, how well it does, and where it does
     not know (``drifted``: per log name, the share of its time with a drift score above 1; ``unlabelled``: per log
@@ -238,13 +239,15 @@ def model_card(
     logs' steps predicted as their stretch's most predicted terrain; ``unlabelled_members``: the mean of the
     steps' members' agreement over the logs with no label (``labeling.member_agreement``) and how many they are;
     ``checks``: what the person's checks said, test then train; ``figure``: how right the session is, from the
-    spot checks of this version, over its ``logs`` logs)."""
+    spot checks of this version, over its ``logs`` logs; ``which``: which of the session's versions it is, taught or
+    not, as ``cycle.shipped_version`` says)."""
     m, family = bundle.metrics, bundle.stage2_family()
     lines = [
         f"# Terrain classifier v{version}",
         "",
         f"From session `{session}`. {family.describe(bundle)} {parameter_count(bundle):,} parameters.",
         "",
+        *([f"This bundle: {which}.", ""] if which else []),
         "## Inputs",
         "",
         f"{len(bundle.channels)} channels at {bundle.rate_hz:g} Hz, in this order (raw units; the model normalises):",

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import shutil
 from collections.abc import Iterator
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -51,24 +52,39 @@ EXPORT_MIN_CORES = 3
 
 
 def export_all(
-    session: Session, out: Path, *, predictions: bool = False, mcap: bool = False, frames: bool = False
+    session: Session,
+    out: Path,
+    *,
+    predictions: bool = False,
+    mcap: bool = False,
+    frames: bool = False,
+    taught: bool = True,
 ) -> list[tuple[Path, str]]:
-    """Write the active model and the labels to a new folder ``out``; with ``predictions``, per-timestep predictions
-    of every log as Parquet; with ``mcap``, an MCAP file per log (the model's terrain and the labels, on the log's
-    clock) in ``out/mcap``; with ``frames``, the camera frames of the labelled segments in ``out/frames``, a folder
-    per terrain, and their index (``frames/index.csv``).
+    """Write the model that ships and the labels to a new folder ``out``; with ``predictions``, per-timestep
+    predictions of every log as Parquet; with ``mcap``, an MCAP file per log (the model's terrain and the labels, on
+    the log's clock) in ``out/mcap``; with ``frames``, the camera frames of the labelled segments in ``out/frames``,
+    a folder per terrain, and their index (``frames/index.csv``).
+
+    The model that ships is the session's active classifier taught by what the session knows (``taught``, the
+    default: ``cycle.shipped_version``, fitted once and kept beside the active version until the labels or the
+    active version change); ``taught=False`` ships the active version as it is.
 
     Returns:
         What was written, one (path, description) per item.
     """
-    from ..cycle import active_bundle
+    from training import load_bundle
+
+    from ..cycle import shipped_version
 
     out = Path(out)
     check_target(out)  # before any work: a dangling link failed only at the rename, after the whole export
-    version, bundle = active_bundle(session)
+    version, which = shipped_version(session, taught=taught)
+    bundle = load_bundle(session.path / version.path)
     # written under a temporary name and renamed when whole: a refused export leaves no half-written folder
     with staged(out) as tmp:
-        written = _write_export(session, tmp, version, bundle, predictions=predictions, mcap=mcap, frames=frames)
+        written = _write_export(
+            session, tmp, version, bundle, which=which, predictions=predictions, mcap=mcap, frames=frames
+        )
     return [(out / path.relative_to(tmp), what) for path, what in written]
 
 
@@ -78,6 +94,7 @@ def _write_export(
     version: ModelVersion,
     bundle: ModelBundle,
     *,
+    which: str,
     predictions: bool,
     mcap: bool,
     frames: bool,
@@ -107,7 +124,7 @@ def _write_export(
                     strict=True,
                 )
             )
-        for log, s in _scored(session, logs, out / ".scoring"):
+        for log, s in _scored(session, logs, out / ".scoring", version):
             if s.probs is not None:
                 tally.add(log.id, s.probs)
             if (share := labeling.drifted_share(s.drift)) is not None:
@@ -145,10 +162,11 @@ def _write_export(
         checks=(checks := checks_summary(session)),
         figure=tally.figures().session if predictions or mcap or bundle.drift is not None else None,
         logs=len(logs),
+        which=_taught_words(which),
     )
     (out / "bundle" / "MODEL_CARD.md").write_text(card)
     write_checks(out / "bundle", checks, names={x.id: x.name for x in logs})
-    written.append((out / "bundle", f"model bundle v{version.id} (safetensors + model.json + MODEL_CARD.md)"))
+    written.append((out / "bundle", f"model bundle {which} (safetensors + model.json + MODEL_CARD.md)"))
     onnx = export_onnx(bundle, out / "classifier_stream.onnx")
     worst = max(check_onnx(onnx, bundle, session.samples(x.id, 0, CHECK_SAMPLES)) for x in logs[:2])
     if worst > ONNX_TOLERANCE:
@@ -162,31 +180,34 @@ def _write_export(
     return written
 
 
-def _scored(session: Session, logs: list[LogInfo], folder: Path) -> Iterator[tuple[LogInfo, labeling.LogScores]]:
-    """Every log with the active classifier's scores, in order: hours of logs in a forked process per core where
-    there are more than two (``cycle.scored_in_processes``, the batches' arrays in ``folder``, removed at the end),
-    else a group at a time here."""
+def _scored(
+    session: Session, logs: list[LogInfo], folder: Path, version: ModelVersion
+) -> Iterator[tuple[LogInfo, labeling.LogScores]]:
+    """Every log with ``version``'s scores (the model that ships), in order: hours of logs in a forked process per
+    core where there are more than two (``cycle.scored_in_processes``, the batches' arrays in ``folder``, removed at
+    the end), else a group at a time here."""
     from .. import cycle
 
     processes = cycle.scoring_processes(logs, min_cores=EXPORT_MIN_CORES)
     if processes <= 1:
-        yield from scored_logs(logs, lambda ids: cycle.score_session(session, ids))
+        yield from scored_logs(logs, lambda ids: cycle.score_session(session, ids, version=version))
         return
     folder.mkdir()
     try:
         steps = predictions_stream.GROUP_STEPS
+        score = partial(_session_scores, version=version)
         yield from cycle.scored_in_processes(
-            session, logs, _session_scores, processes=processes, folder=folder, group_steps=steps
+            session, logs, score, processes=processes, folder=folder, group_steps=steps
         )
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def _session_scores(session: Session, *, log_ids: list[int], **_: object) -> SessionScores:
-    """``cycle.score_session`` (the active classifier's scores, as the export writes them) in a forked child."""
+def _session_scores(session: Session, *, log_ids: list[int], version: ModelVersion, **_: object) -> SessionScores:
+    """``cycle.score_session`` (the shipped version's scores, as the export writes them) in a forked child."""
     from .. import cycle
 
-    return cycle.SessionScores(scores=cycle.score_session(session, list(log_ids)))
+    return cycle.SessionScores(scores=cycle.score_session(session, list(log_ids), version=version))
 
 
 def write_labelled_frames(session: Session, folder: Path) -> tuple[Path, str]:
@@ -226,3 +247,14 @@ def _write_mcap(
         about={"model_version": str(version.id), "session": session.path.name, "source_file": log.source_path},
     )
     return path, f"{log.name}: topics {PREDICTION_TOPIC} and {LABEL_TOPIC} on the log's clock"
+
+
+def _taught_words(which: str) -> str:
+    """``shipped_version``'s line as the card says it: a taught version says what teaching means."""
+    if "taught by the session" not in which:
+        return which
+    return (
+        f"{which}: stage 2 fitted from scratch on every label and, over each unlabelled stretch, the terrain the "
+        "session was sure of there (its labels' votes and the model together, as the page showed them), so what "
+        "the session learned of its runs ships to the robot"
+    )

@@ -176,7 +176,9 @@ class DataPanel:
             for fmt in ("csv", "parquet", "json"):
                 b = gui.add_button(f"Labels ({fmt.upper()})", icon="download")
                 b.on_click(lambda _, fmt=fmt: host.guard(lambda: self.download_labels(fmt)))
-            self.bundle_button = gui.add_button("Model bundle (zip: PyTorch, ONNX, card)", icon="package")
+            self.bundle_button = gui.add_button(
+                "Model bundle, taught by the session (zip: PyTorch, ONNX, card)", icon="package"
+            )
             self.bundle_button.on_click(lambda _: host.guard(self.download_bundle))
         self.refresh()
 
@@ -272,7 +274,11 @@ class DataPanel:
         from .torch_lane import LANE
 
         session = self.host.state.session
-        self.host.notify("Exporting", "building the bundle and checking ONNX against PyTorch", color="blue")
+        self.host.notify(
+            "Exporting",
+            "the bundle taught by the session (fitted once after each Retrain), ONNX checked against PyTorch",
+            color="blue",
+        )
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "export"
             LANE.run(export_all, session, out)

@@ -150,6 +150,9 @@ class TrainPanel:
             else:
                 what = f"val MSE {m.get('val_mse', float('nan')):.4f}, {m.get('epochs', '?')} epochs"
             act = " <b style='color:#2e7d32'>active</b>" if v.active else ""
+            if "taught_from" in v.config:  # kept beside the active version for the export: what the robot gets
+                source = int(v.config["taught_from"])
+                act += f" <b style='color:#6a1b9a'>ships (taught by the session from v{source})</b>"
             rows.append(f"<tr><td>v{v.id}</td><td>{html.escape(v.stage)}</td><td>{html.escape(what)}{act}</td></tr>")
         self.versions.content = (
             "<table style='width:100%;font-size:0.75em'>" + "".join(rows) + "</table>"

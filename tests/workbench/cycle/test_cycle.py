@@ -172,14 +172,15 @@ def test_export_scores_a_group_of_logs_at_a_time_and_writes_what_one_scoring_of_
     export_all(trained, whole, predictions=True, mcap=True)
     asked: list[list[int]] = []
     real = cycle.score_session
-    monkeypatch.setattr(cycle, "score_session", lambda s, ids=None: asked.append(list(ids)) or real(s, ids))
+    monkeypatch.setattr(cycle, "score_session", lambda s, ids=None, **kw: asked.append(list(ids)) or real(s, ids, **kw))
     monkeypatch.setattr(predictions_stream, "GROUP_STEPS", 1)  # every log a group of its own
     out = tmp_path / "grouped"
     export_all(trained, out, predictions=True, mcap=True)
     logs = trained.logs()
     assert asked == [[x.id] for x in logs]
-    bundle = cycle.active_bundle(trained)[1]
-    one_call = real(trained)  # what the export wrote before: every log scored at once, one table
+    shipped = cycle.shipped_version(trained)[0]  # the version both exports shipped (fitted once, then kept)
+    bundle = load_bundle(trained.path / shipped.path)
+    one_call = real(trained, version=shipped)  # what the export wrote before: every log scored at once, one table
     expected = pd.concat(
         [prediction_frame(x.name, one_call[x.id].probs, bundle.classes, x.rate_hz, one_call[x.id].drift) for x in logs],
         ignore_index=True,
@@ -203,9 +204,9 @@ def test_export_of_hours_scores_in_processes_and_writes_what_one_process_writes(
     pids.mkdir()
     real = cycle.score_session
 
-    def recorded(s, ids=None):
+    def recorded(s, ids=None, **kw):
         (pids / str(os.getpid())).touch()
-        return real(s, ids)
+        return real(s, ids, **kw)
 
     monkeypatch.setattr(cycle, "score_session", recorded)
     monkeypatch.setattr(forked_scores, "FORK_STEPS", 1)  # the test's minutes of logs scored as hours are

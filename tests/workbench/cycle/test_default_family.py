@@ -23,17 +23,22 @@ from .test_cycle import TINY
 pytestmark = pytest.mark.usefixtures("fast_window_fits")  # what the fits do, not how well
 
 
-@pytest.fixture(scope="module")
-def session(tmp_path_factory: pytest.TempPathFactory) -> Session:
+def trained_demo_session(root: Path, *, seed: int, label_seed: int) -> Session:
+    """Two 1-minute demo walks, 15 % labelled, a tiny stage 1 and the default family's stage 2."""
     from workbench.demo import generate_demo_logs
 
-    root = tmp_path_factory.mktemp("default")
-    logs = generate_demo_logs(root / "logs", n_logs=2, minutes=1.0, seed=5)
+    logs = generate_demo_logs(root / "logs", n_logs=2, minutes=1.0, seed=seed)
     s = new_session(root / "s")
     s.ingest(logs)
-    seed_labels(s, 0.15, seed=1)
+    seed_labels(s, 0.15, seed=label_seed)
     cycle.train_predictor(s, config=TINY, hidden=8)
     cycle.train_classifier(s)  # no family named: the default
+    return s
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory: pytest.TempPathFactory) -> Session:
+    s = trained_demo_session(tmp_path_factory.mktemp("default"), seed=5, label_seed=1)
     yield s
     s.close()
 
@@ -74,7 +79,10 @@ def test_scores_stream_and_classify_agree_on_every_step(session: Session, tmp_pa
     assert code == 0, lines
     pred = pd.read_csv(tmp_path / "p.csv")
     assert len(pred) == log.n_samples
-    np.testing.assert_allclose(pred[[f"p_{c}" for c in bundle.classes]].to_numpy(), scored.probs, atol=1e-4)
+    shipped, which = cycle.shipped_version(session)  # the taught version the export fitted and kept: no second fit
+    assert shipped.config["taught_from"] == session.active_model("classifier").id, which
+    ships = score_session(session, [log.id], version=shipped)[log.id]  # the session's pass over the shipped one
+    np.testing.assert_allclose(pred[[f"p_{c}" for c in bundle.classes]].to_numpy(), ships.probs, atol=1e-4)
 
 
 class _Rows:
