@@ -241,13 +241,15 @@ def loop(
         reference: A label file stored as the reference labels of the logs it names (in the copy only).
         strategies: Strategies compared, each from the same start: random, entropy, margin, disagreement, surprise,
             combined, and the ablations (combined-no-unchecked, combined-no-votes, combined-no-wrong-first,
-            combined-no-main-answer, combined-main-answer-new, combined-teacher, combined-teacher-last).
+            combined-no-main-answer, combined-main-answer-new, combined-teacher, combined-teacher-last,
+            combined-untaught: the far runs scored by each round's fit as it is, not taught as `export` ships it).
         rounds: Rounds of labelling, each followed by a fit.
         per_round: Suggestions labelled per round.
         person: How the simulated person labels a suggestion: the suggested piece, or also the model's stretch around
             it where the reference agrees (as a range or Y does).
         far: Log files of runs kept out of the session, their truth in --reference: after every round the bundle the
-            session would export scores them as `workbench classify` does (what ships to the robot).
+            session would export (taught by the session, as `export` writes it) scores them as `workbench classify`
+            does: what ships to the robot.
         mapping: TOML or JSON file naming topics/columns to read in the --far files, as `workbench ingest` and
             `classify` take it (give the one the session's logs were ingested with).
         rate: Rate (Hz) the --far files are aligned at before the bundle resamples them, as for `ingest`.

@@ -19,14 +19,16 @@ class LoopArm:
         policy: The suggestion queue's policy (the session's, ``cycle.SESSION_POLICY``, with a lever changed).
         votes: Whether a run's labels vote over its frames in the scores (``compute_scores(votes=)``).
         teach: Whether each round's fit is taught by the session's scores (``RETRAIN.teach``).
-        teach_last: Whether the last round's fit alone is taught so (the model that ships learns the session's
-            blend once the rounds are done; the rounds before are not fed back their own errors).
+        teach_last: Whether the last round's fit alone is taught so and made the session's active version.
+        ships_taught: Whether the far runs are scored by the model ``export`` ships (the round's fit taught by the
+            session, kept beside it; the session goes on with its own) or by the round's fit as it is.
     """
 
     policy: labeling.QueuePolicy = SESSION_POLICY
     votes: bool = True
     teach: bool = RETRAIN.teach
     teach_last: bool = False
+    ships_taught: bool = True
 
 
 # What a lever is worth, measured by leaving it out: an arm's name in the loop -> what it runs
@@ -38,6 +40,7 @@ ABLATIONS: dict[str, LoopArm] = {
     "combined-main-answer-new": LoopArm(replace(SESSION_POLICY, main_answer="new")),  # every new run's asked first
     "combined-teacher": LoopArm(teach=True),  # the fit taught by the session's scores (RETRAIN.teach)
     "combined-teacher-last": LoopArm(teach_last=True),  # the last round's fit alone taught so
+    "combined-untaught": LoopArm(ships_taught=False),  # the far runs scored by the round's fit, not the taught one
 }
 
 

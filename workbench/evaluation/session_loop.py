@@ -26,7 +26,8 @@ from typing import Literal
 import numpy as np
 
 import labeling
-from sessions import IngestOptions, LogInfo, Session, WorkbenchError, new_file, read_frame, write_frame
+from sessions import IngestOptions, LogInfo, ModelVersion, Session, WorkbenchError, new_file, read_frame, write_frame
+from training import load_bundle
 
 from ..cycle import (
     SessionScores,
@@ -37,6 +38,7 @@ from ..cycle import (
     compute_scores,
     keep_answers,
     record_check,
+    shipped_version,
     signal_change_points,
     suggest_for_session,
     train_classifier,
@@ -105,13 +107,15 @@ class LoopRound:
         majority: Always answering the most common labelled terrain on the same time: its name and accuracy.
         said: Per new log, what the workbench says of it (:func:`.loop_said.said_of_logs`).
         far: The shipped model on the far runs (runs kept out of the session, ``far_runs``): accuracy and balanced
-            accuracy; ``None`` without far runs.
+            accuracy; ``None`` without far runs. The shipped model is what ``export`` would write at that round:
+            the round's fit taught by the session (``cycle.shipped_version``), or as it is in an arm that ships it
+            untaught.
         far_per_log: Its accuracy per far run.
         verified: With ``LoopSettings.verify``: the session's accuracy from that many uniform checks of the round's
             model and its confidence, with a 90 % interval and the truth (``None``: not asked).
-        unseen: The fitted model's figure for a run it never saw (its folds over runs, judged on what the session
+        unseen: The shipped model's figure for a run it never saw (its folds over runs, judged on what the session
             knows of them: ``metrics["unseen_runs"]``): accuracy and the 90 % interval's bounds (``None`` each
-            where it has none).
+            where it has none); without far runs, the round's fit's.
         changed: The share of the new logs' unlabelled time whose answer changed this round (``answer_change``).
     """
 
@@ -284,8 +288,8 @@ def _estimate(session: Session) -> float | None:
     return None if value is None or value != value else float(value)
 
 
-def _unseen(session: Session) -> tuple[float | None, float | None, float | None]:
-    version = session.active_model("classifier")
+def _unseen(version: ModelVersion | None) -> tuple[float | None, float | None, float | None]:
+    """The figure ``version`` (the model that ships) states for a run it never saw: accuracy, low, high."""
     got = (version.metrics if version is not None else {}).get("unseen_runs") or {}
     return got.get("accuracy"), got.get("low"), got.get("high")
 
@@ -323,7 +327,8 @@ def run_arm(
             keep_answers(s, scores)
             change = answer_change(s, scores, log_ids=new_ids) if r > 0 else None
             measured = measure(s, scores, new, truth, classes)
-            shipped = None if far is None else score_far(active_bundle(s)[1], far)
+            ships = shipped_version(s, taught=arm.ships_taught)[0] if far is not None else s.active_model("classifier")
+            shipped = None if far is None else score_far(load_bundle(s.path / ships.path), far)
             in_new = sum(g.length for g in s.segments() if g.log_id in new_ids and g.author == AUTHOR)
             checked = checks_summary(s, log_ids=new_ids)
             rounds.append(
@@ -346,7 +351,7 @@ def run_arm(
                     said_of_logs(s, scores, new, points, covered=_covered),
                     None if shipped is None else (shipped.accuracy, shipped.balanced),
                     {} if shipped is None else shipped.per_log,
-                    _unseen(s),
+                    _unseen(ships),
                     verify_session(
                         s, scores, new, truth, classes, _covered, k=settings.verify, seed=settings.seed * 1000 + 900 + r
                     )

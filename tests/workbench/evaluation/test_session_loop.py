@@ -336,3 +336,30 @@ def test_far_runs_are_read_with_the_mapping_rate_and_gaps_the_session_was_ingest
     # the read options belong to --far: alone they are refused in one line
     assert main(["evaluate", "loop", str(session), "--reference", str(reference), "--mapping", str(mapping)]) == 2
     assert "--mapping, --rate and --allow-gaps say how the --far files are read" in capsys.readouterr().err
+
+
+def test_far_runs_are_scored_by_the_taught_model_export_ships_and_the_untaught_arm_by_the_rounds_fit(
+    loop_session: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """Issue 98, item 2: the far column is what `export` would write at each round (taught), and
+    ``combined-untaught`` is its ablation row (the round's own fit)."""
+    from workbench.evaluation import session_loop
+
+    session, reference = loop_session
+    path, truth = _walk(tmp_path / "far.csv", 40, gain=1.5, seconds=40.0)
+    both = tmp_path / "truth.csv"
+    rows = pd.read_csv(reference)
+    pd.concat([rows, pd.DataFrame(truth, columns=rows.columns)]).to_csv(both, index=False)
+    shipped: list[tuple[bool, bool]] = []  # per round: taught asked, and the version scored is the active one
+    real = session_loop.shipped_version
+
+    def recorded(s, *, taught=True):
+        version, which = real(s, taught=taught)
+        shipped.append((taught, version.active))
+        return version, which
+
+    monkeypatch.setattr(session_loop, "shipped_version", recorded)
+    args = ["evaluate", "loop", str(session), "--reference", str(both), "--rounds", "1", "--per-round", "3"]
+    assert main([*args, "--strategies", "combined", "combined-untaught", "--far", str(path)]) == 0, capsys.readouterr()
+    # rounds 0 and 1 of each arm: taught versions kept beside the active one, then the active one itself
+    assert shipped == [(True, False), (True, False), (False, True), (False, True)]
