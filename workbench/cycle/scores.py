@@ -177,6 +177,7 @@ def compute_scores(
     log_ids: Collection[int] | None = None,
     votes: bool = True,
     tracks: bool = True,
+    classifier: ModelVersion | None = None,
 ) -> SessionScores:
     """What the UI shows: every log scored with the active predictor (and the active classifier when it was trained
     on it), with highlight tracks and suggestion embeddings.
@@ -189,12 +190,14 @@ def compute_scores(
         votes: A labelled run's probabilities blended with its labels' vote (``run_votes``); off only to measure
             what that is worth.
         tracks: Rank the highlight tracks (off: ``tracks`` is empty, for a caller that ranks them over more logs).
+        classifier: Score with this classifier version instead of the active one (a taught version, to teach from
+            what it knows in turn).
     """
     p_version = session.active_model("predictor")
     if p_version is None:
         return SessionScores()
     bundle = load_bundle(session.path / p_version.path)
-    c_version = session.active_model("classifier")
+    c_version = classifier or session.active_model("classifier")
     if c_version is not None and c_version.config.get("predictor") != p_version.id:
         c_version = None  # trained on another predictor's features: its probabilities would mean nothing
     c_bundle = None if c_version is None else load_bundle(session.path / c_version.path)

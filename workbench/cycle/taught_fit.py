@@ -47,9 +47,14 @@ def teachable(session: Session) -> str | None:
     return None
 
 
-def kept_taught(session: Session) -> ModelVersion | None:
-    """The taught version made from the active classifier and today's labels, if one is kept; the active version
-    itself when it was taught."""
+# Taught fits in a row: each after the first taught by the session's scores made with the one before (its votes
+# blended in again). One: the measured default (benchmarks/results/loop.md, stand-in D)
+TEACH_PASSES = 1
+
+
+def kept_taught(session: Session, *, passes: int = TEACH_PASSES) -> ModelVersion | None:
+    """The taught version made from the active classifier and today's labels in ``passes`` taught fits, if one is
+    kept; the active version itself when it was taught."""
     active = session.active_model("classifier")
     if active is None:
         return None
@@ -60,21 +65,29 @@ def kept_taught(session: Session) -> ModelVersion | None:
         (
             v
             for v in reversed(session.model_versions("classifier"))
-            if v.config.get("taught_from") == active.id and v.config.get("labels_key") == key
+            if v.config.get("taught_from") == active.id
+            and v.config.get("labels_key") == key
+            and v.config.get("teach_passes", 1) == passes
         ),
         None,
     )
 
 
 def shipped_version(
-    session: Session, *, taught: bool = True, progress: ProgressFn | None = None, cancel: CancelFn = never
+    session: Session,
+    *,
+    taught: bool = True,
+    passes: int = TEACH_PASSES,
+    progress: ProgressFn | None = None,
+    cancel: CancelFn = never,
 ) -> tuple[ModelVersion, str]:
     """The classifier version the export ships, and one line saying which it is.
 
     With ``taught`` (the default), the active version taught by the session: the kept one when the active version
     and the labels are as they were, else stage 2 fitted from scratch on every label with the terrain the session's
     scores are sure of over each unlabelled stretch (``labeling.taught_terrains``) as that stretch's pseudo-label,
-    saved as a version beside the active one (never made active). A family that learns from labels alone ships its
+    saved as a version beside the active one (never made active); with ``passes`` above one, each fit after the
+    first taught by the session's scores made with the one before. A family that learns from labels alone ships its
     active version, and the line says why.
 
     Raises:
@@ -88,22 +101,28 @@ def shipped_version(
     why = teachable(session)
     if why is not None:
         return active, f"v{active.id}, the session's active version (not taught: {why})"
-    kept = kept_taught(session)
+    kept = kept_taught(session, passes=passes)
     if kept is not None:
         said = "taught itself" if kept.id == active.id else f"taught by the session from v{active.id}"
         return kept, f"v{kept.id}, {said}"
-    scores = compute_scores(session, tracks=False)
-    if not scores.scores or scores.classifier != active.id:
-        return active, f"v{active.id}, the session's active version (not taught: the session has no scores of it)"
-    version = train_classifier(
-        session,
-        model=recorded_family(active.config),
-        warm_start=False,
-        progress=progress,
-        cancel=cancel,
-        scores=scores,
-        teach=True,
-        activate=False,
-        recipe={"taught_from": active.id, "labels_key": labels_key(session)},
-    )
+    key, version = labels_key(session), active
+    for k in range(1, passes + 1):
+        kept = kept_taught(session, passes=k)
+        if kept is not None:  # an earlier pass is kept: teach on from it
+            version = kept
+            continue
+        scores = compute_scores(session, tracks=False, classifier=None if version.id == active.id else version)
+        if not scores.scores or scores.classifier != version.id:
+            return active, f"v{active.id}, the session's active version (not taught: the session has no scores of it)"
+        version = train_classifier(
+            session,
+            model=recorded_family(active.config),
+            warm_start=False,
+            progress=progress,
+            cancel=cancel,
+            scores=scores,
+            teach=True,
+            activate=False,
+            recipe={"taught_from": active.id, "labels_key": key, "teach_passes": k},
+        )
     return version, f"v{version.id}, taught by the session from v{active.id}"

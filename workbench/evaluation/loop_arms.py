@@ -22,6 +22,7 @@ class LoopArm:
         teach_last: Whether the last round's fit alone is taught so and made the session's active version.
         ships_taught: Whether the far runs are scored by the model ``export`` ships (the round's fit taught by the
             session, kept beside it; the session goes on with its own) or by the round's fit as it is.
+        teach_passes: Taught fits in a row for the model that ships (``cycle.shipped_version``'s ``passes``).
     """
 
     policy: labeling.QueuePolicy = SESSION_POLICY
@@ -29,6 +30,7 @@ class LoopArm:
     teach: bool = RETRAIN.teach
     teach_last: bool = False
     ships_taught: bool = True
+    teach_passes: int = 1
 
 
 # What a lever is worth, measured by leaving it out: an arm's name in the loop -> what it runs
@@ -41,6 +43,7 @@ ABLATIONS: dict[str, LoopArm] = {
     "combined-teacher": LoopArm(teach=True),  # the fit taught by the session's scores (RETRAIN.teach)
     "combined-teacher-last": LoopArm(teach_last=True),  # the last round's fit alone taught so
     "combined-untaught": LoopArm(ships_taught=False),  # the far runs scored by the round's fit, not the taught one
+    "combined-taught-twice": LoopArm(teach_passes=2),  # taught again from the taught model's scores of the session
 }
 
 

@@ -327,7 +327,9 @@ def run_arm(
             keep_answers(s, scores)
             change = answer_change(s, scores, log_ids=new_ids) if r > 0 else None
             measured = measure(s, scores, new, truth, classes)
-            ships = shipped_version(s, taught=arm.ships_taught)[0] if far is not None else s.active_model("classifier")
+            ships = s.active_model("classifier")
+            if far is not None:  # what `export` would write now
+                ships = shipped_version(s, taught=arm.ships_taught, passes=arm.teach_passes)[0]
             shipped = None if far is None else score_far(load_bundle(s.path / ships.path), far)
             in_new = sum(g.length for g in s.segments() if g.log_id in new_ids and g.author == AUTHOR)
             checked = checks_summary(s, log_ids=new_ids)

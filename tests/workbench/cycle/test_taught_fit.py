@@ -90,6 +90,16 @@ def test_a_taught_version_is_not_in_the_sessions_line_of_versions(session: Sessi
     assert compared_version(session, later).id == own[-1].id
 
 
+def test_a_second_pass_is_taught_by_the_first_taught_versions_scores(session: Session) -> None:
+    """``passes=2`` (the loop's ``combined-taught-twice``): the first pass kept as the one-pass version, the second
+    taught from the session scored with it."""
+    twice, which = cycle.shipped_version(session, passes=2)
+    once = cycle.kept_taught(session)
+    assert once is not None and once.config["teach_passes"] == 1 and twice.config["teach_passes"] == 2
+    assert twice.id > once.id and "taught by the session" in which
+    assert cycle.shipped_version(session, passes=2)[0].id == twice.id  # kept: no third fit
+
+
 def test_a_family_that_learns_from_labels_alone_ships_its_active_version(session: Session, tmp_path: Path) -> None:
     paper = cycle.train_classifier(session, model="paper", config=TINY, hidden=8)
     before = _versions(session)

@@ -353,8 +353,8 @@ def test_far_runs_are_scored_by_the_taught_model_export_ships_and_the_untaught_a
     shipped: list[tuple[bool, bool]] = []  # per round: taught asked, and the version scored is the active one
     real = session_loop.shipped_version
 
-    def recorded(s, *, taught=True):
-        version, which = real(s, taught=taught)
+    def recorded(s, *, taught=True, passes=1):
+        version, which = real(s, taught=taught, passes=passes)
         shipped.append((taught, version.active))
         return version, which
 
