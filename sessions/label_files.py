@@ -6,6 +6,7 @@ import io
 import json
 import math
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
@@ -291,6 +292,54 @@ def unlabelled_rows(frame: pd.DataFrame) -> tuple[pd.DataFrame, list[int]]:
     return frame[~blank], [int(i) + 2 for i in np.flatnonzero(blank)]  # the index keeps each row's line
 
 
+def row_log(
+    by_name: Mapping[str, list[LogInfo]],
+    by_source: Mapping[str, list[LogInfo]],
+    name: str,
+    source: str | None,
+    *,
+    path: Path,
+    where: str,
+) -> LogInfo:
+    """The one log a row names: by its ``log`` name, and by its ``source_file`` where the file gives one (a name
+    two logs share in a session made before names were kept unique, or a log renamed at ingest: ``read_as``).
+    ``by_name`` and ``by_source``: the session's logs by name and by source path (:func:`logs_by`).
+
+    Raises:
+        LabelError: No log has that name; the name is two logs' and no ``source_file`` tells which; the name and
+            ``source_file`` name two different logs.
+    """
+    named = by_name.get(name, [])
+    if source is not None:
+        from_source = by_source.get(source, [])
+        both = [x for x in from_source if x in named or x.info.get("read_as") == name]
+        if len(both) == 1:
+            return both[0]
+        if named and from_source and not both:
+            raise LabelError(
+                f"{path}: {where}: log {name!r} is from {named[0].source_path}, but source_file says {source} "
+                f"(log {from_source[0].name!r}); correct one of them; nothing was imported"
+            )
+    if len(named) == 1:
+        return named[0]
+    if not named:
+        raise LabelError(f"{path}: {where}: unknown log {name!r}; nothing was imported")
+    raise LabelError(
+        f"{path}: {where}: log {name!r} names {len(named)} logs of the session (from "
+        f"{', '.join(x.source_path for x in named)}); give the row's source_file to say which; nothing was imported"
+    )
+
+
+def logs_by(logs: list[LogInfo]) -> tuple[dict[str, list[LogInfo]], dict[str, list[LogInfo]]]:
+    """The logs by name and by source path, for :func:`row_log`."""
+    by_name: dict[str, list[LogInfo]] = {}
+    by_source: dict[str, list[LogInfo]] = {}
+    for x in logs:
+        by_name.setdefault(x.name, []).append(x)
+        by_source.setdefault(x.source_path, []).append(x)
+    return by_name, by_source
+
+
 def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path) -> list[Row]:
     """Every row of a label file resolved against the session, or a ``LabelError`` naming the first bad row.
 
@@ -303,16 +352,14 @@ def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *,
         raise LabelError(f"{path}: label file needs columns log, terrain and start_sample/end_sample or start_s/end_s")
     has_samples = {"start_sample", "end_sample"} <= set(frame.columns)
     has_seconds = {"start_s", "end_s"} <= set(frame.columns)
-    by_name: dict[str, LogInfo] = {}
-    for log in logs:
-        by_name.setdefault(log.name, log)
+    has_source = "source_file" in frame.columns
+    by_name, by_source = logs_by(logs)
     out = []
     for index, row in zip(frame.index, frame.itertuples(index=False), strict=True):
         i = int(index) + 2  # line 1 is the header; a row left out (unlabelled_rows) keeps the others' lines
         where = str(row.at) if "at" in frame.columns else f"row {i}"
-        log = by_name.get(str(row.log))
-        if log is None:
-            raise LabelError(f"{path}: {where}: unknown log {row.log!r}; nothing was imported")
+        source = str(row.source_file) if has_source and given(row.source_file) else None
+        log = row_log(by_name, by_source, str(row.log), source, path=path, where=where)
         if not given(row.terrain):
             raise LabelError(f"{path}: {where}: terrain is empty; every row names its terrain; nothing was imported")
         if str(row.terrain) not in terrains:

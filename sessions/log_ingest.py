@@ -22,7 +22,7 @@ import numpy as np
 from . import labels as _labels
 from .cameras import place_cameras, stage_cameras
 from .errors import IngestError, SessionError
-from .ingest import AlignedLog, IngestOptions, align, plan_sources, read_source
+from .ingest import AlignedLog, IngestOptions, ParsedLog, align, plan_sources, read_source
 from .ingest.sources import Source
 from .ingest_lock import ingesting
 from .logs import LogInfo
@@ -148,8 +148,14 @@ class LogIngest:
 
     def _write_logs(self, aligned: list[AlignedLog], sha: str) -> list[LogInfo]:
         logs_dir = self.path / LOGS_DIR
-        # The same recording again keeps the copy we have: no array is written for it.
-        ids = {name: int(i) for name, i in self._read("SELECT name, id FROM logs WHERE source_sha256 = ?", (sha,))}
+        # The same recording again keeps the copy we have: no array is written for it (found by the name it was
+        # read as: a log renamed to keep names unique keeps that name in its info)
+        stored = self._read("SELECT name, info, id FROM logs WHERE source_sha256 = ? ORDER BY id", (sha,))
+        ids = {json.loads(info).get("read_as", name): int(i) for name, info, i in stored}
+        read_as = [log.parsed.name for log in aligned]
+        if stored and not set(read_as) & set(ids) and len(stored) == len(read_as):
+            # the same recording under another file name (a copy, a link): the logs we have, read in the same order
+            ids = {name: int(row[2]) for name, row in zip(read_as, stored, strict=True)}
         staged: list[tuple[AlignedLog, Path]] = []
         cameras: dict[str, list[tuple[Path, Path, dict]]] = {}
         placed: list[Path] = []
@@ -162,13 +168,17 @@ class LogIngest:
                 cameras[log.parsed.name] = stage_cameras(logs_dir, log.parsed.cameras, t0=log.t0)
             with self._write() as conn:
                 for log, tmp in staged:
-                    row = conn.execute(  # another process may have ingested it meanwhile
-                        "SELECT id FROM logs WHERE source_sha256 = ? AND name = ?", (sha, log.parsed.name)
-                    ).fetchone()
-                    if row is not None:
-                        ids[log.parsed.name] = int(row[0])
+                    same = [  # another process may have ingested it meanwhile
+                        int(i)
+                        for name, info, i in conn.execute(
+                            "SELECT name, info, id FROM logs WHERE source_sha256 = ?", (sha,)
+                        ).fetchall()
+                        if json.loads(info).get("read_as", name) == log.parsed.name
+                    ]
+                    if same:
+                        ids[log.parsed.name] = same[0]
                         continue
-                    log_id = self._insert_log(conn, log, sha, tmp.name)
+                    log_id = self._insert_log(conn, log, sha, tmp.name, name=unique_log_name(conn, log.parsed))
                     final = logs_dir / f"{log_id:06d}.npy"
                     conn.execute("UPDATE logs SET file = ? WHERE id = ?", (f"{LOGS_DIR}/{final.name}", log_id))
                     os.replace(tmp, final)
@@ -197,14 +207,19 @@ class LogIngest:
         return [self.log(ids[log.parsed.name]) for log in aligned]
 
     @staticmethod
-    def _insert_log(conn: sqlite3.Connection, log: AlignedLog, sha: str, tmp_name: str) -> int:
+    def _insert_log(
+        conn: sqlite3.Connection, log: AlignedLog, sha: str, tmp_name: str, *, name: tuple[str, str | None]
+    ) -> int:
         p = log.parsed
         info = {"files": list(p.files), "stream_rates_hz": log.stream_rates, "notes": list(p.notes)}
+        if name[1] is not None:  # renamed: a name names one run (labels by name land on it, exports tell them apart)
+            info["read_as"] = p.name
+            info["notes"].insert(0, name[1])
         cur = conn.execute(
             "INSERT INTO logs (name, source_path, source_sha256, format, file, n_samples, rate_hz, t0, "
             "reference_terrain, info, ingested_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
             (
-                p.name,
+                name[0],
                 p.source_path,
                 sha,
                 p.format,
@@ -234,3 +249,18 @@ class LogIngest:
             [(log_id, a, b, t) for a, b, t in reference],
         )
         return log_id
+
+
+def unique_log_name(conn: sqlite3.Connection, parsed: ParsedLog) -> tuple[str, str | None]:
+    """The name a new log is stored under, and the note that says why when it is not the one it was read as: a log
+    of another recording already has that name, so the new one is ``NAME-2`` (``-3``, ...): every lookup by name
+    (label files, suggestions, exports) must land on one run."""
+    taken = {str(r[0]) for r in conn.execute("SELECT name FROM logs").fetchall()}
+    if parsed.name not in taken:
+        return parsed.name, None
+    other = conn.execute("SELECT source_path FROM logs WHERE name = ?", (parsed.name,)).fetchone()[0]
+    k = 2
+    while f"{parsed.name}-{k}" in taken:
+        k += 1
+    name = f"{parsed.name}-{k}"
+    return name, f"named {name}: the session has another log named {parsed.name} (from {other})"

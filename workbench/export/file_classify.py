@@ -97,6 +97,8 @@ class ReadLogs:
     arrays: tuple[np.ndarray, ...]
     starts: tuple[float, ...]
     errors: tuple[IngestError, ...]
+    paths: tuple[str, ...] = ()  # each log's source file
+    notes: tuple[str, ...] = ()  # a log renamed so that one name names one run, and from which file
 
 
 def read_logs(
@@ -106,18 +108,36 @@ def read_logs(
     sources at once, each in a process of its own (reading a log is Python: one core's work)."""
     sources, errors = plan_sources(list(files))
     read = partial(_read_source, float(bundle.rate_hz), tuple(bundle.channels), options)
-    names, arrays, starts = [], [], []
+    names, arrays, starts, paths = [], [], [], []
     for got in in_processes(read, sources, jobs=jobs):
         names += got.names
         arrays += got.arrays
         starts += got.starts
         errors += got.errors
-    return ReadLogs(tuple(names), tuple(arrays), tuple(starts), tuple(errors))
+        paths += got.paths
+    names, notes = _one_name_one_run(names, paths)
+    return ReadLogs(tuple(names), tuple(arrays), tuple(starts), tuple(errors), tuple(paths), tuple(notes))
+
+
+def _one_name_one_run(names: list[str], paths: list[str]) -> tuple[list[str], list[str]]:
+    """Names that each name one run (two files of one stem in two folders: the later one ``NAME-2``, as ``ingest``
+    names it), and a note per log renamed."""
+    out, notes, taken = [], [], set(names)
+    for name, path in zip(names, paths, strict=True):
+        if name in out:
+            k = 2
+            while f"{name}-{k}" in taken:
+                k += 1
+            taken.add(f"{name}-{k}")
+            notes.append(f"two runs are named {name}: the one from {path} is written as {name}-{k}")
+            name = f"{name}-{k}"
+        out.append(name)
+    return out, notes
 
 
 def _read_source(rate_hz: float, channels: tuple[str, ...], options: IngestOptions, src: Source) -> ReadLogs:
     """One planned source's logs at ``rate_hz`` in ``channels``' order, or the errors that refused them."""
-    names, arrays, starts, errors = [], [], [], []
+    names, arrays, starts, errors, paths = [], [], [], [], []
     try:
         parsed, _ = read_source(src, options)
     except IngestError as exc:
@@ -136,7 +156,8 @@ def _read_source(rate_hz: float, channels: tuple[str, ...], options: IngestOptio
         names.append(p.name)
         arrays.append(a.data[:, [have.index(c) for c in channels]])
         starts.append(a.t0)
-    return ReadLogs(tuple(names), tuple(arrays), tuple(starts), tuple(errors))
+        paths.append(p.source_path)
+    return ReadLogs(tuple(names), tuple(arrays), tuple(starts), tuple(errors), tuple(paths))
 
 
 def in_processes(fn: Callable[[T], R], items: Sequence[T], *, jobs: int) -> list[R]:
@@ -290,6 +311,7 @@ def classify_files(
     jobs = default_jobs(len(files)) if jobs is None else jobs
     read = read_logs(bundle, files, options, jobs=jobs)
     lines += [f"error: {e}" for e in read.errors]
+    lines += [f"note: {n}" for n in read.notes]
     names, arrays, starts = list(read.names), list(read.arrays), list(read.starts)
     paths = per_log_paths(Path(out), names) if as_mcap else []
     try:

@@ -391,3 +391,20 @@ def test_a_pick_is_never_shorter_than_what_one_prediction_reads(session: Session
     assert picks and all(p.stop - p.start >= scores.span for _, p in picks)
     checks = cycle.verification_queue(session, scores, logs=logs, n=4)
     assert checks and all(p.stop - p.start >= scores.span for _, p in checks)
+
+
+def test_classify_names_two_runs_of_one_file_stem_apart(session: Session, tmp_path: Path) -> None:
+    """Issue 99, item 1: two files of one stem in two folders were written under one name in CSV and Parquet."""
+    import shutil
+
+    export_all(session, tmp_path / "export", taught=False)
+    first, second = (Path(x.source_path) for x in session.logs()[:2])
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    a, b = shutil.copy(first, tmp_path / "a" / "run.mcap"), shutil.copy(second, tmp_path / "b" / "run.mcap")
+    code, lines = classify_files(tmp_path / "export" / "bundle", [Path(a), Path(b)], tmp_path / "p.csv", _options())
+    assert code == 0, lines
+    assert f"note: two runs are named run: the one from {b} is written as run-2" in lines
+    pred = pd.read_csv(tmp_path / "p.csv")
+    counts = pred["log"].value_counts().to_dict()
+    assert counts == {"run": session.logs()[0].n_samples, "run-2": session.logs()[1].n_samples}
