@@ -3,8 +3,11 @@ session's PyTorch path scores for the same file."""
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -70,3 +73,46 @@ def test_several_files_are_read_and_scored_in_processes_as_one_process_does(
     pd.testing.assert_frame_equal(outs[0], outs[1])
     assert sorted(set(outs[0]["log"])) == ["run0", "run1", "run2"]
     assert main(["classify", str(bundle_dir), str(files[0]), "--out", str(tmp_path / "x.csv"), "--jobs", "0"]) == 2
+
+
+def _sleeper(pids: Path, _item: int) -> None:
+    with pids.open("a") as f:
+        f.write(f"{os.getpid()}\n")
+    time.sleep(60)
+
+
+def test_a_killed_classify_leaves_no_worker_running(tmp_path: Path) -> None:
+    """Issue 99, item 4: `classify --jobs 2 | cat` killed with SIGKILL left both pool workers alive for 20-60 s,
+    holding the pipe; they now end with the process that forked them."""
+    from functools import partial
+
+    from workbench.export.file_classify import in_processes
+
+    pids = tmp_path / "pids"
+    parent = os.fork()  # a process standing for `classify`
+    if parent == 0:
+        try:
+            in_processes(partial(_sleeper, pids), [0, 1], jobs=2)
+        finally:
+            os._exit(0)
+    try:
+        deadline = time.monotonic() + 60
+        while (not pids.exists() or len(pids.read_text().split()) < 2) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        workers = [int(p) for p in pids.read_text().split()]
+        assert len(workers) == 2
+    finally:
+        os.kill(parent, signal.SIGKILL)
+        os.waitpid(parent, 0)
+    deadline = time.monotonic() + 10
+    while any(_alive(w) for w in workers) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_alive(w) for w in workers)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"  # a zombie has ended

@@ -4,8 +4,9 @@
 Modules: ``cpu_threads`` (threads for the free CPUs), ``fit_threads`` (a family's fits run two or more at a time,
 bit-identical whatever the workers), ``fit_processes`` (those fits in forked children, clear of the GIL),
 ``distributed`` (the process group under ``torchrun``; a public submodule),
-``checkpoint`` (a fit's state on disk, keyed by its settings), ``progress`` (what a fit reports, and its cancel).
-Names load on first use: ``progress`` and ``cpu_threads`` never load torch.
+``checkpoint`` (a fit's state on disk, keyed by its settings), ``progress`` (what a fit reports, and its cancel),
+``parent_death`` (a forked child ends with its parent). Names load on first use: ``progress``, ``cpu_threads`` and
+``parent_death`` never load torch.
 """
 
 from ..lazy_names import lazy_exports
@@ -25,6 +26,7 @@ __all__, __getattr__, __dir__ = lazy_exports(
         "cpu_threads": ("free_cpus", "threads_for", "use_free_cpus", "usable_cpus"),
         "fit_processes": ("fork_safe", "forking", "hide_gpus", "run_forked"),
         "fit_threads": ("INIT_LOCK", "fit_workers", "run_fits"),
+        "parent_death": ("end_with_parent",),
         "progress": ("CancelFn", "Cancelled", "Progress", "ProgressFn", "never"),
     },
     globals(),

@@ -20,10 +20,8 @@ CPU has no use for the GPU, and a torch that sees none starts no such thread).
 
 from __future__ import annotations
 
-import ctypes
 import multiprocessing
 import os
-import signal
 import sys
 import traceback
 import warnings
@@ -35,12 +33,12 @@ from typing import Any, TypeVar
 import torch
 
 from ..training_errors import TrainingError
+from .parent_death import end_with_parent
 from .progress import CancelFn, Cancelled, never
 
 T = TypeVar("T")
 
 POLL_S = 0.25  # how often a cancel is polled while the fits run
-PR_SET_PDEATHSIG = 1  # prctl's option: a signal for this process when the thread that forked it ends
 
 
 def forking() -> bool:
@@ -103,19 +101,8 @@ def _warm() -> None:
     opt.step()
 
 
-def _end_with(parent: int) -> None:
-    """Have the kernel end this child when the thread that forked it ends (a killed ``train`` or server leaves no fit
-    running on), or end it now if that already happened."""
-    try:
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-    except (OSError, AttributeError):  # no prctl: the child ends when its send finds the pipe closed
-        return
-    if os.getppid() != parent:
-        os._exit(1)
-
-
 def _child(job: Callable[[], Any], pack: Callable[[Any], Any], conn: Connection, parent: int) -> None:
-    _end_with(parent)
+    end_with_parent(parent)
     torch.set_num_threads(1)
     try:
         out: tuple[str, Any] = ("ok", pack(job()))

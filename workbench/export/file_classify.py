@@ -169,7 +169,11 @@ def in_processes(fn: Callable[[T], R], items: Sequence[T], *, jobs: int) -> list
     jobs = min(jobs, len(items))
     if jobs <= 1 or sys.platform != "linux":
         return [fn(x) for x in items]
-    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork")) as pool:
+    from training import end_with_parent
+
+    context = multiprocessing.get_context("fork")
+    # a killed classify leaves no worker holding its output pipe (`classify ... | cat` would never end)
+    with ProcessPoolExecutor(jobs, mp_context=context, initializer=end_with_parent, initargs=(os.getpid(),)) as pool:
         return list(pool.map(fn, items))
 
 
