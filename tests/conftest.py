@@ -53,6 +53,24 @@ def snapshot(session_path: Path) -> tuple:
 TEST_TERRAINS = ("concrete", "grass", "gravel", "mulch", "dirt", "sand")
 
 
+def ended_within(pids: list[int], seconds: float) -> bool:
+    """Whether every process of ``pids`` has ended (or is a zombie) within ``seconds``."""
+    import time
+
+    deadline = time.monotonic() + seconds
+    while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return not any(_alive(p) for p in pids)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"  # a zombie has ended (its parent, init, reaps it)
+
+
 def add_terrains(s: Session, names: tuple[str, ...] = TEST_TERRAINS) -> Session:
     """Add the terrains a test labels with (those the session lacks)."""
     have = {t.name for t in s.terrains()}

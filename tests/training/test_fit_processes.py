@@ -5,12 +5,12 @@ from __future__ import annotations
 import os
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 
+from tests.conftest import ended_within
 from training.running import Cancelled, fit_processes, run_fits
 from training.running.fit_processes import FitProcessError, fork_safe, forking
 
@@ -145,15 +145,4 @@ def test_a_killed_parent_leaves_no_fit_running(tmp_path) -> None:
     finally:
         os.kill(parent, signal.SIGKILL)
         os.waitpid(parent, 0)
-    deadline = time.monotonic() + 10
-    while any(_alive(c) for c in children) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert not any(_alive(c) for c in children)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != "Z"  # a zombie has ended (its parent, init, reaps it)
+    assert ended_within(children, 10)

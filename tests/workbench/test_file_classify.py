@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from sessions import IngestOptions
+from tests.conftest import ended_within
 from training import load_bundle, load_scoring_bundle
 from workbench.export import read_logs, score_arrays
 
@@ -104,15 +105,4 @@ def test_a_killed_classify_leaves_no_worker_running(tmp_path: Path) -> None:
     finally:
         os.kill(parent, signal.SIGKILL)
         os.waitpid(parent, 0)
-    deadline = time.monotonic() + 10
-    while any(_alive(w) for w in workers) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert not any(_alive(w) for w in workers)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != "Z"  # a zombie has ended
+    assert ended_within(workers, 10)
