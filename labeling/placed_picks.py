@@ -51,6 +51,14 @@ def unlabelled_runs(start: int, stop: int, covered: np.ndarray, *, min_len: int)
     return [(start + int(a), start + int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= min_len]
 
 
+MISSES_BEFORE_LOOKING = 64  # draws in a row that found no piece before the free time is searched for room
+
+
+def _room_left(cov: Sequence[np.ndarray], min_len: int) -> bool:
+    """Whether some log still has a run of at least ``min_len`` steps that is not covered."""
+    return any(unlabelled_runs(0, len(c), c, min_len=min_len) for c in cov)
+
+
 def coverage(lengths: Sequence[int], labelled: Sequence[Span]) -> list[np.ndarray]:
     """Per log, ``(T,)`` bool: true where labelled."""
     cov = [np.zeros(n, bool) for n in lengths]
@@ -126,9 +134,12 @@ def spot_checks(
     # the unlabelled steps of every log, counted per log: the n-th of them all is drawn without listing them (a
     # fleet's hours of steps as one index were 300 MB, copied after each pick)
     free = np.array([len(c) - int(np.count_nonzero(c)) for c in cov], np.int64)
+    misses = 0
     for _ in range(50 * count):
         if len(out) == count or not free.sum():
             break
+        if misses and misses % MISSES_BEFORE_LOOKING == 0 and not _room_left(cov, min_len):
+            break  # no free run a piece fits in: more draws would all miss (a count past what the time holds)
         at = int(rng.integers(free.sum()))
         before = np.cumsum(free)
         log = int(np.searchsorted(before, at, side="right"))
@@ -136,7 +147,9 @@ def spot_checks(
         a, b = max(0, step - max_len // 2), min(lengths[log], step - max_len // 2 + max_len)
         pieces = [(x, y) for x, y in unlabelled_runs(a, b, cov[log], min_len=min_len) if x <= step < y]
         if not pieces:
+            misses += 1
             continue
+        misses = 0
         x, y = pieces[0]
         cov[log][x:y] = True
         free[log] -= y - x

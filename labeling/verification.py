@@ -69,11 +69,16 @@ def verification_checks(
         max_len: A piece's longest, in steps.
         min_len: Its shortest (a draw where less is free is drawn again).
         seed: Seed of the draws.
+
+    Returns:
+        At most ``count`` pieces: fewer where the time nobody labelled holds fewer (a count past it is not drawn
+        for).
     """
     cov = coverage(lengths, labelled)
     free = [len(c) - int(c.sum()) for c in cov]
     out: list[Suggestion] = []
     for log, m in enumerate(proportional(free, count)):
+        m = min(m, free[log] // max(min_len, 1))  # no more pieces than the log's free time holds
         if not m:
             continue
         mine = [(0, a, b) for g, a, b in labelled if g == log]

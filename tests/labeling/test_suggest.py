@@ -431,3 +431,21 @@ def test_the_queue_is_asked_with_its_evidence_and_a_policy() -> None:
     picks = suggest(scores, evidence, policy=QueuePolicy(max_len=200, min_len=50, spot_checks=1), n=4)
     assert [p.kind for p in picks][-1] == "spot check" and len(picks) == 4
     assert all(p.log == 1 for p in picks[:2])  # log 1 nobody labelled comes first
+
+
+def test_verification_checks_past_what_the_time_holds_are_capped_there() -> None:
+    """Issue 99, item 5: ``suggest --verify --n 10000000`` drew 50 times per piece asked (minutes); a count past the
+    pieces the unlabelled time holds now gets those pieces, none overlapping each other or a label."""
+    from labeling import verification_checks
+
+    picks = verification_checks([1000, 600], [(0, 0, 100)], 10_000_000, max_len=50, min_len=25, seed=3)
+    assert 0 < len(picks) <= (900 + 600) // 25
+    cov = [np.zeros(1000, bool), np.zeros(600, bool)]
+    cov[0][:100] = True
+    for p in picks:
+        assert p.stop - p.start >= 25 and not cov[p.log][p.start : p.stop].any()
+        cov[p.log][p.start : p.stop] = True
+    # what is left holds no piece of 25 steps
+    for c in cov:
+        runs = np.diff(np.flatnonzero(np.diff(np.concatenate([[1], c.astype(np.int8), [1]]))))[::2]
+        assert (runs < 25).all()

@@ -144,6 +144,7 @@ def suggest(
     check_new_target(out)  # before torch loads (seconds): a refused target is told at once
     import pandas as pd
 
+    import labeling
     from sessions import write_frame
 
     from ..cycle import (
@@ -164,6 +165,7 @@ def suggest(
             raise WorkbenchError(f"{s.path}: no model yet; run `workbench train {s.path}` first")
         logs = [x for x in s.logs() if x.id in scores.scores]
         keep_answers(s, scores)
+        asked = 0  # --verify: the checks asked for (--n, or as many as --width needs)
         if (change := answer_change(s, scores)) is not None:  # whether another round is worth it
             print(change.words())
         if verify:
@@ -171,9 +173,16 @@ def suggest(
                 raise WorkbenchError(f"{s.path}: no classifier to verify; label two terrains and train it first")
             figure = session_figures(s, scores).session
             print(f"the session: {figure.words()}; {figure.plan_words(width=width / 100)}")
+            asked = n if n is not None else min(figure.plan(width=width / 100), labeling.MOST_CHECKS)
             picks = verification_queue(s, scores, logs=logs, width=width / 100, n=n)
             if not picks:
-                print("nothing written: no verification check is needed for that width")
+                why = (
+                    "no verification check is needed for that width"
+                    if asked <= 0
+                    else "the time nobody labelled holds no piece left to check (every unlabelled stretch is "
+                    "labelled or checked already)"
+                )
+                print(f"nothing written: {why}")
                 return
         else:
             points = {x.id: signal_change_points(s, x) for x in logs}
@@ -197,6 +206,11 @@ def suggest(
     frame = pd.DataFrame(rows, columns=columns).astype({"terrain": "string", "guess": "string"})
     write_frame(frame, out)
     print(f"wrote {len(rows)} segment(s) to {shown(out)}: fill in their terrain, then `workbench labels import`")
+    if verify and len(rows) < asked:
+        print(
+            f"asked for {asked:,}: the time nobody labelled holds {len(rows)} more piece(s) to check (none "
+            "overlapping another, a label or a check)"
+        )
     if not verify and len(rows) < (n or 12):
         print(
             f"asked for {n or 12:,}: the session holds {len(rows)} piece(s) to suggest (unlabelled pieces cut at "

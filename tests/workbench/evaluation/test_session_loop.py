@@ -232,6 +232,12 @@ def test_suggest_verify_writes_the_checks_the_width_needs_and_the_session_figure
     )
     assert moved and 0 <= float(moved.group(1)) <= 100
     assert main(["suggest", str(session), "--out", str(tmp_path / "x.csv"), "--verify", "--width", "0"]) == 2
+    # issue 99, item 5: a count past the pieces there are is capped there and said (it ran minutes: 50 draws each)
+    assert main(["suggest", str(session), "--out", str(tmp_path / "all.csv"), "--verify", "--n", "10000000"]) == 0
+    said = capsys.readouterr().out
+    written = len(pd.read_csv(tmp_path / "all.csv"))
+    assert f"asked for 10,000,000: the time nobody labelled holds {written} more piece(s) to check" in said, said
+    assert 0 < written < 2_000
 
 
 def test_far_runs_are_scored_by_the_shipped_bundle_every_round_and_never_enter_the_session(
