@@ -93,6 +93,25 @@ class LogIngest:
         with ingesting(self.path / LOGS_DIR):  # the sweep of another process leaves this one's staged files alone
             return self._ingest_sources(sources, options, fail, progress)
 
+    def logs_recorded_in(self, files: Sequence[str | Path]) -> dict[Path, list[LogInfo]]:
+        """Per file given (as ``ingest`` groups them into sources), the session's logs read from a recording of the
+        same content under any name: a copy or a link of a log's file is that log, whatever it is called.
+
+        Raises:
+            IngestError: A file cannot be read.
+        """
+        sources, _ = plan_sources(list(files))
+        out: dict[Path, list[LogInfo]] = {}
+        for src in sources:
+            try:
+                sha = _sha256(src.files)
+            except OSError as exc:
+                raise IngestError(src.files[0], f"cannot read: {exc.strerror or exc}") from None
+            ids = [int(r[0]) for r in self._read("SELECT id FROM logs WHERE source_sha256 = ? ORDER BY id", (sha,))]
+            if ids:
+                out[Path(src.path)] = [self.log(i) for i in ids]
+        return out
+
     def _ingest_sources(
         self,
         sources: list[Source],

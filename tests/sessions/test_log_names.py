@@ -96,3 +96,13 @@ def test_the_same_recording_under_another_file_name_is_the_log_the_session_has(t
     copy = Path(shutil.copy(first, tmp_path / "copy.csv"))
     (got,) = s.ingest([copy])
     assert got.id == s.logs()[0].id and len(s.logs()) == 2
+
+
+def test_a_file_holding_a_session_logs_recording_is_found_by_its_content(two_walks, tmp_path: Path) -> None:
+    import shutil
+
+    s, first, _ = two_walks
+    copy = Path(shutil.copy(first, tmp_path / "renamed.csv"))
+    fresh = _run(tmp_path / "c" / "new.csv", 9)
+    found = s.logs_recorded_in([copy, fresh])
+    assert {p: [x.name for x in logs] for p, logs in found.items()} == {copy: ["walk"]}

@@ -5,7 +5,8 @@ no votes of a run's own labels). The robot gets the bundle, not the session: thi
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -50,6 +51,8 @@ def read_far_runs(
     *,
     session_logs: Sequence[str],
     options: IngestOptions | None = None,
+    recorded: Mapping[Path, Sequence[str]] | None = None,
+    terrains_known: Sequence[str] | None = None,
 ) -> FarRuns:
     """Read the far runs as ``classify`` reads log files, their truth from ``reference`` (a label file naming them).
 
@@ -60,9 +63,15 @@ def read_far_runs(
         session_logs: The session's log names (a far run is none of them).
         options: How the files are read, as ``ingest`` and ``classify`` take them (``--mapping``, ``--rate``,
             ``--allow-gaps``); camera frames are never decoded. Default: ``ingest``'s defaults.
+        recorded: Far files whose content is a recording the session holds (``Session.logs_recorded_in``): such a
+            file is a log of the session under another name, never a far run.
+        terrains_known: The session's terrains: a truth row naming another (or none) is refused, as the session's
+            own reference is.
 
     Raises:
-        WorkbenchError: A file is refused, a run is in the session, or a run has no row in the reference.
+        WorkbenchError: A file is refused, a run is in the session (by name or by content), a run has no row in
+            the reference, or a row of it is malformed (a blank or unknown terrain, times that are not finite,
+            not increasing or outside the run), each in one line naming the file and the row.
     """
     read = read_logs(bundle, files, replace(options or IngestOptions(), camera_fps=0))
     if read.errors:
@@ -74,6 +83,11 @@ def read_far_runs(
         raise WorkbenchError(
             f"--far: {inside[0]} is a log of the session; a far run is one the session never saw (leave it out of "
             "the session, or out of --far)"
+        )
+    for path, names in (recorded or {}).items():  # by content: a copy of a session log under another name
+        raise WorkbenchError(
+            f"--far: {path} holds the recording of the session's log {names[0]} (the same content under another "
+            "name); a far run is one the session never saw"
         )
     frame = read_frame(Path(reference))
     if not {"log", "terrain", "start_s", "end_s"} <= set(frame.columns):
@@ -88,11 +102,44 @@ def read_far_runs(
         if rows.empty:
             raise WorkbenchError(f"{reference}: no row names the far run {name}; give its truth there")
         y = np.full(len(a), -1, np.int64)
-        for start, end, terrain in zip(rows["start_s"], rows["end_s"], rows["terrain"], strict=True):
-            lo, hi = (max(0, round(float(x) * bundle.rate_hz)) for x in (start, end))
-            y[lo:hi] = terrains.index(str(terrain))
+        for index, start, end, terrain in zip(rows.index, rows["start_s"], rows["end_s"], rows["terrain"], strict=True):
+            where = f"{reference}: row {int(index) + 2}"
+            lo, hi = _span(start, end, len(a) / bundle.rate_hz, where=where)
+            _known(terrain, terrains_known, where=where)
+            y[round(lo * bundle.rate_hz) : round(hi * bundle.rate_hz)] = terrains.index(str(terrain))
         truth.append(y)
     return FarRuns(read.names, read.arrays, tuple(truth), terrains)
+
+
+def _span(start: object, end: object, duration_s: float, *, where: str) -> tuple[float, float]:
+    """A truth row's ``(start_s, end_s)``, clipped to the run, or a ``WorkbenchError`` naming the row."""
+    if any(_blank(x) for x in (start, end)):
+        raise WorkbenchError(f"{where}: start_s and end_s must be given, in seconds from the run's start")
+    try:
+        lo, hi = float(start), float(end)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise WorkbenchError(f"{where}: start_s {start} and end_s {end} must be numbers of seconds") from None
+    if not (math.isfinite(lo) and math.isfinite(hi)) or not 0 <= lo < hi:
+        raise WorkbenchError(f"{where}: start_s {lo:g} and end_s {hi:g} must be finite, from 0 and increasing")
+    if lo >= duration_s:
+        raise WorkbenchError(f"{where}: starts at {lo:g} s, after the run's end ({duration_s:.1f} s)")
+    return lo, min(hi, duration_s)
+
+
+def _blank(value: object) -> bool:
+    """A cell holding nothing: CSV cells are read as text (empty: ""), Parquet and JSON ones may be null."""
+    return value is None or (isinstance(value, float) and math.isnan(value)) or not str(value).strip()
+
+
+def _known(terrain: object, known: Sequence[str] | None, *, where: str) -> None:
+    """Refuse a truth row whose terrain is blank, or not a terrain of the session."""
+    if _blank(terrain):
+        raise WorkbenchError(f"{where}: terrain is empty; every row of a far run's truth names its terrain")
+    if known is not None and str(terrain) not in known:
+        raise WorkbenchError(
+            f"{where}: unknown terrain {str(terrain)!r}; the far runs' truth names terrains of the session "
+            f"({', '.join(known)})"
+        )
 
 
 def score_far(bundle: ModelBundle, far: FarRuns) -> FarScore:

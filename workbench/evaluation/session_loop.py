@@ -449,6 +449,8 @@ def evaluate_loop(
                     active_bundle(s)[1],
                     session_logs=[x.name for x in s.logs()],
                     options=far_options,
+                    recorded={p: [x.name for x in logs] for p, logs in s.logs_recorded_in(far).items()},
+                    terrains_known=[t.name for t in s.terrains()],
                 )
                 log(f"far runs: {len(far_runs.names)} kept out of the session ({', '.join(far_runs.names)})")
         arms = {

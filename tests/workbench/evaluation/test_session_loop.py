@@ -369,3 +369,50 @@ def test_far_runs_are_scored_by_the_taught_model_export_ships_and_the_untaught_a
     assert main([*args, "--strategies", "combined", "combined-untaught", "--far", str(path)]) == 0, capsys.readouterr()
     # rounds 0 and 1 of each arm: taught versions kept beside the active one, then the active one itself
     assert shipped == [(True, False), (True, False), (False, True), (False, True)]
+
+
+def test_a_session_log_copied_under_another_name_is_no_far_run(
+    loop_session: tuple[Path, Path], tmp_path: Path, capsys
+) -> None:
+    """Issue 99, item 6: a copy of a session log's file was accepted as a far run ("96.6 %" where far runs score
+    61-81): far runs are compared with the session's logs by content, not name."""
+    import shutil
+
+    session, reference = loop_session
+    copy = Path(shutil.copy(session.parent / "w2.csv", tmp_path / "elsewhere.csv"))
+    both = tmp_path / "truth.csv"
+    rows = pd.read_csv(reference)
+    extra = rows[rows["log"] == "w2"].assign(log="elsewhere")
+    pd.concat([rows, extra]).to_csv(both, index=False)
+    args = ["evaluate", "loop", str(session), "--reference", str(both), "--rounds", "1", "--far", str(copy)]
+    assert main(args) == 2
+    assert "holds the recording of the session's log w2 (the same content under another name)" in (
+        capsys.readouterr().err
+    )
+
+
+@pytest.mark.parametrize(
+    ("row", "said"),
+    [
+        ((0.0, 10.0, ""), "row 3: terrain is empty"),
+        ((0.0, 10.0, "lava"), "row 3: unknown terrain 'lava'; the far runs' truth names terrains of the session"),
+        ((float("nan"), 10.0, "hard"), "row 3: start_s and end_s must be given, in seconds from the run's start"),
+        ((0.0, float("inf"), "hard"), "row 3: start_s 0 and end_s inf must be finite"),
+        (("soon", 10.0, "hard"), "row 3: start_s soon and end_s 10.0 must be numbers of seconds"),
+        ((1e308, 2e308, "hard"), "must be finite"),
+        ((500.0, 600.0, "hard"), "row 3: starts at 500 s, after the run's end (40.0 s)"),
+    ],
+)
+def test_a_malformed_far_truth_row_is_refused_in_one_line_naming_it(tmp_path: Path, row: tuple, said: str) -> None:
+    """Issue 99, item 6: such rows scored 0 % with exit 0, or ended in an internal error."""
+    from types import SimpleNamespace
+
+    from sessions import WorkbenchError
+    from workbench.evaluation import read_far_runs
+
+    path, truth = _walk(tmp_path / "far.csv", 50, seconds=40.0)
+    frame = pd.DataFrame([truth[0], ("far", *row)], columns=["log", "start_s", "end_s", "terrain"])
+    frame.to_csv(tmp_path / "truth.csv", index=False)
+    bundle = SimpleNamespace(rate_hz=RATE, channels=("a", "b", "c"))  # what reading a far run needs of a bundle
+    with pytest.raises(WorkbenchError, match=re.escape(said)):
+        read_far_runs([path], tmp_path / "truth.csv", bundle, session_logs=[], terrains_known=TERRAINS)
