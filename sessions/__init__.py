@@ -5,6 +5,7 @@ Knows nothing of training, labelling strategies or the UI; ``workbench`` compose
 
 from .cameras import CameraFrame, CameraInfo
 from .checks import CHECK_KINDS, COUNTED_KINDS, Check
+from .disk_space import check_room, folder_bytes
 from .errors import IngestError, LabelError, SessionError, WorkbenchError
 from .file_names import safe_file_name
 from .ingest import (
@@ -77,7 +78,9 @@ __all__ = [
     "align",
     "check_new_target",
     "check_new_targets",
+    "check_room",
     "file_format",
+    "folder_bytes",
     "load_mapping",
     "name_refusal",
     "new_file",

@@ -17,6 +17,7 @@ import numpy as np
 from . import labels as _labels
 from .cameras import CameraStore
 from .checks import CheckStore
+from .disk_space import unusable_words
 from .errors import SessionError
 from .ingest_lock import sweeping
 from .label_files import LabelImport
@@ -105,7 +106,7 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore, TerrainStore):
                 conn.close()
                 raise
         except sqlite3.DatabaseError as exc:
-            raise SessionError(f"{path / DB_NAME}: not a usable session database ({exc})") from None
+            raise SessionError(unusable_words(path, path / DB_NAME, exc)) from None
         session = cls(path, conn)
         (path / LOGS_DIR).mkdir(exist_ok=True)
         session._sweep_leftovers()

@@ -177,6 +177,7 @@ def train(
             with Session.open(session) as s:
                 names = cycle.auto_families() if model == "auto" else (cycle.stage1_family(s, model).name,)
                 refuse_family_device(names, device)
+                _room_for_versions(s)
                 if stage in ("predictor", "all"):  # auto's families share one stage 1: the first one's
                     first = cycle.auto_families()[0] if model == "auto" else model
                     _on_free_cpus(lambda: _train_predictor(s, config, hidden, first))
@@ -192,6 +193,16 @@ def train(
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(0)
+
+
+def _room_for_versions(s: Session) -> None:
+    """Refuse a fit of minutes whose save the disk has no room for, before the fit: twice the newest version's
+    files (a version and its staging copy), 8 MB at least."""
+    from sessions import check_room, folder_bytes
+
+    versions = s.model_versions()
+    newest = folder_bytes(s.path / versions[-1].path) if versions else 0
+    check_room(s.path, max(2 * newest, 8 << 20), what="a new model version")
 
 
 def _on_free_cpus(fn) -> None:

@@ -60,6 +60,13 @@ def save_version(
         raise WorkbenchError(
             f"{session.path}: cannot save the {stage} model ({exc.strerror or exc}); the active models are unchanged"
         ) from None
+    except Exception as exc:  # safetensors' own error wraps the OS's ("No space left on device")
+        if "No space left" not in str(exc):
+            raise
+        raise WorkbenchError(
+            f"{session.path}: cannot save the {stage} model (no space left on the disk); the active models are "
+            "unchanged"
+        ) from None
     try:
         return session.register_model(stage, path, config=extra, metrics=bundle.metrics, activate=activate)
     except BaseException:

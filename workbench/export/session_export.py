@@ -78,14 +78,34 @@ def export_all(
 
     out = Path(out)
     check_target(out)  # before any work: a dangling link failed only at the rename, after the whole export
+    _room_for_export(session, out, predictions=predictions or mcap)
     version, which = shipped_version(session, taught=taught)
     bundle = load_bundle(session.path / version.path)
     # written under a temporary name and renamed when whole: a refused export leaves no half-written folder
-    with staged(out) as tmp:
-        written = _write_export(
-            session, tmp, version, bundle, which=which, predictions=predictions, mcap=mcap, frames=frames
-        )
+    try:
+        with staged(out) as tmp:
+            written = _write_export(
+                session, tmp, version, bundle, which=which, predictions=predictions, mcap=mcap, frames=frames
+            )
+    except OSError as exc:  # a disk that filled while writing: one line, and no half-written folder
+        raise WorkbenchError(f"{out}: cannot write the export ({exc.strerror or exc}); nothing was written") from None
     return [(out / path.relative_to(tmp), what) for path, what in written]
+
+
+def _room_for_export(session: Session, out: Path, *, predictions: bool) -> None:
+    """Refuse an export the disk holding ``out`` has no room for, before the work: the active version's files
+    twice (the bundle and the taught one fitted for it), 4 MB for the ONNX file and the labels, and with
+    predictions 8 bytes per step and column of every log."""
+    from sessions import check_room, folder_bytes
+
+    active = session.active_model("classifier")
+    need = 4 << 20
+    if active is not None:
+        need += 2 * folder_bytes(session.path / active.path)
+        if predictions:
+            columns = len(active.metrics.get("per_class_recall") or {}) + 4
+            need += 8 * columns * sum(x.n_samples for x in session.logs())
+    check_room(out.parent, need, what="the export")
 
 
 def _write_export(

@@ -100,6 +100,22 @@ def test_a_second_pass_is_taught_by_the_first_taught_versions_scores(session: Se
     assert cycle.shipped_version(session, passes=2)[0].id == twice.id  # kept: no third fit
 
 
+def test_train_and_export_on_a_full_disk_are_refused_before_the_work_in_one_line(
+    session: Session, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """Issue 99, item 7: with 0.5-2 MB free `train` fitted for 36 s and ended in an internal SafetensorError, and
+    `export` in an internal [Errno 28]; both now say so first, exit 2, and nothing changes."""
+    from sessions import disk_space
+
+    versions = _versions(session)
+    monkeypatch.setattr(disk_space, "free_bytes", lambda p: 1 << 20)
+    assert main(["train", str(session.path), "--stage", "classifier"]) == 2
+    assert "no space left for a new model version: 1.0 MB free on its disk" in capsys.readouterr().err
+    assert main(["export", str(session.path), "--out", str(tmp_path / "x")]) == 2
+    assert "no space left for the export: 1.0 MB free on its disk" in capsys.readouterr().err
+    assert _versions(session) == versions and not (tmp_path / "x").exists()
+
+
 def test_a_family_that_learns_from_labels_alone_ships_its_active_version(session: Session, tmp_path: Path) -> None:
     paper = cycle.train_classifier(session, model="paper", config=TINY, hidden=8)
     before = _versions(session)
