@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .checks import CHECK_KINDS, insert_check
+from .checks import CHECK_KINDS, insert_check, issued_check
 from .errors import LabelError
 from .terrain_rows import names_since
 
@@ -30,10 +30,13 @@ def classifier_versions(conn) -> dict[int, str]:
 def check_of_row(conn, cells: pd.Series, row: Row, versions: dict[int, str], *, author: str, counts: list[int]) -> None:
     """The check a filled-in row of a suggestion file is: the classifier's guess against the person's terrain (its
     guess over the piece, so agreement is 1 or 0), compared by terrain rather than by name (a terrain renamed since
-    the file was written is the same terrain). ``counts`` gains the check: ``[new, already kept]``.
+    the file was written is the same terrain). The kind and the guess are the ones the session wrote for that
+    piece (``issued``), never the file's own: a row whose piece the session did not write is a label and no check.
+    ``counts`` gains the check: ``[new, already kept, not written by the session]``.
 
     Raises:
-        LabelError: The row names a classifier version the session does not have, or a kind it does not know.
+        LabelError: The row names a classifier version the session does not have, or a kind it does not know, or
+            its kind or guess is not what the session wrote for that piece.
     """
     guess, kind, version = cells["guess"], cells["kind"], cells["classifier"]
     if not given(guess):
@@ -46,8 +49,21 @@ def check_of_row(conn, cells: pd.Series, row: Row, versions: dict[int, str], *, 
     if number is None or number not in versions:
         known = f"it has {_span(sorted(versions))}" if versions else "it has none"
         raise LabelError(f"classifier {str(version)!r} is not a classifier version of this session ({known})")
+    issued = issued_check(conn, row.log.id, row.start, row.stop, number)
+    if issued is None:  # the file's columns alone would let a row vouch for the model: a label, no check
+        counts[2] += 1
+        return
     names = names_since(conn, versions[number])
+    if str(kind) != issued[0]:
+        raise LabelError(f"kind {str(kind)!r} is not what the session drew for this piece ({issued[0]!r})")
     predicted = names.get(str(guess), str(guess))
+    said = None if issued[1] is None else names.get(issued[1], issued[1])
+    if predicted != said:
+        raise LabelError(
+            f"guess {str(guess)!r} is not the answer classifier v{number} gave for this piece ({issued[1]!r}, as "
+            "the session wrote it)"
+        )
+    kind = issued[0]
     _, new = insert_check(
         conn,
         row.log.id,

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import sqlite3
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -154,9 +155,31 @@ class CheckStore:
             )
             return check
 
+    def record_issued(self, rows: Sequence[tuple[int, int, int, int, str, str | None]]) -> None:
+        """Record the checks a ``suggest`` file offers, as the session drew them: ``(log id, start, stop,
+        classifier, kind, guess)`` each (the guess: the classifier's terrain over the piece, as named now). A row of
+        the file filled in is then a check of that kind and that guess (:func:`issued_check`); one drawn again
+        keeps its first record."""
+        with self._write() as conn:  # type: ignore[attr-defined]
+            conn.executemany(
+                "INSERT OR IGNORE INTO issued (log_id, start, stop, classifier, kind, guess, at) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                [(*r, now()) for r in rows],
+            )
+
     def checks(self, log_id: int | None = None) -> list[Check]:
         """The checks, of one log or all, oldest first."""
         where, args = ("WHERE log_id = ?", (log_id,)) if log_id is not None else ("", ())
         with self._lock:
             rows = self._conn.execute(f"SELECT {_COLS} FROM checks {where} ORDER BY id", args).fetchall()
         return [Check(*r) for r in rows]
+
+
+def issued_check(conn: sqlite3.Connection, log_id: int, start: int, stop: int, classifier: int) -> tuple | None:
+    """What the session wrote for a piece of a ``suggest`` file: ``(kind, guess)``, or ``None`` when it wrote no
+    such row (a file from elsewhere, or from before the session kept the record)."""
+    row = conn.execute(
+        "SELECT kind, guess FROM issued WHERE log_id = ? AND start = ? AND stop = ? AND classifier = ?",
+        (log_id, start, stop, classifier),
+    ).fetchone()
+    return None if row is None else (str(row[0]), None if row[1] is None else str(row[1]))

@@ -389,6 +389,8 @@ class LabelImport:
         blank: Line numbers of the rows left out because their terrain is empty (a suggestion nobody labelled).
         checks: Checks of a classifier added (rows of a ``workbench suggest`` file).
         checks_already: Rows that checked a piece, version and kind checked before (counted once).
+        checks_unrecorded: Rows filled in whose piece the session never wrote in a ``suggest`` file for that version
+            (a file from elsewhere, or written before the session kept that record): labels, not checks.
     """
 
     segments: tuple[Segment, ...]
@@ -397,6 +399,7 @@ class LabelImport:
     blank: tuple[int, ...] = ()
     checks: int = 0
     checks_already: int = 0
+    checks_unrecorded: int = 0
 
 
 def import_rows(
@@ -408,7 +411,7 @@ def import_rows(
     by ``workbench suggest`` (columns ``guess``, ``kind`` and ``classifier``) is also a set of checks: each row
     filled in keeps what that classifier guessed there (``checks.py``), once per piece, version and kind, as a
     label made in the page does."""
-    out, already, checks = [], 0, [0, 0]
+    out, already, checks = [], 0, [0, 0, 0]
     versions = classifier_versions(conn) if set(frame.columns) >= CHECK_COLUMNS else None
     for row in parse_rows(frame, logs, terrains, path=path):
         try:
@@ -432,7 +435,9 @@ def import_rows(
         except LabelError as exc:
             raise LabelError(f"{path}: {row.where}: {exc}; nothing was imported") from None
     rows = len(out) + already
-    return LabelImport(tuple(out), rows, already, checks=checks[0], checks_already=checks[1])
+    return LabelImport(
+        tuple(out), rows, already, checks=checks[0], checks_already=checks[1], checks_unrecorded=checks[2]
+    )
 
 
 def import_reference_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path) -> int:

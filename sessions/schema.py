@@ -187,7 +187,28 @@ def _v3(conn: sqlite3.Connection) -> None:
     )
 
 
-MIGRATIONS: tuple[Migration, ...] = (_v1, _v2, _v3)
+def _v4(conn: sqlite3.Connection) -> None:
+    """The checks the session drew and wrote (a ``suggest`` file's rows): a filled-in row is a check of the kind the
+    session drew there and of the guess its classifier made, whatever the file's own columns say."""
+    _run_script(
+        conn,
+        """
+        CREATE TABLE issued (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            log_id INTEGER NOT NULL REFERENCES logs (id) ON DELETE CASCADE,
+            start INTEGER NOT NULL,
+            stop INTEGER NOT NULL,
+            classifier INTEGER NOT NULL,
+            kind TEXT NOT NULL,
+            guess TEXT,
+            at TEXT NOT NULL
+        );
+        CREATE UNIQUE INDEX issued_once ON issued (log_id, start, stop, classifier)
+        """,
+    )
+
+
+MIGRATIONS: tuple[Migration, ...] = (_v1, _v2, _v3, _v4)
 SCHEMA_VERSION = len(MIGRATIONS)
 
 

@@ -103,6 +103,11 @@ def import_line(done: LabelImport, file: str) -> str:
     if done.checks or done.checks_already:
         again = f", {done.checks_already} checked before (counted once)" if done.checks_already else ""
         parts.append(f"{done.checks} new check(s) of the model{again}")
+    if done.checks_unrecorded:
+        parts.append(
+            f"{done.checks_unrecorded} row(s) the session did not write as suggestions of that model: labels, not "
+            "counted as checks"
+        )
     if done.blank:
         parts.append(f"{len(done.blank)} row(s) with no terrain left out (not labelled yet)")
     return "; ".join(parts)
@@ -202,6 +207,13 @@ def suggest(
             )
             for log, p in picks
         ]
+        if scores.classifier is not None:  # what a filled-in row checks: this kind, this guess (not the file's word)
+            s.record_issued(
+                [
+                    (log.id, p.start, p.stop, scores.classifier, p.kind, None if p.guess is None else classes[p.guess])
+                    for log, p in picks
+                ]
+            )
     columns = ["log", "start_s", "end_s", "terrain", "reason", "guess", "kind", "classifier"]
     frame = pd.DataFrame(rows, columns=columns).astype({"terrain": "string", "guess": "string"})
     write_frame(frame, out)

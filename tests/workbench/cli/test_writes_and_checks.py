@@ -159,11 +159,59 @@ def test_a_suggestion_file_imported_twice_counts_its_checks_once(
     rows = pd.read_csv(tmp_path / "filled.csv", keep_default_na=False, dtype={"classifier": str})
     other = _copy(trained, tmp_path / "other")
     pd.concat([rows.iloc[[0]]] * 50).to_csv(tmp_path / "fifty.csv", index=False)
+    # issue 99, item 2: a session that did not write these suggestions takes them as labels, not as checks
+    unwritten = _copy(trained, tmp_path / "unwritten")
+    with Session.open(unwritten) as s:
+        labels_before = len(s.segments())
+    assert main(["labels", "import", str(unwritten), str(tmp_path / "fifty.csv")]) == 0
+    said = capsys.readouterr().out
+    assert "50 row(s) the session did not write as suggestions of that model: labels, not counted" in said, said
+    with Session.open(unwritten) as s:
+        assert len(s.checks()) == 0 and len(s.segments()) == labels_before + 1
+    assert main(["suggest", str(other), "--out", str(tmp_path / "other.csv"), "--n", "6"]) == 0  # the same queue
+    capsys.readouterr()
     assert main(["labels", "import", str(other), str(tmp_path / "fifty.csv")]) == 0
     said = capsys.readouterr().out
     assert "imported 50 row(s)" in said and "1 new label(s), 49 already labelled so" in said, said
     with Session.open(other) as s:
         assert len(s.checks()) == 1
+
+
+def test_a_check_is_of_the_kind_and_guess_the_session_wrote_not_the_files_columns(
+    trained: tuple[Path, Path], tmp_path: Path, capsys
+) -> None:
+    """Issue 99, item 2: a verify file filled with the truth and its terrain copied into the guess made the figure
+    "≈ 100 %"; a guess naming no terrain was stored as the model's answer; a suggestion relabelled "spot check"
+    counted as a uniform check. Each is refused with its row named, and nothing is imported."""
+    session = _copy(trained, tmp_path)
+    assert main(["suggest", str(session), "--out", str(tmp_path / "next.csv"), "--n", "6"]) == 0
+    rows = _filled(tmp_path / "next.csv", trained[1], tmp_path / "filled.csv")
+    capsys.readouterr()
+    other = "soft" if rows.loc[0, "guess"] == "hard" else "hard"  # not what the model answered on row 2's piece
+    kind = "suggestion" if rows.loc[0, "kind"] == "spot check" else "spot check"
+
+    def first(column: str, value: str) -> pd.DataFrame:
+        return rows.assign(**{column: [value, *rows[column][1:]]})
+
+    forged = {
+        "guess": first("guess", other),
+        "hyperlink": first("guess", '=HYPERLINK("x")'),
+        "kind": first("kind", kind),
+    }
+    with Session.open(session) as s:
+        before = (len(s.segments()), len(s.checks()))
+    for what, frame in forged.items():
+        frame.to_csv(tmp_path / f"{what}.csv", index=False)
+        assert main(["labels", "import", str(session), str(tmp_path / f"{what}.csv")]) == 2, what
+        said = _one_error(capsys)
+        if what == "kind":
+            assert f"row 2: kind {kind!r} is not what the session drew for this piece" in said, said
+        else:
+            assert "row 2: guess" in said and "is not the answer classifier v" in said, said
+        with Session.open(session) as s:
+            assert (len(s.segments()), len(s.checks())) == before, what
+    assert main(["labels", "import", str(session), str(tmp_path / "filled.csv")]) == 0  # the honest file
+    assert "6 new check(s) of the model" in capsys.readouterr().out
 
 
 def test_a_session_whose_checks_were_counted_twice_keeps_each_once_after_the_upgrade(
@@ -173,7 +221,9 @@ def test_a_session_whose_checks_were_counted_twice_keeps_each_once_after_the_upg
 
     session = _copy(trained, tmp_path)
     conn = sqlite3.connect(session / "session.sqlite", isolation_level=None)
-    conn.executescript("DROP INDEX checks_once; DROP TABLE terrain_renames; PRAGMA user_version = 2")  # as released
+    conn.executescript(  # as released
+        "DROP TABLE issued; DROP INDEX checks_once; DROP TABLE terrain_renames; PRAGMA user_version = 2"
+    )
     row = (1, 0, 10, "hard", "hard", 1.0, 2, "suggestion", "me", "now")
     for _ in range(3):  # one file imported three times
         conn.execute(
@@ -265,6 +315,9 @@ def test_a_json_true_or_a_whole_float_as_the_version(trained: tuple[Path, Path],
     assert main(["labels", "import", str(session), str(tmp_path / "true.json")]) == 2
     assert "classifier 'True' is not a classifier version" in _one_error(capsys)
     (tmp_path / "float.json").write_text(pd.DataFrame([{**row, "classifier": 2.0}]).to_json(orient="records"))
+    with Session.open(session) as s:  # the session wrote this piece for v2 (a check is of what it drew)
+        w2 = next(x for x in s.logs() if x.name == "w2")
+        s.record_issued([(w2.id, round(w2.rate_hz), round(2 * w2.rate_hz), 2, "spot check", "soft")])
     assert main(["labels", "import", str(session), str(tmp_path / "float.json")]) == 0
     with Session.open(session) as s:
         assert [(c.classifier, c.kind) for c in s.checks()] == [(2, "spot check")]
