@@ -24,6 +24,7 @@ from .labels import add_segment, labelled_as
 from .limits import MAX_LABEL_FILE_BYTES, MAX_LABEL_LINE_BYTES, MAX_LABEL_NESTING, MAX_LABEL_ROWS, MAX_NAME_CHARS
 from .logs import LogInfo, Segment
 from .new_files import new_file
+from .terrain_rows import renamed_to
 
 COLUMNS = (
     "log",
@@ -340,10 +341,19 @@ def logs_by(logs: list[LogInfo]) -> tuple[dict[str, list[LogInfo]], dict[str, li
     return by_name, by_source
 
 
-def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *, path: Path) -> list[Row]:
+def parse_rows(
+    frame: pd.DataFrame,
+    logs: list[LogInfo],
+    terrains: list[str],
+    *,
+    path: Path,
+    renamed: Mapping[str, str] | None = None,
+) -> list[Row]:
     """Every row of a label file resolved against the session, or a ``LabelError`` naming the first bad row.
 
     Rows name their log by ``log`` (name) and give ``start_sample``/``end_sample`` or ``start_s``/``end_s``.
+    ``renamed``: names the session's terrains gave up, to their names now (``terrain_rows.renamed_to``), for the
+    refusal of a file that uses one.
     """
     missing = {"log", "terrain"} - set(frame.columns)
     if missing or not (
@@ -362,6 +372,11 @@ def parse_rows(frame: pd.DataFrame, logs: list[LogInfo], terrains: list[str], *,
         log = row_log(by_name, by_source, str(row.log), source, path=path, where=where)
         if not given(row.terrain):
             raise LabelError(f"{path}: {where}: terrain is empty; every row names its terrain; nothing was imported")
+        if str(row.terrain) not in terrains and str(row.terrain) in (renamed or {}):
+            raise LabelError(
+                f"{path}: {where}: terrain {row.terrain!r} was renamed {renamed[str(row.terrain)]!r} in this session; "
+                "nothing was imported (write its name now in the file)"
+            )
         if str(row.terrain) not in terrains:
             raise LabelError(
                 f"{path}: {where}: unknown terrain {row.terrain!r}; nothing was imported (add it with `workbench "
@@ -413,7 +428,7 @@ def import_rows(
     label made in the page does."""
     out, already, checks = [], 0, [0, 0, 0]
     versions = classifier_versions(conn) if set(frame.columns) >= CHECK_COLUMNS else None
-    for row in parse_rows(frame, logs, terrains, path=path):
+    for row in parse_rows(frame, logs, terrains, path=path, renamed=renamed_to(conn)):
         try:
             if versions is not None:  # checked before its label: a forged row refuses the file
                 check_of_row(conn, frame.loc[row.line - 2], row, versions, author=row.author or author, counts=checks)
@@ -446,7 +461,7 @@ def import_reference_rows(conn, frame: pd.DataFrame, logs: list[LogInfo], terrai
     Reference truth is for evaluation only: it never becomes labels, and labels never become it. Rows of one log
     must not overlap. Returns the rows written.
     """
-    rows = parse_rows(frame, logs, terrains, path=path)
+    rows = parse_rows(frame, logs, terrains, path=path, renamed=renamed_to(conn))
     by_log: dict[int, list[Row]] = {}
     for row in rows:
         if not 0 <= row.start < row.stop <= row.log.n_samples:

@@ -18,7 +18,7 @@ from . import labels as _labels
 from .cameras import CameraStore
 from .checks import CheckStore
 from .disk_space import unusable_words
-from .errors import SessionError
+from .errors import LabelError, SessionError
 from .ingest_lock import sweeping
 from .label_files import LabelImport
 from .log_files import checked_log_file
@@ -28,7 +28,7 @@ from .model_versions import CACHE_DIR, ModelRegistry
 from .rowfiles import FileRows
 from .schema import SCHEMA_VERSION, check_objects, migrate
 from .session_copy import copy_session
-from .terrain_rows import insert_terrain
+from .terrain_rows import insert_terrain, renamed_to
 from .terrain_store import TerrainStore
 
 DB_NAME = "session.sqlite"
@@ -436,7 +436,13 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore, TerrainStore):
         """The session's terrain names, with those ``frame`` names added first when ``create``."""
         names = [r[0] for r in conn.execute("SELECT name FROM terrains ORDER BY position")]
         if create and "terrain" in frame.columns:
+            gave_up = renamed_to(conn)
             for name in dict.fromkeys(str(t).strip() for t in frame["terrain"].dropna()):
+                if name in gave_up:  # not a new terrain: the old name of one (a second `dirt` beside `soil`)
+                    raise LabelError(
+                        f"terrain {name!r} was renamed {gave_up[name]!r} in this session: --create-terrains makes "
+                        "no second one; write its name now in the file (nothing was imported)"
+                    )
                 if name and name not in names:
                     insert_terrain(conn, name, None)
                     names.append(name)

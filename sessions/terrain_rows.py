@@ -66,15 +66,36 @@ def names_since(conn, at: str) -> dict[str, str]:
     """Every name a terrain of the session has had since ``at`` (an ISO time stamp), to its name now.
 
     A model trained at ``at`` names its classes as they were called then, and a file written from it may use a later
-    name: both are found. Where two terrains held one name in turn, the later holder has it.
+    name: both are found. Where two terrains held one name in turn, the one that held it at ``at`` has it (after
+    ``rename concrete asphalt`` and a new ``concrete``, a model's ``concrete`` is asphalt; a swap of two names
+    through a third maps each back), then a name held in between, then the name a terrain has now.
     """
     now = {int(i): str(n) for i, n in conn.execute("SELECT id, name FROM terrains")}
+    renames = [
+        (int(t), str(old), str(new))
+        for t, old, new in conn.execute(
+            "SELECT terrain_id, old, new FROM terrain_renames WHERE at > ? ORDER BY at, id", (at,)
+        ).fetchall()
+        if int(t) in now
+    ]
+    out = {name: name for name in now.values()}
+    for terrain_id, old, new in renames:  # the names held in between
+        out[old] = out[new] = now[terrain_id]
+    then: dict[int, str] = {}
+    for terrain_id, old, _ in reversed(renames):  # a renamed terrain's name at `at`, the renames since undone
+        then[terrain_id] = old
+    # a name a renamed terrain held at `at` is its, whoever holds it now (a terrain that has it now took it later:
+    # names are unique at every moment)
+    out.update({name: now[terrain_id] for terrain_id, name in then.items()})
+    return out
+
+
+def renamed_to(conn) -> dict[str, str]:
+    """A name no terrain has now, to the name now of the terrain that last gave it up (``dirt`` renamed ``soil``:
+    ``{"dirt": "soil"}``): what a refusal of a file's old name says."""
+    now = {int(i): str(n) for i, n in conn.execute("SELECT id, name FROM terrains")}
     out: dict[str, str] = {}
-    renames = conn.execute(
-        "SELECT terrain_id, old, new FROM terrain_renames WHERE at > ? ORDER BY at, id", (at,)
-    ).fetchall()
-    for terrain_id, old, new in renames:
-        if int(terrain_id) in now:
-            out[str(old)] = out[str(new)] = now[int(terrain_id)]
-    out.update({name: name for name in now.values()})
+    for terrain_id, old in conn.execute("SELECT terrain_id, old FROM terrain_renames ORDER BY at, id"):
+        if int(terrain_id) in now and str(old) not in now.values():
+            out[str(old)] = now[int(terrain_id)]
     return out
