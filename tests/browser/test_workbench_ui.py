@@ -9,6 +9,7 @@ import re
 import shutil
 import sqlite3
 import time
+import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -175,6 +176,19 @@ def test_label_with_hotkeys_retrain_suggest_and_download(workbench: Workbench) -
     assert active.id == versions_before + 1 and active.config["model"] == "default"
     assert active.config["warm_start"] is False
     save_screenshot(page, "workbench-train")
+
+    # the Data tab's download is the bundle taught by the session (issue 98): fitted once, kept beside the active
+    # version, and the Train tab says which version ships
+    open_tab(page, "Data")
+    with page.expect_download(timeout=180_000) as download:
+        page.get_by_role("button", name="Model bundle, taught by the session (zip: PyTorch, ONNX, card)").click()
+    names = zipfile.ZipFile(download.value.path()).namelist()
+    assert "bundle/MODEL_CARD.md" in names and "classifier_stream.onnx" in names
+    taught = next(v for v in Session.open(session_path).model_versions("classifier") if "taught_from" in v.config)
+    assert taught.config["taught_from"] == active.id and not taught.active
+    open_tab(page, "Train")
+    page.get_by_text(f"ships (taught by the session from v{active.id})").first.wait_for(timeout=UI_WAIT_MS)
+    save_screenshot(page, "workbench-train-taught")
 
     # take a suggestion with its hotkeys: N shows it, A labels it with the model's guess
     open_tab(page, "Suggest")

@@ -282,6 +282,7 @@ class DataPanel:
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "export"
             LANE.run(export_all, session, out)
+            self.host.state.notify("models")  # the taught version it fitted (or reused) shows in the Train tab
             buf = io.BytesIO()
             with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
                 for p in sorted(out.rglob("*")):
