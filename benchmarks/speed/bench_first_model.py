@@ -89,10 +89,11 @@ def run_child(step: str, args: list[str]) -> None:
                 "rate": logs[0].rate_hz,
                 "labelled": sum(g.stop - g.start for g in added) / steps,
             }
-    elif step == "export":  # `workbench export SESSION --out OUT --predictions`
+    elif step in ("export", "export-untaught"):  # `workbench export SESSION --out OUT --predictions [--untaught]`
         from workbench.cli import main as workbench
 
-        if workbench(["export", args[0], "--out", args[1], "--predictions"]) != 0:
+        untaught = ["--untaught"] if step == "export-untaught" else []
+        if workbench(["export", args[0], "--out", args[1], "--predictions", *untaught]) != 0:
             raise SystemExit("workbench export failed")
         extra = {"predictions": Path(args[1], "predictions.parquet").stat().st_size}
     elif step == "frames":  # the reference: read the logs, fit the normalisation, compute every log's frames
@@ -189,6 +190,9 @@ def session_steps(
             if exported:
                 print(f"export {model} {exported}", flush=True)
             runs[model] = (train, exported)
+            if export and model == "default":  # the export's reference: the active version shipped as it is
+                runs["untaught"] = (train, child("export-untaught", session, str(folder / "export-untaught")))
+                print(f"export --untaught {runs['untaught'][1]}", flush=True)
     return setup, ref, runs
 
 
@@ -211,7 +215,17 @@ def imu_first_model(*, quick: bool) -> list[Row]:
 
     default, default_text = figure("default")
     rocket, rocket_text = figure("minirocket")
+    taught, untaught = runs["default"][1]["seconds"], runs["untaught"][1]["seconds"]
     return [
+        Row(
+            f"`workbench export --predictions` after a first `train`, the bundle taught by the session, {shape}",
+            f"{taught:.0f} s",
+            f"`export --predictions --untaught` (the active version as it is), same session: {untaught:.0f} s",
+            f"{taught / untaught:.1f}× the untaught export",
+            "measured: the taught fit's cost at the first export",
+            None,
+            "–",
+        ),
         Row(
             f"`workbench train` + `export --predictions` (default family), {shape}",
             default_text,
