@@ -89,6 +89,8 @@ def ingest(
     from tqdm import tqdm
 
     failures: list[IngestError] = []
+    for note in _same_files(files):
+        print(f"note: {shown(note)}")
     with Session.open(session) as s:
         before = {log.id for log in s.logs()}
         with tqdm(total=0, unit="B", unit_scale=True, desc="ingest", disable=None) as bar:
@@ -123,6 +125,21 @@ def ingest(
             + (f", refused {len(failures)} file(s)" if failures else "")
         )
     return 2 if failures else 0
+
+
+def _same_files(files: list[Path]) -> list[str]:
+    """A line per file given again under another path (a link, ``./``): it is read once, and says so."""
+    seen: dict[Path, Path] = {}
+    out = []
+    for f in files:
+        try:
+            key = f.resolve()
+        except OSError:
+            continue
+        if f.is_file() and key in seen and seen[key] != f:
+            out.append(f"{f} is {seen[key]} (one file): read once")
+        seen.setdefault(key, f)
+    return out
 
 
 def info(session: Pos[Path]) -> None:

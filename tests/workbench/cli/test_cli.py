@@ -193,3 +193,19 @@ def test_each_evaluate_protocol_lists_only_its_own_options(capsys) -> None:
         capsys.readouterr().err
         == "error: --simulate: evaluate session takes no --simulate (evaluate borealtc and demo take it)\n"
     )
+
+
+def test_two_paths_to_one_file_are_read_once_and_said(tmp_path: Path, capsys) -> None:
+    """Issue 99, item 1: two links to one file gave one log without a word."""
+    import numpy as np
+    import pandas as pd
+
+    first = tmp_path / "run.csv"
+    t = np.arange(500) / 50.0
+    pd.DataFrame({"time": t, "a": np.sin(t)}).to_csv(first, index=False)
+    link = tmp_path / "link.csv"
+    link.symlink_to(first)
+    assert main(["new", str(tmp_path / "s"), "--terrains", "grass"]) == 0
+    assert main(["ingest", str(tmp_path / "s"), str(first), str(link)]) == 0
+    out = capsys.readouterr().out
+    assert f"note: {link} is {first} (one file): read once" in out and "ingested 1 log(s)" in out, out
