@@ -3,7 +3,7 @@
 Inside a session a run's terrain is known from more than the model (its labels vote over the frames that resemble
 them, and the page shows that blend); the bundle the robot gets carried none of it. On a legged robot the session
 was 99 % right on its runs and its bundle 62 % on the robot's next runs, 74 % when one fit from scratch was taught
-by the session's blend after the last round (issue 98; `evaluate loop --strategies combined-teacher-last`).
+by the session's blend after the last round (`evaluate loop --strategies combined-teacher-last`).
 Teaching every round's fit fed each round's errors back into the next round's suggestions (the demo walks' far runs
 92.4 -> 76.4 %), so the taught fit is never the session's active version: the session keeps scoring and suggesting
 with its own model, and the taught version is kept beside it, keyed by that version and the labels, for the export

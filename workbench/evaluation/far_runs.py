@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sessions import IngestOptions, WorkbenchError, read_frame
+from sessions import IngestOptions, Session, WorkbenchError, read_frame
 from training import ModelBundle
 
 from ..export import read_logs, score_arrays
@@ -109,6 +109,21 @@ def read_far_runs(
             y[round(lo * bundle.rate_hz) : round(hi * bundle.rate_hz)] = terrains.index(str(terrain))
         truth.append(y)
     return FarRuns(read.names, read.arrays, tuple(truth), terrains)
+
+
+def far_runs_of(
+    session: Session, files: Sequence[Path], reference: Path, bundle: ModelBundle, *, options: IngestOptions | None
+) -> FarRuns:
+    """:func:`read_far_runs` against ``session``: none of its logs by name or by content, its terrains only."""
+    return read_far_runs(
+        files,
+        reference,
+        bundle,
+        session_logs=[x.name for x in session.logs()],
+        options=options,
+        recorded={p: [x.name for x in logs] for p, logs in session.logs_recorded_in(files).items()},
+        terrains_known=[t.name for t in session.terrains()],
+    )
 
 
 def _span(start: object, end: object, duration_s: float, *, where: str) -> tuple[float, float]:

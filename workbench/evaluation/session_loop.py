@@ -47,7 +47,7 @@ from ..cycle import (
 from ..retrain import RETRAIN
 from ..scratch_folders import scratch_folder
 from ..user_errors import USER_ERRORS
-from .far_runs import FarRuns, read_far_runs, score_far
+from .far_runs import FarRuns, far_runs_of, score_far
 from .loop_arms import ABLATIONS, loop_arm
 from .loop_report import loop_report
 from .loop_said import said_of_logs
@@ -443,15 +443,7 @@ def evaluate_loop(
             if far:
                 if reference is None:
                     raise WorkbenchError("--far: the far runs' truth comes from --reference FILE; give it")
-                far_runs = read_far_runs(
-                    far,
-                    reference,
-                    active_bundle(s)[1],
-                    session_logs=[x.name for x in s.logs()],
-                    options=far_options,
-                    recorded={p: [x.name for x in logs] for p, logs in s.logs_recorded_in(far).items()},
-                    terrains_known=[t.name for t in s.terrains()],
-                )
+                far_runs = far_runs_of(s, far, reference, active_bundle(s)[1], options=far_options)
                 log(f"far runs: {len(far_runs.names)} kept out of the session ({', '.join(far_runs.names)})")
         arms = {
             strategy: run_arm(

@@ -105,10 +105,11 @@ def test_train_and_export_on_a_full_disk_are_refused_before_the_work_in_one_line
 ) -> None:
     """Issue 99, item 7: with 0.5-2 MB free `train` fitted for 36 s and ended in an internal SafetensorError, and
     `export` in an internal [Errno 28]; both now say so first, exit 2, and nothing changes."""
-    from sessions import disk_space
+    import shutil
+    from types import SimpleNamespace
 
     versions = _versions(session)
-    monkeypatch.setattr(disk_space, "free_bytes", lambda p: 1 << 20)
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: SimpleNamespace(total=1 << 40, used=1 << 40, free=1 << 20))
     assert main(["train", str(session.path), "--stage", "classifier"]) == 2
     assert "no space left for a new model version: 1.0 MB free on its disk" in capsys.readouterr().err
     assert main(["export", str(session.path), "--out", str(tmp_path / "x")]) == 2
