@@ -9,9 +9,11 @@ from typing import TYPE_CHECKING
 
 from training import HELD_OUT, estimate_headline, missed_terrains, missed_words, recorded_family, runs_low, unseen_words
 
-from ..cycle import SessionFigure, checks_summary, session_figures
+from ..cycle import SessionFigure, checks_summary, kept_taught, session_figures
 
 if TYPE_CHECKING:
+    from sessions import ModelVersion
+
     from .host import PanelHost
 
 RETRAIN = "Retrain"
@@ -31,7 +33,7 @@ def status_html(host: PanelHost) -> str:
         model = (
             f"<b>{html.escape(recorded_family(classifier.config))} v{classifier.id}</b>"
             + session_html(figure, checks=_checked_words(session))
-            + figure_html(classifier.metrics)
+            + figure_html(classifier.metrics, taught=kept_taught(session))
         )
     elif predictor is not None:
         model = f"<b>stage 1 v{predictor.id}</b> · no classifier yet"
@@ -55,9 +57,12 @@ def status_html(host: PanelHost) -> str:
     return f"<div style='font-size:0.8em;line-height:1.5'>{model}<br>{labels}{doing_html}</div>"
 
 
-def figure_html(m: dict) -> str:
-    """The fit's own figures, each named: what the model that ships is expected to score on a run it never saw, then
-    its figure on the labelled pieces (held out), which describes where the labels were placed, not the session."""
+def figure_html(m: dict, *, taught: ModelVersion | None = None) -> str:
+    """The fit's own figures, each named: what the model that ships is expected to score on a run it never saw (the
+    ``taught`` version's, the one the export ships, once one is kept), then its figure on the labelled pieces (held
+    out), which describes where the labels were placed, not the session."""
+    if taught is not None and taught.metrics.get("unseen_runs"):
+        return unseen_html(taught.metrics, taught=taught.id) + _estimate_html(m)
     return unseen_html(m) + _estimate_html(m)
 
 
@@ -83,8 +88,9 @@ def session_html(figure: SessionFigure | None, *, checks: str = "") -> str:
     return f" · <span title='{html.escape(what, quote=True)}'>the session: {text}</span>"
 
 
-def unseen_html(m: dict) -> str:
-    """``" · shipped, on a new run: ≈ 72 % (61–80 %)"``, the whole of it on hover; empty without the figure."""
+def unseen_html(m: dict, *, taught: int | None = None) -> str:
+    """``" · shipped, on a new run: ≈ 72 % (61–80 %)"`` (``taught``: "shipped (taught v12), ..."), the whole of it on
+    hover; empty without the figure."""
     got = m.get("unseen_runs") or {}
     words = unseen_words(got)
     if words is None:
@@ -97,7 +103,8 @@ def unseen_html(m: dict) -> str:
         quote=True,
     )
     low = " <b style='color:#b26a00'>(runs low: few runs)</b>" if runs_low(got) else ""
-    return f" · <span title='{title}'>shipped, on a new run: ≈ {100 * got['accuracy']:.0f} %{span}{low}</span>"
+    which = "shipped" if taught is None else f"shipped (taught v{taught})"
+    return f" · <span title='{title}'>{which}, on a new run: ≈ {100 * got['accuracy']:.0f} %{span}{low}</span>"
 
 
 LABELLED = (

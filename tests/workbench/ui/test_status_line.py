@@ -44,3 +44,16 @@ def test_the_model_that_ships_is_named_apart_from_the_estimate_with_its_interval
     assert "shipped" not in figure_html({"estimate": held})  # a quick fine-tune states none
     one = figure_html({"estimate": held, "unseen_runs": {**unseen, "low": None, "high": None, "runs": 1}})
     assert "shipped, on a new run: ≈ 72 %</span>" in one and "no interval" in one
+
+
+def test_once_a_taught_version_is_kept_the_line_states_its_figure_and_names_it() -> None:
+    """The export ships the taught version: the status line's "shipped" figure is that version's, named so."""
+    from sessions import ModelVersion
+
+    held = terrain_estimate(CLASSES, {0: 2, 1: 2, 2: 2}, _steps((0.9, 0.9, 0.9)), _steps((0.9, 0.9, 0.9)))
+    mine = {"accuracy": 0.62, "low": 0.5, "high": 0.7, "runs": 6, "samples": 1e5, "per_run": {}}
+    theirs = {**mine, "accuracy": 0.84, "low": 0.79, "high": 0.89}
+    taught = ModelVersion(12, "classifier", "models/v0012", "", {"taught_from": 11}, {"unseen_runs": theirs}, False)
+    line = figure_html({"estimate": held, "unseen_runs": mine}, taught=taught)
+    assert "shipped (taught v12), on a new run: ≈ 84 % (79–89 %)</span>" in line and "≈ 62 %" not in line
+    assert "on held-out logs" in line  # the active fit's own figure on the labelled pieces stays
