@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import shutil
 import sqlite3
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from functools import partial
 from pathlib import Path
 
@@ -51,6 +51,30 @@ def snapshot(session_path: Path) -> tuple:
 
 
 TEST_TERRAINS = ("concrete", "grass", "gravel", "mulch", "dirt", "sand")
+
+
+def children_of_a_killed_parent(start: Callable[[], None], pids: Path, count: int) -> list[int]:
+    """Fork a parent that runs ``start`` (which forks ``count`` children, each writing its pid as a line of
+    ``pids``), SIGKILL the parent once every child has written, and return the children's pids."""
+    import signal
+    import time
+
+    parent = os.fork()
+    if parent == 0:
+        try:
+            start()
+        finally:
+            os._exit(0)
+    try:
+        deadline = time.monotonic() + 60
+        while (not pids.exists() or len(pids.read_text().split()) < count) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        children = [int(p) for p in pids.read_text().split()]
+        assert len(children) == count
+    finally:
+        os.kill(parent, signal.SIGKILL)
+        os.waitpid(parent, 0)
+    return children
 
 
 def ended_within(pids: list[int], seconds: float) -> bool:

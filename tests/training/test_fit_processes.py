@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from tests.conftest import ended_within
+from tests.conftest import children_of_a_killed_parent, ended_within
 from training.running import Cancelled, fit_processes, run_fits
 from training.running.fit_processes import FitProcessError, fork_safe, forking
 
@@ -121,7 +121,6 @@ def test_hiding_the_gpus_leaves_a_chosen_device_list_alone(monkeypatch: pytest.M
 
 def test_a_killed_parent_leaves_no_fit_running(tmp_path) -> None:
     """A `train` killed with SIGKILL (as the kill tests do) takes its forked fits with it."""
-    import signal
 
     pids = tmp_path / "pids"
 
@@ -130,19 +129,6 @@ def test_a_killed_parent_leaves_no_fit_running(tmp_path) -> None:
             f.write(f"{os.getpid()}\n")
         time.sleep(60)
 
-    parent = os.fork()  # a process standing for `train`, forked from this one (torch already imported)
-    if parent == 0:
-        try:
-            run_fits([fit, fit], workers=2, portable=PLAIN)
-        finally:
-            os._exit(0)
-    try:
-        deadline = time.monotonic() + 60
-        while (not pids.exists() or len(pids.read_text().split()) < 2) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        children = [int(p) for p in pids.read_text().split()]
-        assert len(children) == 2
-    finally:
-        os.kill(parent, signal.SIGKILL)
-        os.waitpid(parent, 0)
+    # a process standing for `train`, forked from this one (torch already imported)
+    children = children_of_a_killed_parent(lambda: run_fits([fit, fit], workers=2, portable=PLAIN), pids, 2)
     assert ended_within(children, 10)

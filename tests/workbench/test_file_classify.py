@@ -4,7 +4,6 @@ session's PyTorch path scores for the same file."""
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -14,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from sessions import IngestOptions
-from tests.conftest import ended_within
+from tests.conftest import children_of_a_killed_parent, ended_within
 from training import load_bundle, load_scoring_bundle
 from workbench.export import read_logs, score_arrays
 
@@ -90,19 +89,6 @@ def test_a_killed_classify_leaves_no_worker_running(tmp_path: Path) -> None:
     from workbench.export.file_classify import in_processes
 
     pids = tmp_path / "pids"
-    parent = os.fork()  # a process standing for `classify`
-    if parent == 0:
-        try:
-            in_processes(partial(_sleeper, pids), [0, 1], jobs=2)
-        finally:
-            os._exit(0)
-    try:
-        deadline = time.monotonic() + 60
-        while (not pids.exists() or len(pids.read_text().split()) < 2) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        workers = [int(p) for p in pids.read_text().split()]
-        assert len(workers) == 2
-    finally:
-        os.kill(parent, signal.SIGKILL)
-        os.waitpid(parent, 0)
+    # a process standing for `classify`
+    workers = children_of_a_killed_parent(lambda: in_processes(partial(_sleeper, pids), [0, 1], jobs=2), pids, 2)
     assert ended_within(workers, 10)

@@ -387,16 +387,10 @@ def export(
             their index (frames/index.csv: file, log, camera, time, terrain).
         untaught: Ship the active version as it is, not taught by the session.
     """
-    from sessions import check_new_target
-
-    from ..cycle import kept_taught, teachable
     from ..export import export_all
 
-    check_new_target(out, what="folder")  # before a taught fit of minutes: a target that exists is refused first
     with Session.open(session) as s:
-        if not untaught and teachable(s) is None and kept_taught(s) is None:
-            print("the model that ships: fitting stage 2 taught by the session (once; kept until the labels change)")
-        written = export_all(s, out, predictions=predictions, mcap=mcap, frames=frames, taught=not untaught)
+        written = export_all(s, out, predictions=predictions, mcap=mcap, frames=frames, taught=not untaught, say=print)
     for path, what in written:
         print(f"{shown(path)}  {what}")
 

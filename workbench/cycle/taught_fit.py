@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Callable
 
 from sessions import ModelVersion, Session, WorkbenchError
 from training import CancelFn, ProgressFn, family, never, recorded_family
@@ -80,6 +81,7 @@ def shipped_version(
     passes: int = TEACH_PASSES,
     progress: ProgressFn | None = None,
     cancel: CancelFn = never,
+    say: Callable[[str], None] | None = None,
 ) -> tuple[ModelVersion, str]:
     """The classifier version the export ships, and one line saying which it is.
 
@@ -88,7 +90,7 @@ def shipped_version(
     scores are sure of over each unlabelled stretch (``labeling.taught_terrains``) as that stretch's pseudo-label,
     saved as a version beside the active one (never made active); with ``passes`` above one, each fit after the
     first taught by the session's scores made with the one before. A family that learns from labels alone ships its
-    active version, and the line says why.
+    active version, and the line says why. ``say`` is told before a fit starts (it takes as long as a Retrain's).
 
     Raises:
         WorkbenchError: The session has no classifier.
@@ -105,6 +107,8 @@ def shipped_version(
     if kept is not None:
         said = "taught itself" if kept.id == active.id else f"taught by the session from v{active.id}"
         return kept, f"v{kept.id}, {said}"
+    if say is not None:
+        say("the model that ships: fitting stage 2 taught by the session (once; kept until the labels change)")
     key, version = labels_key(session), active
     for k in range(1, passes + 1):
         kept = kept_taught(session, passes=k)

@@ -5,7 +5,7 @@
 from __future__ import annotations
 
 import shutil
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -59,6 +59,7 @@ def export_all(
     mcap: bool = False,
     frames: bool = False,
     taught: bool = True,
+    say: Callable[[str], None] | None = None,
 ) -> list[tuple[Path, str]]:
     """Write the model that ships and the labels to a new folder ``out``; with ``predictions``, per-timestep
     predictions of every log as Parquet; with ``mcap``, an MCAP file per log (the model's terrain and the labels, on
@@ -67,7 +68,8 @@ def export_all(
 
     The model that ships is the session's active classifier taught by what the session knows (``taught``, the
     default: ``cycle.shipped_version``, fitted once and kept beside the active version until the labels or the
-    active version change); ``taught=False`` ships the active version as it is.
+    active version change); ``taught=False`` ships the active version as it is. ``say`` is told when that fit
+    starts, after the target and the disk's room were checked.
 
     Returns:
         What was written, one (path, description) per item.
@@ -79,7 +81,7 @@ def export_all(
     out = Path(out)
     check_target(out)  # before any work: a dangling link failed only at the rename, after the whole export
     _room_for_export(session, out, predictions=predictions or mcap)
-    version, which = shipped_version(session, taught=taught)
+    version, which = shipped_version(session, taught=taught, say=say)
     bundle = load_bundle(session.path / version.path)
     # written under a temporary name and renamed when whole: a refused export leaves no half-written folder
     try:
