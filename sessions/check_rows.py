@@ -45,7 +45,7 @@ def check_of_row(conn, cells: pd.Series, row: Row, versions: dict[int, str], *, 
         raise LabelError(f"the guess {str(guess)!r} names no classifier version (the classifier column is empty)")
     if str(kind) not in CHECK_KINDS:
         raise LabelError(f"kind {str(kind)!r} is not a kind of check; one of {', '.join(CHECK_KINDS)}")
-    number = _version(version)
+    number = version_number(version)
     if number is None or number not in versions:
         known = f"it has {_span(sorted(versions))}" if versions else "it has none"
         raise LabelError(f"classifier {str(version)!r} is not a classifier version of this session ({known})")
@@ -79,7 +79,7 @@ def check_of_row(conn, cells: pd.Series, row: Row, versions: dict[int, str], *, 
     counts[0 if new else 1] += 1
 
 
-def _version(value: object) -> int | None:
+def version_number(value: object) -> int | None:
     """A version number from a cell: a whole number written as one (``7``, ``"7"``, ``7.0`` from a column with empty
     cells), else ``None`` (``true``, ``2.7``, ``nan``, ``1e400``, ``abc``)."""
     if isinstance(value, bool | np.bool_):

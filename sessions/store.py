@@ -424,11 +424,13 @@ class Session(LogIngest, CameraStore, ModelRegistry, CheckStore, TerrainStore):
         from dataclasses import replace
 
         from .label_files import import_rows, read_frame, unlabelled_rows
+        from .row_names import names_as_written
 
         path = Path(path)
         logs = self.logs()
         frame, empty = unlabelled_rows(read_frame(path, logs=logs))
         with self._write() as conn:
+            frame = names_as_written(conn, frame)  # a row written before a rename names the terrain it meant
             terrains = self._terrains_for(conn, frame, create_terrains)
             return replace(import_rows(conn, frame, logs, terrains, path=path, author=author), blank=tuple(empty))
 

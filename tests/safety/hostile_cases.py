@@ -546,6 +546,54 @@ def check_rows(tmp: Path) -> list[Case]:
     return cases
 
 
+def one_name_one_run(tmp: Path) -> list[Case]:
+    """Issue 99, items 1 and 6: a second run of the template's name is named apart, not merged into ``walk``; the
+    same file reached through a link is the log the session has; a label row whose ``source_file`` the session
+    never saw (a colleague's paths) lands on the one log its name names."""
+    (tmp / "other").mkdir()
+    other = _csv(tmp / "other" / "walk.csv", 20.0)
+    link = tmp / "link.csv"
+    link.symlink_to(other)
+    mixed = tmp / "mixed.csv"
+    mixed.write_text(f"log,source_file,start_s,end_s,terrain\nwalk,{other},1,2,grass\n")
+
+    def named_apart(session: Path, out: str) -> None:
+        from sessions import Session
+
+        with Session.open(session) as s:
+            names = [x.name for x in s.logs()]
+        assert names == ["walk", "walk-2"] and "named walk-2: the session has another log named walk" in out, out
+
+    def one_log(session: Path, out: str) -> None:
+        from sessions import Session
+
+        with Session.open(session) as s:
+            assert [x.name for x in s.logs()] == ["walk", "walk-2"], out
+        assert "(one file): read once" in out and "ingested 1 log(s)" in out, out
+
+    def on_walk(session: Path, out: str) -> None:  # a file from another machine names paths the session never saw
+        from sessions import Session
+
+        with Session.open(session) as s:
+            assert [(s.log(g.log_id).name, g.start, g.stop) for g in s.segments()] == [("walk", 100, 200)], out
+
+    return [
+        Case("another folder's walk.csv", ["ingest", "{session}", str(other)], check=named_apart, code=0),
+        Case(
+            "... then the same file through a link",
+            ["ingest", "{session}", str(other), str(link)],
+            check=one_log,
+            code=0,
+        ),
+        Case(
+            "a label row whose source_file is no log of the session",
+            ["labels", "import", "{session}", str(mixed)],
+            check=on_walk,
+            code=0,
+        ),
+    ]
+
+
 BUILDERS = (
     time_jump,
     rates,
@@ -563,4 +611,5 @@ BUILDERS = (
     long_names,
     writes,
     check_rows,
+    one_name_one_run,
 )
