@@ -29,26 +29,31 @@ def names_as_written(conn, frame: pd.DataFrame) -> pd.DataFrame:
     """
     if "terrain" not in frame.columns:
         return frame
-    out = frame["terrain"].astype(object).copy()
     exported = set(frame.columns) >= EXPORT_COLUMNS and "log" in frame.columns
     suggested = set(frame.columns) >= CHECK_COLUMNS
-    versions = classifier_versions(conn) if suggested else {}
+    if not (exported or suggested):  # nothing says when the file was written: today's names
+        return frame
+    segments = _segments_by_row(conn) if exported else {}
     held = _names_held(conn) if exported else {}
+    versions = classifier_versions(conn) if suggested else {}
     moments: dict[int, dict[str, str]] = {}
-    for index in frame.index:
-        name = frame.at[index, "terrain"]
+    names = list(frame["terrain"])
+    at = _exported_keys(frame) if exported else [None] * len(frame)
+    drawn = list(frame["classifier"]) if suggested else [None] * len(frame)
+    out, changed = list(names), False
+    for j, (name, key, version) in enumerate(zip(names, at, drawn, strict=True)):
         if not given(name):
             continue
         name = str(name)
-        terrain = _exported_terrain(conn, frame, index) if exported else None
+        terrain = segments.get(key) if key is not None else None
         if terrain is not None and name in held.get(terrain[0], ()):
-            out.at[index] = terrain[1]
-            continue
-        if suggested and (number := version_number(frame.at[index, "classifier"])) in versions:
+            out[j] = terrain[1]
+        elif suggested and (number := version_number(version)) in versions:
             if number not in moments:
                 moments[number] = names_since(conn, versions[number])
-            out.at[index] = moments[number].get(name, name)
-    if out.equals(frame["terrain"].astype(object)):
+            out[j] = moments[number].get(name, name)
+        changed = changed or out[j] != name
+    if not changed:
         return frame
     frame = frame.copy()
     frame["terrain"] = out
@@ -63,18 +68,24 @@ def _names_held(conn) -> dict[int, set[str]]:
     return held
 
 
-def _exported_terrain(conn, frame: pd.DataFrame, index) -> tuple[int, str] | None:
-    """The terrain (id, name now) of the segment a row of an export is, if it is still in the session."""
-    cells = [frame.at[index, c] for c in ("log", "start_sample", "end_sample", "created_at")]
-    if not all(given(c) for c in cells):
-        return None
-    try:
-        start, stop = int(float(cells[1])), int(float(cells[2]))
-    except (TypeError, ValueError, OverflowError):
-        return None  # the row's own parse names the bad cell
-    row = conn.execute(
-        "SELECT t.id, t.name FROM segments s JOIN logs l ON l.id = s.log_id JOIN terrains t ON t.id = s.terrain_id "
-        "WHERE l.name = ? AND s.start = ? AND s.stop = ? AND s.created_at = ?",
-        (str(cells[0]), start, stop, str(cells[3])),
-    ).fetchone()
-    return None if row is None else (int(row[0]), str(row[1]))
+def _segments_by_row(conn) -> dict[tuple[str, int, int, str], tuple[int, str]]:
+    """Every segment by what an export's row of it holds (log name, start, stop, created_at): its terrain (id, name
+    now)."""
+    rows = conn.execute(
+        "SELECT l.name, s.start, s.stop, s.created_at, t.id, t.name FROM segments s JOIN logs l ON l.id = s.log_id "
+        "JOIN terrains t ON t.id = s.terrain_id"
+    )
+    return {(str(a), int(b), int(c), str(d)): (int(e), str(f)) for a, b, c, d, e, f in rows}
+
+
+def _exported_keys(frame: pd.DataFrame) -> list[tuple[str, int, int, str] | None]:
+    """Each row's (log, start, stop, created_at) as an export writes them, ``None`` where a cell is not one."""
+    out: list[tuple[str, int, int, str] | None] = []
+    cells = zip(frame["log"], frame["start_sample"], frame["end_sample"], frame["created_at"], strict=True)
+    for log, a, b, made in cells:
+        try:
+            ok = given(log) and given(made) and float(a).is_integer() and float(b).is_integer()
+            out.append((str(log), int(float(a)), int(float(b)), str(made)) if ok else None)
+        except (TypeError, ValueError, OverflowError):
+            out.append(None)  # the row's own parse names the bad cell
+    return out
