@@ -168,6 +168,13 @@ def browser():
         b.close()
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    from tests import suite_cpu  # its hooks beside this file's: the suite's CPU at the end of every run
+
+    if not config.pluginmanager.is_registered(suite_cpu):
+        config.pluginmanager.register(suite_cpu, "workbench-suite-cpu")
+
+
 @pytest.hookimpl(wrapper=True, tryfirst=True)
 def pytest_runtest_makereport(item, call):
     report = yield
