@@ -26,6 +26,7 @@ from .ingest import AlignedLog, IngestOptions, ParsedLog, align, plan_sources, r
 from .ingest.sources import Source
 from .ingest_lock import ingesting
 from .logs import LogInfo
+from .pose_store import place_poses, stage_poses
 from .rowfiles import NpyWriter
 
 LOGS_DIR = "logs"
@@ -177,6 +178,7 @@ class LogIngest:
             ids = {name: int(row[2]) for name, row in zip(read_as, stored, strict=True)}
         staged: list[tuple[AlignedLog, Path]] = []
         cameras: dict[str, list[tuple[Path, Path, dict]]] = {}
+        poses: dict[str, list[tuple[Path, dict]]] = {}
         placed: list[Path] = []
         try:
             for log in aligned:
@@ -185,6 +187,7 @@ class LogIngest:
                 assert isinstance(log.data, NpyWriter), "ingest aligns into staged files"
                 staged.append((log, log.data.path))  # written and synced while aligning
                 cameras[log.parsed.name] = stage_cameras(logs_dir, log.parsed.cameras, t0=log.t0)
+                poses[log.parsed.name] = stage_poses(logs_dir, log.parsed.poses, t0=log.t0)
             with self._write() as conn:
                 for log, tmp in staged:
                     same = [  # another process may have ingested it meanwhile
@@ -202,11 +205,16 @@ class LogIngest:
                     conn.execute("UPDATE logs SET file = ? WHERE id = ?", (f"{LOGS_DIR}/{final.name}", log_id))
                     os.replace(tmp, final)
                     placed.append(final)
+                    extra = {}
                     if cameras[log.parsed.name]:
-                        entries, files = place_cameras(logs_dir, log_id, cameras[log.parsed.name])
+                        extra["cameras"], files = place_cameras(logs_dir, log_id, cameras[log.parsed.name])
                         placed.extend(files)
+                    if poses[log.parsed.name]:
+                        extra["poses"], files = place_poses(logs_dir, log_id, poses[log.parsed.name])
+                        placed.extend(files)
+                    if extra:
                         row = conn.execute("SELECT info FROM logs WHERE id = ?", (log_id,)).fetchone()
-                        info = {**json.loads(row[0]), "cameras": entries}
+                        info = {**json.loads(row[0]), **extra}
                         conn.execute("UPDATE logs SET info = ? WHERE id = ?", (json.dumps(info), log_id))
                     ids[log.parsed.name] = log_id
                 fsync_dir(logs_dir)
@@ -219,10 +227,10 @@ class LogIngest:
             for _, tmp in staged:
                 with contextlib.suppress(OSError):
                     tmp.unlink()
-            for frames, index, _ in (c for cams in cameras.values() for c in cams):
-                for p in (frames, index):
-                    with contextlib.suppress(OSError):
-                        p.unlink()
+            leftover = [p for cams in cameras.values() for c in cams for p in c[:2]]
+            for p in leftover + [tmp for tracks in poses.values() for tmp, _ in tracks]:
+                with contextlib.suppress(OSError):
+                    p.unlink()
         return [self.log(ids[log.parsed.name]) for log in aligned]
 
     @staticmethod

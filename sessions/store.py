@@ -25,6 +25,7 @@ from .log_files import checked_log_file
 from .log_ingest import LOGS_DIR, LogIngest
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment
 from .model_versions import CACHE_DIR, ModelRegistry
+from .pose_store import PoseStore
 from .rowfiles import FileRows
 from .schema import SCHEMA_VERSION, check_objects, migrate
 from .session_copy import copy_session
@@ -35,7 +36,7 @@ DB_NAME = "session.sqlite"
 _STALE_TMP_S = 600.0  # leftovers older than this are from a crashed ingest, not one in progress
 
 
-class Session(LogIngest, CameraStore, ModelRegistry, CheckStore, TerrainStore):
+class Session(LogIngest, CameraStore, PoseStore, ModelRegistry, CheckStore, TerrainStore):
     """A session folder. Thread-safe: one SQLite connection guarded by a lock; every write is one transaction.
 
     Use :meth:`create` or :meth:`open`, not the constructor.

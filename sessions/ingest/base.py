@@ -9,6 +9,7 @@ import numpy as np
 
 from ..rowfiles import FileRows
 from .image_topics import CameraStream
+from .poses import PoseTrack
 from .time_columns import TimeColumn
 
 
@@ -48,6 +49,7 @@ class ParsedLog:
     notes: tuple[str, ...] = ()
     cameras: tuple[CameraStream, ...] = ()  # camera frames, kept beside the arrays
     found_time: TimeColumn | None = None  # a CSV's time column when the reader found it itself
+    poses: tuple[PoseTrack, ...] = ()  # where the robot was, on the streams' clock (never a signal)
 
 
 @dataclass(frozen=True)
@@ -74,6 +76,8 @@ class Mapping:
         header: Whether the CSV has a header row (None: detect).
         columns: CSV column names when it has no header.
         sample_rate_hz: Rate of CSV files with no time column (QCAT files without one).
+        tf_child: The ``/tf`` child frame a pose track follows (``[poses] tf_child``; default: the robot's base,
+            ``base_link`` or another of ``poses.BASE_FRAMES``).
     """
 
     channels: tuple[ChannelSpec, ...] = ()
@@ -84,6 +88,7 @@ class Mapping:
     header: bool | None = None
     columns: tuple[str, ...] = ()
     sample_rate_hz: float | None = None
+    tf_child: str | None = None
 
 
 @dataclass(frozen=True)
@@ -134,15 +139,19 @@ def load_mapping(path: str | Path) -> Mapping:
     if not isinstance(raw, dict):
         raise IngestError(path, "mapping file must hold a table/object at the top")
     csv = raw.pop("csv", {}) or {}
+    poses = raw.pop("poses", {}) or {}
     known = {"channels", "ignore", "rate_hz"}
     unknown = set(raw) - known
     csv_known = {"time_column", "time_unit", "header", "columns", "sample_rate_hz"}
     unknown |= {f"csv.{k}" for k in set(csv) - csv_known}
+    unknown |= {f"poses.{k}" for k in set(poses) - {"tf_child"}} if isinstance(poses, dict) else set()
     if unknown:
         raise IngestError(path, f"unknown keys in mapping file: {', '.join(sorted(unknown))}")
     try:
         if not isinstance(csv, dict):
             raise ValueError("[csv] must be a table")
+        if not isinstance(poses, dict) or not isinstance(poses.get("tf_child", ""), str):
+            raise ValueError("[poses] must be a table, its tf_child a frame's name")
         listed = {k: raw.get(k, []) for k in ("channels", "ignore")} | {"csv.columns": csv.get("columns", [])}
         for label, value in listed.items():
             if not isinstance(value, list):
@@ -193,6 +202,7 @@ def load_mapping(path: str | Path) -> Mapping:
             header=header,
             columns=tuple(str(x) for x in listed["csv.columns"]),
             sample_rate_hz=None if sample_rate is None else float(sample_rate),
+            tf_child=poses.get("tf_child") or None,
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise IngestError(path, f"bad mapping file: {exc}") from None

@@ -15,6 +15,7 @@ if TYPE_CHECKING:  # pandas loads where a table is read: commands that read none
 from ..errors import IngestError
 from ..limits import MAX_CSV_LINE_BYTES
 from .base import TIME_UNITS, IngestOptions, ParsedLog, Stream
+from .csv_poses import csv_track, pose_columns
 from .time_columns import PROBE_ROWS, TimeColumn, find_time_columns, judge_unit
 
 # QCAT (CSIRO, DyRET robot): `{terrain}_{speed}_legSensors_{raw|imu}.csv`, the terrain given as an index.
@@ -369,6 +370,7 @@ def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
     found: TimeColumn | None = None
     not_read: list[str] = []  # other columns that step like a clock: a ramp is no terrain signal
     notes: list[str] = []
+    position = None
     if mapping.time_column is not None:
         tc = mapping.time_column
         if isinstance(tc, int):
@@ -406,6 +408,8 @@ def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
     else:
         skip = {time_col, *not_read, *mapping.ignore}
         chans = [c for c in cols if c not in skip]
+        if (position := pose_columns(frame, chans)) is not None:
+            chans = [c for c in chans if c not in position[1]]
         names, units = tuple(str(c) for c in chans), ("",) * len(chans)
     if not chans:
         raise IngestError(path, "no channel columns besides the time column")
@@ -416,6 +420,10 @@ def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
     else:
         times = _times(path, frame, time_col, TIME_UNITS[unit])
     values = _numeric(path, frame, chans, allow_gaps=options.allow_gaps)
+    poses = ()
+    if not mapping.channels and position is not None:
+        track, said = csv_track(frame, times, position, source=path.name)
+        poses, notes = (track,), [*notes, said]
     return ParsedLog(
         name=path.stem,
         source_path=str(path),
@@ -424,4 +432,5 @@ def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
         streams=(_stream(path, path.stem, times, values, chans, names, units),),
         notes=tuple(notes),
         found_time=found,
+        poses=poses,
     )

@@ -18,6 +18,7 @@ from .cdr_block import decode_block, float64_fields
 from .fields import FieldSpec, format_path, get, infer_fields, parse_path, stamp_seconds
 from .image_topics import CameraCollector, is_camera
 from .mcap_chunks import chunk_records, linear_messages
+from .pose_topics import PoseCollector, pose_kind
 from .spill import RowBuffer, reorder
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -39,6 +40,8 @@ class _Topic:
     layout: dict | None = None  # float positions when its messages are a header and floats (cdr_block)
     block: np.ndarray | None = None  # the fields' positions in that layout, once the fields are known
     pending: list[tuple[int, bytes]] = field(default_factory=list)  # (log time, message) not yet decoded
+    pose: PoseCollector | None = None  # where the robot was, when the topic carries positions
+    pose_decode: Callable[[bytes], object] | None = None  # its decoder where the topic gives no channels
 
 
 @dataclass(frozen=True)
@@ -252,6 +255,11 @@ def read_topics(
         if t is None:
             t = topics[channel.id] = _Topic(channel.topic, schema.name if schema else "")
             camera = is_camera(t.schema)
+            if channel.topic not in mapping.ignore and not camera:
+                # a pose type by its name; any other topic may be a GNSS driver's own fix, found by its fields
+                t.pose = PoseCollector(t.topic, t.schema, pose_kind(t.schema), child=mapping.tf_child)
+                with contextlib.suppress(Exception):  # undecodable: the sensor side says why
+                    t.pose_decode = decoder_for(channel, schema)
             if channel.topic in mapping.ignore or (explicit and channel.topic not in explicit and not camera):
                 t.unusable = "ignored by the mapping file"
             elif camera and not options.camera_fps > 0:
@@ -270,6 +278,8 @@ def read_topics(
                     t.camera = CameraCollector(t.topic, t.schema, fps=options.camera_fps)
                 elif block_layout is not None and not t.unusable:
                     t.layout = block_layout(channel, schema)
+        if t.pose is not None and t.pose_decode is not None and (t.unusable or t.decode is None):
+            _feed_pose(t, message)  # a pose topic read for its positions alone
         if t.unusable:
             return
         size = len(message.data)
@@ -314,6 +324,8 @@ def read_topics(
                 f"message cannot be decoded: {exc}",
                 where=f"topic {t.topic}, log time {log_time}",
             ) from None
+        if t.pose is not None and t.pose.add(msg, log_time) is False:
+            t.pose = None
         if not t.fields:
             if t.topic in explicit:
                 t.fields = [FieldSpec(parse_path(s.field), s.name or s.field, s.unit, None) for s in explicit[t.topic]]
@@ -323,7 +335,7 @@ def read_topics(
                 t.unusable = f"no sensor fields recognised in {t.schema or 'its messages'}"
                 return
             t.rows = RowBuffer(len(t.fields))
-            if t.layout is not None and all(f.header in (None, ()) for f in t.fields):
+            if t.layout is not None and t.pose is None and all(f.header in (None, ()) for f in t.fields):
                 paths = [tuple(f.path) for f in t.fields]
                 if all(p in t.layout for p in paths):  # the next messages go a block at a time
                     t.block = np.asarray([t.layout[p] for p in paths])
@@ -388,6 +400,7 @@ def read_topics(
         for t in topics.values()
     ]
     cameras = tuple(c for t in topics.values() if t.camera is not None and (c := t.camera.result()) is not None)
+    poses = tuple(track for t in topics.values() if t.pose is not None for track in t.pose.tracks())
     if not usable:
         if not topics:
             reason = "no messages"
@@ -426,9 +439,38 @@ def read_topics(
             streams=tuple(streams),
             reference=reference,
             cameras=cameras,
+            poses=poses,
+            notes=tuple(_pose_notes(poses)),
         ),
         reports,
     )
+
+
+def _feed_pose(t: _Topic, message) -> None:
+    """A message of a topic read for its positions alone, decoded for them (an undecodable one is counted)."""
+    if len(message.data) > MAX_SENSOR_MESSAGE_BYTES:  # no position is that large: never decoded
+        t.pose.failed += 1
+        return
+    try:
+        msg = t.pose_decode(message.data)
+    except Exception:
+        if t.pose.kind is None:  # not known to carry positions: not tried again
+            t.pose = None
+        else:
+            t.pose.failed += 1
+        return
+    if t.pose.add(msg, message.log_time) is False:
+        t.pose = None
+
+
+def _pose_notes(poses: tuple) -> list[str]:
+    """One line per track that lost poses as impossible, naming how many."""
+    return [
+        f"positions of {p.source}: {p.dropped:,} of {p.dropped + len(p.times):,} dropped as impossible (not "
+        "finite, time going back, out of range or a jump)"
+        for p in poses
+        if p.dropped
+    ]
 
 
 def _sidecar_reference(path: Path) -> tuple[tuple[float, float, str], ...]:

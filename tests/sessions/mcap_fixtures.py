@@ -9,7 +9,14 @@ import numpy as np
 from mcap.writer import Writer as RawWriter
 from mcap_ros2.writer import Writer
 
-from workbench.demo import IMU_SCHEMA, WRENCH_STAMPED_SCHEMA
+from workbench.demo import (
+    AMCL_SCHEMA,
+    DRIVER_GNSS_SCHEMA,
+    IMU_SCHEMA,
+    ODOMETRY_SCHEMA,
+    TF_SCHEMA,
+    WRENCH_STAMPED_SCHEMA,
+)
 
 VECTOR3_STAMPED_SCHEMA = IMU_SCHEMA[IMU_SCHEMA.index("=" * 80) :].replace(
     "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n" + "=" * 80 + "\n", ""
@@ -116,5 +123,80 @@ def write_json_channel(path: Path, *, n: int = 100, bad_at: int | None = None) -
             }
             data = json.dumps(msg).encode() if i != bad_at else b"{not json"
             w.add_message(ch, log_time=int(1e9 + i * 1e7), data=data, publish_time=int(1e9 + i * 1e7))
+        w.finish()
+    return path
+
+
+def path_at(t: float) -> tuple[float, float]:
+    """The fixtures' robot: a circle of 10 m radius at 1 m/s, from (10, 0)."""
+    return 10.0 * np.cos(t / 10.0), 10.0 * np.sin(t / 10.0)
+
+
+def write_with_poses(
+    path: Path, *, seconds: float = 4.0, t0: float = 1000.0, wild_fix: bool = False, small_robot: bool = False
+) -> Path:
+    """An Imu at 100 Hz with the robot's position three ways: ``nav_msgs/Odometry`` and ``/tf`` (odom ->
+    base_link, and a camera frame beside it) at 20 Hz, and a GNSS driver's own fix message at 5 Hz (``wild_fix``:
+    one of them 1,000 km off, one at latitude 95°). ``small_robot``: odometry, ``/tf`` and an AMCL pose
+    (``geometry_msgs/PoseWithCovarianceStamped`` in ``map``) only, as a small ROS 2 robot records."""
+    quat = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+    with open(path, "wb") as f:
+        w = Writer(f)
+        imu_s = w.register_msgdef("sensor_msgs/msg/Imu", IMU_SCHEMA)
+        odom_s = w.register_msgdef("nav_msgs/msg/Odometry", ODOMETRY_SCHEMA)
+        tf_s = w.register_msgdef("tf2_msgs/msg/TFMessage", TF_SCHEMA)
+        fix_s = w.register_msgdef("acme_gnss/msg/Fix", DRIVER_GNSS_SCHEMA)
+        amcl_s = w.register_msgdef("geometry_msgs/msg/PoseWithCovarianceStamped", AMCL_SCHEMA)
+        for i in range(int(seconds * 100)):
+            t = t0 + i / 100
+            ns = round(t * 1e9)
+            if not small_robot:
+                w.write_message("/imu", imu_s, imu_msg(t, i), log_time=ns, publish_time=ns)
+            x, y = path_at(i / 100)
+            if i % 5 == 0:
+                twist = {"linear": vec(1.0, 0.0, 0.0), "angular": vec(0.0, 0.0, 0.1)}
+                odom = {
+                    "header": header(t, "odom"),
+                    "child_frame_id": "base_link",
+                    "pose": {"pose": {"position": vec(x, y, 0.0), "orientation": quat}, "covariance": [0.0] * 36},
+                    "twist": {"twist": twist, "covariance": [0.0] * 36},
+                }
+                w.write_message("/odom", odom_s, odom, log_time=ns, publish_time=ns)
+                tf = {
+                    "transforms": [
+                        {
+                            "header": header(t, "odom"),
+                            "child_frame_id": "base_link",
+                            "transform": {"translation": vec(x, y, 0.0), "rotation": quat},
+                        },
+                        {
+                            "header": header(t, "base_link"),
+                            "child_frame_id": "camera",
+                            "transform": {"translation": vec(0.2, 0.0, 0.5), "rotation": quat},
+                        },
+                    ]
+                }
+                w.write_message("/tf", tf_s, tf, log_time=ns, publish_time=ns)
+            if small_robot and i % 50 == 0:
+                amcl = {
+                    "header": header(t, "map"),
+                    "pose": {"pose": {"position": vec(x + 2.0, y, 0.0), "orientation": quat}, "covariance": [0.0] * 36},
+                }
+                w.write_message("/amcl_pose", amcl_s, amcl, log_time=ns, publish_time=ns)
+            if i % 20 == 0 and not small_robot:
+                lat, lon = 45.38 + y / 111_195.0, -71.92 + x / 78_200.0
+                if wild_fix and i == 100:
+                    lat += 9.0
+                if wild_fix and i == 200:
+                    lat = 95.0
+                fix = {
+                    "header": header(t, "gnss"),
+                    "fix_quality": 4,
+                    "latitude": lat,
+                    "longitude": lon,
+                    "altitude": 250.0,
+                    "hdop": 0.8,
+                }
+                w.write_message("/gnss/fix", fix_s, fix, log_time=ns, publish_time=ns)
         w.finish()
     return path

@@ -93,6 +93,8 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
     found: TimeColumn | None = None  # and its time column, when the reader found it
     first_csv = True
     no_time = False
+    tf_children: set[str] = set()  # the /tf child frames a path was read from
+    odometry: list[str] = []  # odometry topics not read as signals: their velocities are offered
     sources, errors = plan_sources(list(files))
     for err in errors:
         ok = False
@@ -115,6 +117,8 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
         if source.format == "csv" and first_csv:
             found, first_csv = parsed_logs[0].found_time, False
         for report in reports:
+            if report.unusable and report.schema.replace("/msg/", "/") == "nav_msgs/Odometry":
+                odometry.append(report.topic)
             if report.unusable:
                 lines.append(
                     f"#   topic {report.topic} ({report.schema}, {report.messages} msgs): not used: {report.unusable}"
@@ -137,6 +141,13 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
             )
             for note in log.parsed.notes:
                 lines.append(f"#      note: {note}")
+            for track in log.parsed.poses:
+                lines.append(
+                    f"#      position: {track.source} ({track.kind}, frame {track.frame}, {len(track.times):,} poses"
+                    + (f", {track.dropped:,} dropped" if track.dropped else "")
+                    + "): the robot's path, never a signal"
+                )
+                tf_children.update({track.source.partition(":")[2]} if track.kind == "tf" else set())
             if log.parsed.reference_terrain:
                 lines.append(f"#      reference terrain (evaluation only): {log.parsed.reference_terrain}")
             for gap in log.gaps[:5]:
@@ -159,6 +170,23 @@ def dry_run_report(files: Sequence[Path], options: IngestOptions) -> tuple[bool,
         lines.append(f"ignore = {_toml_value(list(options.mapping.ignore))}")
     lines.append("")
     lines += _csv_section(options.mapping, sniffed, no_time, found)
+    lines += _pose_section(options.mapping, tf_children, odometry)
     # a comment holds names from the files (topics, logs, notes): a newline in one would end the comment
     lines = ["#" + shown(line[1:]) if line.startswith("#") else line for line in lines]
     return ok, "\n".join(lines + channel_lines)
+
+
+def _pose_section(mapping, tf_children: set[str], odometry: list[str]) -> list[str]:
+    """The mapping's ``[poses]`` choice where ``/tf`` gave a path, and each odometry topic's velocities offered as
+    signals (commented: a robot whose only topics are its odometry and poses has no other)."""
+    lines = []
+    if tf_children or mapping.tf_child:
+        child = mapping.tf_child or sorted(tf_children)[0]
+        lines += ["# the /tf child frame the robot's path follows (its base by default)", "[poses]"]
+        lines += [f"tf_child = {_toml_str(child)}", ""]
+    for topic in odometry:
+        lines.append(f"# {topic}'s velocities as signals (uncomment where the log has no IMU or other sensor):")
+        for axis in ("linear.x", "linear.y", "angular.z"):
+            lines += ["# [[channels]]", f"# source = {_toml_str(topic)}", f'# field = "twist.twist.{axis}"', "#"]
+        lines.append("")
+    return lines

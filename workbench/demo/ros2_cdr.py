@@ -12,16 +12,16 @@ import struct
 
 import numpy as np
 
-_SEP = "=" * 80
-_HEADER_DEFS = f"""{_SEP}
+SEP = "=" * 80
+HEADER_DEFS = f"""{SEP}
 MSG: std_msgs/Header
 builtin_interfaces/Time stamp
 string frame_id
-{_SEP}
+{SEP}
 MSG: builtin_interfaces/Time
 int32 sec
 uint32 nanosec"""
-_VECTOR3 = f"""{_SEP}
+VECTOR3 = f"""{SEP}
 MSG: geometry_msgs/Vector3
 float64 x
 float64 y
@@ -34,31 +34,31 @@ geometry_msgs/Vector3 angular_velocity
 float64[9] angular_velocity_covariance
 geometry_msgs/Vector3 linear_acceleration
 float64[9] linear_acceleration_covariance
-{_HEADER_DEFS}
-{_SEP}
+{HEADER_DEFS}
+{SEP}
 MSG: geometry_msgs/Quaternion
 float64 x
 float64 y
 float64 z
 float64 w
-{_VECTOR3}
+{VECTOR3}
 """
 
 WRENCH_STAMPED_SCHEMA = f"""std_msgs/Header header
 geometry_msgs/Wrench wrench
-{_HEADER_DEFS}
-{_SEP}
+{HEADER_DEFS}
+{SEP}
 MSG: geometry_msgs/Wrench
 geometry_msgs/Vector3 force
 geometry_msgs/Vector3 torque
-{_VECTOR3}
+{VECTOR3}
 """
 
 
 COMPRESSED_IMAGE_SCHEMA = f"""std_msgs/Header header
 string format
 uint8[] data
-{_HEADER_DEFS}
+{HEADER_DEFS}
 """
 
 
