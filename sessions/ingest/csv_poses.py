@@ -56,7 +56,7 @@ def csv_track(frame: pd.DataFrame, times: np.ndarray, found: tuple[str, list], *
     values = np.full((len(frame), 3), 0.0)
     for j, c in enumerate(cols):
         values[:, j] = _numbers(frame[c])
-    frame_name = "wgs84" if kind == "gnss" else "csv"
+    frame_name = "wgs84" if kind == "gnss" else "csv"  # a CSV's x, y: its own run's frame
     track = clean(PoseTrack(kind, f"{source}:{','.join(map(str, cols))}", frame_name, np.asarray(times), values))
     note = f"columns {', '.join(map(str, cols))} read as the robot's position (a pose track), not as signals"
     if track.dropped:

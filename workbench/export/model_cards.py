@@ -232,6 +232,7 @@ def model_card(
     figure: SessionFigure | None = None,
     logs: int = 0,
     which: str | None = None,
+    terrain_map: str | None = None,
 ) -> str:
     """A Markdown description of a bundle: what it is, what it was trained on, how well it does, and where it does
     not know (``drifted``: per log name, the share of its time with a drift score above 1; ``unlabelled``: per log
@@ -240,7 +241,8 @@ def model_card(
     steps' members' agreement over the logs with no label (``labeling.member_agreement``) and how many they are;
     ``checks``: what the person's checks said, test then train; ``figure``: how right the session is, from the
     spot checks of this version, over its ``logs`` logs; ``which``: which of the session's versions it is, taught or
-    not, as ``cycle.shipped_version`` says)."""
+    not, as ``cycle.shipped_version`` says; ``terrain_map``: the picture of the logs' paths beside the card, and
+    what it shows)."""
     m, family = bundle.metrics, bundle.stage2_family()
     lines = [
         f"# Terrain classifier v{version}",
@@ -265,6 +267,7 @@ def model_card(
         *_estimate_section(m),
         *_checks_section(checks, m),
         *_drift_section(bundle, drifted, unlabelled, unlabelled_agreement, unlabelled_members),
+        *(["## Where each terrain was", "", terrain_map, ""] if terrain_map else []),
         "## Out-of-fold metrics (same logs)",
         "",
         "Each labelled step predicted, in a pass over its whole log, by the fold model that did not train on it "

@@ -33,6 +33,7 @@ from training import (
 )
 
 from ..expectations import file_expectation, stretch_share
+from ..maps import MAP_FILE, TerrainMap
 from . import predictions_stream
 from .bundle_checks import write_checks
 from .export_staging import check_target, staged
@@ -135,6 +136,7 @@ def _write_export(
     members, members_steps, members_logs = 0.0, 0, 0  # their steps' members' agreement (the Data tab's figure)
     logs = model_logs(session, bundle.channels)
     tally = FigureTally(session, version.id)  # how right the session is, from the spot checks of this version
+    paths = TerrainMap(session, logs)  # where each terrain was: the paths of the logs with positions
     if predictions or mcap or bundle.drift is not None:  # every log scored, a group at a time, handed on per log
         table = PredictionsWriter(out / "predictions.parquet") if predictions else None
         if mcap:
@@ -149,6 +151,7 @@ def _write_export(
         for log, s in _scored(session, logs, out / ".scoring", version):
             if s.probs is not None:
                 tally.add(log.id, s.probs)
+                paths.add(log, s.probs, bundle.classes)
             if (share := labeling.drifted_share(s.drift)) is not None:
                 drifted[log.name] = share
             if log.id not in labelled_logs and bundle.drift is not None:
@@ -173,6 +176,7 @@ def _write_export(
             table.close(with_drift_column(empty, bundle.drift is not None))
             streamed.insert(0, (table.path, "per-timestep predictions"))
     agreement = agree / agree_steps if unlabelled and agree_steps else None
+    picture = paths.write(out / "bundle" / MAP_FILE)
     card = model_card(
         bundle,
         version=version.id,
@@ -185,10 +189,13 @@ def _write_export(
         figure=tally.figures().session if predictions or mcap or bundle.drift is not None else None,
         logs=len(logs),
         which=_taught_words(which),
+        terrain_map=None if picture is None else f"![where each terrain was]({MAP_FILE})\n\n{paths.words()}",
     )
     (out / "bundle" / "MODEL_CARD.md").write_text(card)
     write_checks(out / "bundle", checks, names={x.id: x.name for x in logs})
     written.append((out / "bundle", f"model bundle {which} (safetensors + model.json + MODEL_CARD.md)"))
+    if picture is not None:
+        written.append((picture, f"the paths coloured by terrain ({paths.words()})"))
     onnx = export_onnx(bundle, out / "classifier_stream.onnx")
     worst = max(check_onnx(onnx, bundle, session.samples(x.id, 0, CHECK_SAMPLES)) for x in logs[:2])
     if worst > ONNX_TOLERANCE:
