@@ -168,6 +168,15 @@ def browser():
         b.close()
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _fork_servers_end_with_the_module() -> Iterator[None]:
+    """A module's ``fork_client`` servers end with it, so their CPU counts in that module's (``suite_cpu.py``)."""
+    yield
+    from tests.fork_client import ForkServer
+
+    ForkServer.stop()
+
+
 def pytest_configure(config: pytest.Config) -> None:
     from tests import suite_cpu  # its hooks beside this file's: the suite's CPU at the end of every run
 

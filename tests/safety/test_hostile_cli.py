@@ -1,57 +1,19 @@
-"""The hostile inputs of issue 52 through the CLI, each in a child process: one line naming the file and the reason,
+"""The hostile inputs of issue 52 through the CLI, each in a child process of its own (forked from one that imported
+the CLI once: ``tests/fork_server.py``): one line naming the file and the reason,
 exit 2, under 1 GB and 20 s, the session unchanged; or, where the input is legitimate, read correctly."""
 
 from __future__ import annotations
 
-import os
 import shutil
-import subprocess
-import sys
-import tempfile
-import threading
-import time
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import REPO, new_session, snapshot
+from tests.conftest import new_session, snapshot
+from tests.fork_client import TIME_LIMIT_S, run_cli
 from tests.safety.hostile_cases import BUILDERS, Case, _csv
 
-TIME_LIMIT_S = 20.0
 PEAK_LIMIT_MB = 1024.0
-
-
-def run_cli(args: list[str], *, timeout: float = TIME_LIMIT_S) -> tuple[int, str, str, float, float]:
-    """``workbench ARGS`` in a child: exit code, stdout, stderr, seconds and peak RSS (MB) of that child alone."""
-    t0 = time.perf_counter()
-    peak_file = Path(tempfile.mkdtemp()) / "peak"
-    proc = subprocess.Popen(
-        [sys.executable, str(REPO / "tests" / "safety" / "cli_peak.py"), str(peak_file), *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        cwd=REPO,
-        env={**os.environ, "WORKBENCH_DEBUG": ""},
-    )
-    out: dict[str, bytes] = {}
-    readers = [
-        threading.Thread(target=lambda k=k, f=f: out.__setitem__(k, f.read()), daemon=True)
-        for k, f in (("out", proc.stdout), ("err", proc.stderr))
-    ]
-    for r in readers:
-        r.start()
-    timer = threading.Timer(timeout, proc.kill)
-    timer.start()
-    proc.wait()
-    timer.cancel()
-    seconds = time.perf_counter() - t0
-    for r in readers:
-        r.join()
-    if proc.returncode == -9:
-        pytest.fail(f"workbench {' '.join(args)[:200]}: no answer within {timeout:.0f} s (killed)")
-    text = {k: v.decode("utf-8", "replace") for k, v in out.items()}
-    peak = int(peak_file.read_text()) / 1024
-    shutil.rmtree(peak_file.parent)
-    return proc.returncode, text["out"], text["err"], seconds, peak
 
 
 @pytest.fixture(scope="module")

@@ -4,8 +4,6 @@ model still loads and scores, and no half-written version is listed."""
 from __future__ import annotations
 
 import signal
-import subprocess
-import sys
 import textwrap
 from pathlib import Path
 
@@ -13,6 +11,7 @@ import numpy as np
 import pytest
 
 from sessions import Session
+from tests.fork_client import ForkServer
 from training import TrainConfig
 from training.runtime.bundle import load_bundle
 from workbench import cycle
@@ -66,11 +65,13 @@ CHILD = textwrap.dedent(
 )
 
 
+TRAINING_MODULES = ("torch", "sessions", "training", "workbench.cycle")  # imported once by the server, not per kill
+
+
 def kill_training(path: Path, where: str, stage: str, steps: int = 1) -> None:
-    out = subprocess.run(
-        [sys.executable, "-c", CHILD, str(path), where, stage, str(steps)], capture_output=True, text=True, timeout=300
-    )
-    assert out.returncode == -signal.SIGKILL, out.stderr[-2000:]
+    """``CHILD`` in a process of its own (forked from one that imported PyTorch once: ``tests/fork_server.py``)."""
+    ran = ForkServer.run(TRAINING_MODULES, CHILD, [str(path), where, stage, str(steps)], timeout=300)
+    assert ran.code == -signal.SIGKILL and not ran.killed, ran.err[-2000:]
 
 
 def state_of(path: Path) -> tuple:

@@ -12,7 +12,7 @@ import numpy as np
 from mcap.writer import Writer as RawWriter
 
 from tests.conftest import new_session
-from tests.safety.test_hostile_cli import run_cli
+from tests.fork_client import run_cli
 from workbench.cli.terminal import shown
 
 HOSTILE_TOPICS = (

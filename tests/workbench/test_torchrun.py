@@ -115,15 +115,21 @@ def test_two_processes_killed_mid_epoch_resume_and_draw_the_loss_curve_of_one(
         assert not list((s.path / "cache" / "checkpoints").glob("predictor*.safetensors"))  # gone once saved
 
 
-def test_only_the_predictor_trains_under_torchrun(logs_session: Path, tmp_path: Path) -> None:
-    # both refusals come before any process group is joined, so one process with the WORLD_SIZE torchrun sets
-    # (`distributed.launched`) shows each without a launch (a launch costs two interpreters and a rendezvous)
-    out = run(["train", str(copy_of(logs_session, tmp_path / "s")), "--stage", "classifier"], world=2)
-    assert out.returncode == 2
-    assert out.stderr.count("error: under torchrun only the predictor trains (--stage predictor)") == 1
-    assert "Traceback" not in out.stderr
+def test_only_the_predictor_trains_under_torchrun(
+    logs_session: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    # both refusals come before any process group is joined, so the CLI in this process, told the WORLD_SIZE
+    # torchrun sets (`distributed.launched`), shows each without a launch or an interpreter of its own
+    from workbench.cli import main
+
+    for key, value in {"WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "0"}.items():
+        monkeypatch.setenv(key, value)
+    assert main(["train", str(copy_of(logs_session, tmp_path / "s")), "--stage", "classifier"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("error: under torchrun only the predictor trains (--stage predictor)") == 1
+    assert "Traceback" not in err
     # the default family's stage 1 trains in one process, in seconds
-    default = run(["train", str(copy_of(logs_session, tmp_path / "d")), "--stage", "predictor"], world=2)
-    assert default.returncode == 2
-    assert default.stderr.count("error: under torchrun only the paper family's LSTM predictor trains") == 1
-    assert "Traceback" not in default.stderr
+    assert main(["train", str(copy_of(logs_session, tmp_path / "d")), "--stage", "predictor"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("error: under torchrun only the paper family's LSTM predictor trains") == 1
+    assert "Traceback" not in err

@@ -240,48 +240,6 @@ def test_suggest_verify_writes_the_checks_the_width_needs_and_the_session_figure
     assert 0 < written < 2_000
 
 
-def test_far_runs_are_scored_by_the_shipped_bundle_every_round_and_never_enter_the_session(
-    loop_session: tuple[Path, Path], tmp_path: Path, capsys
-) -> None:
-    """Issue 82, item 1: runs kept out of the session copy entirely, scored after each round by the bundle the
-    session would export, as `classify` scores them; the session's reference rows and the far runs' are one file."""
-    session, reference = loop_session
-    (tmp_path / "far").mkdir()
-    far = [_walk(tmp_path / "far" / f"x{i}.csv", 20 + i, gain=1.5) for i in range(2)]
-    both = tmp_path / "truth.csv"
-    rows = pd.read_csv(reference)
-    pd.concat([rows, pd.DataFrame([r for _, t in far for r in t], columns=rows.columns)]).to_csv(both, index=False)
-    out = tmp_path / "loop.json"
-    args = ["evaluate", "loop", str(session), "--reference", str(both), "--rounds", "1", "--per-round", "6"]
-    far_args = ["--far", *(str(p) for p, _ in far)]
-    code = main([*args, "--strategies", "combined", "--out", str(out), *far_args, "--verify", "6"])
-    text = capsys.readouterr().out
-    assert code == 0, text
-    arm = json.loads(out.read_text())["arms"]["combined"]
-    assert all(r["far"] is not None and set(r["far_per_log"]) == {"x0", "x1"} for r in arm)
-    # six verification checks of each round's model, counted apart, never labelled and never recorded
-    verified = arm[-1]["verified"]
-    assert all(r["verified"]["checks"] == 6 for r in arm)  # before the first round and after each
-    assert verified["low"] <= verified["accuracy"] <= verified["high"]
-    assert verified["truth"] == pytest.approx(arm[-1]["accuracy"])  # the same time the loop's figure is on
-    assert "| combined | 0 | 6 |" in text and "| combined | 1 | 6 |" in text and "truth (%) | covers |" in text
-    per_run = verified["per_run"]  # the Data tab's figure per new log, beside its truth
-    assert set(per_run) == {"w2", "odd"} and sum(r[3] for r in per_run.values()) == 6
-    assert "runs' intervals cover the truth" in text
-    assert arm[0]["far"][0] > 0.5, arm[0]  # the bundle reads the far runs: above chance on two terrains
-    assert "the shipped model on far runs (%) (balanced; mean per run)" in text and "| combined | x0 | x1 |" not in text
-    assert re.search(r"\| combined \| \d+\.\d → \d+\.\d \| \d+\.\d → \d+\.\d \| \d+\.\d → \d+\.\d \|", text), text
-    mean = sum(arm[-1]["far_per_log"].values()) / 2  # the mean per run, each run once
-    assert f"; {100 * mean:.1f})" in text
-    with Session.open(session) as s:
-        assert {x.name for x in s.logs()} == {"w0", "w1", "w2", "odd"}
-    # refused in one line: a far run that is a log of the session, far runs without their truth
-    assert main([*args, "--far", str(loop_session[0].parent / "w2.csv")]) == 2
-    assert "w2 is a log of the session" in capsys.readouterr().err
-    assert main(["evaluate", "loop", str(session), "--far", str(far[0][0])]) == 2
-    assert "no log without labels has reference labels" in capsys.readouterr().err
-
-
 def test_verification_checks_are_dealt_to_runs_by_their_unlabelled_time() -> None:
     assert labeling.proportional([100, 300, 600], 10) == [1, 3, 6]
     assert labeling.proportional([1, 1, 1], 2) in ([1, 1, 0], [1, 0, 1], [0, 1, 1])
@@ -316,46 +274,32 @@ def test_the_teacher_last_arm_teaches_the_last_rounds_fit_only(
     assert taught == [False, False, True]
 
 
-def test_far_runs_are_read_with_the_mapping_rate_and_gaps_the_session_was_ingested_with(
-    loop_session: tuple[Path, Path], tmp_path: Path, capsys
+def test_far_runs_read_as_ingest_reads_them_are_scored_by_the_bundle_export_ships_and_never_enter_the_session(
+    loop_session: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
 ) -> None:
-    """Issue 98, item 5: a far run that needs a mapping (a headerless CSV) is read as `ingest` would read it."""
+    """Runs kept out of the session copy entirely, read with the ingest options given (headerless CSVs: a mapping),
+    scored after each round by the bundle `export` would write then (taught), as `classify` scores them, with
+    ``combined-untaught`` the ablation row scored by the round's own fit; the session's reference rows and the far
+    runs' are one file. One loop checks all of it (three loops did: issue 102)."""
+    from workbench.evaluation import session_loop
+
     session, reference = loop_session
-    path, truth = _walk(tmp_path / "bare.csv", 30, gain=1.5, seconds=40.0)
-    frame = pd.read_csv(path)
-    frame[["a", "b", "c", "time"]].to_csv(path, index=False, header=False)  # no header, time last
+    (tmp_path / "far").mkdir()
+    far = [_walk(tmp_path / "far" / f"x{i}.csv", 20 + i, gain=1.5, seconds=40.0) for i in range(2)]
+    for path, _ in far:  # no header, time last
+        frame = pd.read_csv(path)
+        frame[["a", "b", "c", "time"]].to_csv(path, index=False, header=False)
     mapping = tmp_path / "bare.toml"
     mapping.write_text(
         '[csv]\nheader = false\ncolumns = ["a", "b", "c", "stamp"]\ntime_column = "stamp"\ntime_unit = "s"\n'
     )
     both = tmp_path / "truth.csv"
     rows = pd.read_csv(reference)
-    pd.concat([rows, pd.DataFrame(truth, columns=rows.columns)]).to_csv(both, index=False)
-    args = ["evaluate", "loop", str(session), "--reference", str(both), "--rounds", "1", "--per-round", "3"]
-    args += ["--strategies", "combined", "--far", str(path)]
-    assert main(args) == 2  # read as a CSV with a header, it has none of the bundle's channels
-    assert "bare.csv" in capsys.readouterr().err
-    out = tmp_path / "loop.json"
-    assert main([*args, "--mapping", str(mapping), "--rate", "50", "--out", str(out)]) == 0, capsys.readouterr()
-    arm = json.loads(out.read_text())["arms"]["combined"]
-    assert all(set(r["far_per_log"]) == {"bare"} for r in arm) and arm[0]["far"][0] > 0.5, arm[0]
-    # the read options belong to --far: alone they are refused in one line
-    assert main(["evaluate", "loop", str(session), "--reference", str(reference), "--mapping", str(mapping)]) == 2
-    assert "--mapping, --rate and --allow-gaps say how the --far files are read" in capsys.readouterr().err
-
-
-def test_far_runs_are_scored_by_the_taught_model_export_ships_and_the_untaught_arm_by_the_rounds_fit(
-    loop_session: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
-) -> None:
-    """Issue 98, item 2: the far column is what `export` would write at each round (taught), and
-    ``combined-untaught`` is its ablation row (the round's own fit)."""
-    from workbench.evaluation import session_loop
-
-    session, reference = loop_session
-    path, truth = _walk(tmp_path / "far.csv", 40, gain=1.5, seconds=40.0)
-    both = tmp_path / "truth.csv"
-    rows = pd.read_csv(reference)
-    pd.concat([rows, pd.DataFrame(truth, columns=rows.columns)]).to_csv(both, index=False)
+    pd.concat([rows, pd.DataFrame([r for _, t in far for r in t], columns=rows.columns)]).to_csv(both, index=False)
+    args = ["evaluate", "loop", str(session), "--reference", str(both), "--rounds", "1", "--per-round", "6"]
+    far_args = ["--far", *(str(p) for p, _ in far)]
+    assert main([*args, "--strategies", "combined", *far_args]) == 2  # read with a header: none of the channels
+    assert "x0.csv" in capsys.readouterr().err
     shipped: list[tuple[bool, bool]] = []  # per round: taught asked, and the version scored is the active one
     real = session_loop.shipped_version
 
@@ -365,10 +309,38 @@ def test_far_runs_are_scored_by_the_taught_model_export_ships_and_the_untaught_a
         return version, which
 
     monkeypatch.setattr(session_loop, "shipped_version", recorded)
-    args = ["evaluate", "loop", str(session), "--reference", str(both), "--rounds", "1", "--per-round", "3"]
-    assert main([*args, "--strategies", "combined", "combined-untaught", "--far", str(path)]) == 0, capsys.readouterr()
+    out = tmp_path / "loop.json"
+    read = ["--mapping", str(mapping), "--rate", "50", "--verify", "6", "--out", str(out)]
+    code = main([*args, "--strategies", "combined", "combined-untaught", *far_args, *read])
+    text = capsys.readouterr().out
+    assert code == 0, text
     # rounds 0 and 1 of each arm: taught versions kept beside the active one, then the active one itself
     assert shipped == [(True, False), (True, False), (False, True), (False, True)]
+    arm = json.loads(out.read_text())["arms"]["combined"]
+    assert all(r["far"] is not None and set(r["far_per_log"]) == {"x0", "x1"} for r in arm)
+    # six verification checks of each round's model, counted apart, never labelled and never recorded
+    verified = arm[-1]["verified"]
+    assert all(r["verified"]["checks"] == 6 for r in arm)  # before the first round and after each
+    assert verified["low"] <= verified["accuracy"] <= verified["high"]
+    assert verified["truth"] == pytest.approx(arm[-1]["accuracy"])  # the same time the loop's figure is on
+    assert "| combined | 0 | 6 |" in text and "| combined | 1 | 6 |" in text and "truth (%) | covers |" in text
+    per_run = verified["per_run"]  # the Data tab's figure per new log, beside its truth
+    assert set(per_run) == {"w2", "odd"} and sum(r[3] for r in per_run.values()) == 6
+    assert "runs' intervals cover the truth" in text
+    assert arm[0]["far"][0] > 0.5, arm[0]  # the bundle reads the far runs: above chance on two terrains
+    assert "the shipped model on far runs (%) (balanced; mean per run)" in text and "| combined | x0 | x1 |" not in text
+    assert re.search(r"\| combined \| \d+\.\d → \d+\.\d \| \d+\.\d → \d+\.\d \| \d+\.\d → \d+\.\d \|", text), text
+    mean = sum(arm[-1]["far_per_log"].values()) / 2  # the mean per run, each run once
+    assert f"; {100 * mean:.1f})" in text
+    with Session.open(session) as s:
+        assert {x.name for x in s.logs()} == {"w0", "w1", "w2", "odd"}
+    # refused in one line: a far run that is a log of the session, far runs without their truth, read options alone
+    assert main([*args, "--far", str(loop_session[0].parent / "w2.csv")]) == 2
+    assert "w2 is a log of the session" in capsys.readouterr().err
+    assert main(["evaluate", "loop", str(session), "--far", str(far[0][0])]) == 2
+    assert "no log without labels has reference labels" in capsys.readouterr().err
+    assert main(["evaluate", "loop", str(session), "--reference", str(reference), "--mapping", str(mapping)]) == 2
+    assert "--mapping, --rate and --allow-gaps say how the --far files are read" in capsys.readouterr().err
 
 
 def test_a_session_log_copied_under_another_name_is_no_far_run(

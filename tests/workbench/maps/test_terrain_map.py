@@ -57,7 +57,9 @@ def test_a_path_is_labelled_where_labelled_the_models_where_sure_and_grey_elsewh
     assert panel_of(pa) == panel_of(pb) == "wgs84"
     assert np.allclose(pa.xy[0], (0.0, 0.0), atol=0.01) and np.allclose(pb.xy[0], (20.0, 0.0), atol=0.05)
     assert np.allclose(pa.xy[-1, 1], 119.98, atol=0.05)
-    assert drawing.words().startswith("2 of 2 logs have positions (gnss); of the 6,000 poses drawn, 25% labelled")  # 3,000 a log
+    assert drawing.words().startswith(
+        "2 of 2 logs have positions (gnss); of the 6,000 poses drawn, 25% labelled"
+    )  # 3,000 a log
 
 
 def test_no_positions_no_picture(tmp_path: Path) -> None:
