@@ -6,15 +6,13 @@ bag, a label file and an upload; ``make stress`` every variant and the 1.6 GB on
 from __future__ import annotations
 
 import hashlib
-import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from sessions import Session
-from tests.conftest import REPO, new_session
+from tests.conftest import new_session
+from tests.fork_client import run_cli
 
 from .bomb_files import (
     camera_log,
@@ -27,29 +25,21 @@ from .bomb_files import (
 )
 
 PEAK_LIMIT_MB = 1024.0
-MEASURE = (
-    "import json, resource, subprocess, sys; r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
-    "print(json.dumps({'rc': r.returncode, 'out': r.stdout + r.stderr, "
-    "'peak_mb': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024}))"
-)
 PEAKS: list[float] = []
+
+
+def _measured(args: list[str]) -> tuple[int, list[str], float]:
+    """``workbench ARGS`` in a child process of its own (``tests/fork_client.run_cli``): exit code, its output's lines
+    and its own peak resident memory."""
+    rc, out, err, _, peak = run_cli(args, timeout=300)
+    PEAKS.append(peak)
+    assert peak < PEAK_LIMIT_MB, f"workbench {args}: peak RSS {peak:.0f} MB"  # each case, whatever runs last
+    return rc, [x for x in (out + err).splitlines() if x.strip()], peak
 
 
 def ingest_measured(session: Path, *files: Path, dry_run: bool = False) -> tuple[int, list[str], float]:
     """``workbench ingest`` in a child process: its exit code, its output's lines and its peak resident memory."""
-    cli = [sys.executable, "-m", "workbench.cli", "ingest", str(session), *map(str, files)]
-    out = subprocess.run(
-        [sys.executable, "-c", MEASURE, *cli, *(["--dry-run"] if dry_run else [])],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=300,
-        check=True,
-    )
-    res = json.loads(out.stdout)
-    PEAKS.append(res["peak_mb"])
-    assert res["peak_mb"] < PEAK_LIMIT_MB, f"{cli}: peak RSS {res['peak_mb']:.0f} MB"  # each case, whatever runs last
-    return res["rc"], [x for x in res["out"].splitlines() if x.strip()], res["peak_mb"]
+    return _measured(["ingest", str(session), *map(str, files), *(["--dry-run"] if dry_run else [])])
 
 
 def fingerprint(folder: Path) -> dict[str, str]:
@@ -149,14 +139,7 @@ def test_a_pixel_bomb_frame_costs_the_frame_and_the_log_is_ingested(session: Pat
 
 def labels_measured(session: Path, label_file: Path) -> tuple[int, list[str], float]:
     """``workbench labels import`` in a child process: exit code, output lines, peak resident memory."""
-    cli = [sys.executable, "-m", "workbench.cli", "labels", "import", str(session), str(label_file)]
-    out = subprocess.run(
-        [sys.executable, "-c", MEASURE, *cli], capture_output=True, text=True, cwd=REPO, timeout=300, check=True
-    )
-    res = json.loads(out.stdout)
-    PEAKS.append(res["peak_mb"])
-    assert res["peak_mb"] < PEAK_LIMIT_MB, f"{cli}: peak RSS {res['peak_mb']:.0f} MB"  # each case, whatever runs last
-    return res["rc"], [x for x in res["out"].splitlines() if x.strip()], res["peak_mb"]
+    return _measured(["labels", "import", str(session), str(label_file)])
 
 
 def billion_row_parquet(path: Path) -> Path:
