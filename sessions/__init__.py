@@ -30,6 +30,7 @@ from .limits import MAX_NAME_CHARS, MAX_RATE_HZ, name_refusal
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import ModelVersion
 from .new_files import check_new_target, check_new_targets, new_file, rename_new
+from .path_mcap import TerrainPath, path_topics
 from .rowfiles import FileRows, NpyWriter
 from .schema import KNOWN_TERRAIN_COLORS, SCHEMA_VERSION
 from .store import Session
@@ -77,6 +78,7 @@ __all__ = [
     "SessionError",
     "Source",
     "Terrain",
+    "TerrainPath",
     "TerrainPredictions",
     "TimeColumn",
     "WorkbenchError",
@@ -90,6 +92,7 @@ __all__ = [
     "local_metres",
     "name_refusal",
     "new_file",
+    "path_topics",
     "per_log_paths",
     "plan_sources",
     "read_frame",

@@ -9,7 +9,7 @@ import sqlite3
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +25,7 @@ from .log_files import checked_log_file
 from .log_ingest import LOGS_DIR, LogIngest
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment
 from .model_versions import CACHE_DIR, ModelRegistry
+from .path_mcap import TerrainPath
 from .pose_store import PoseStore
 from .rowfiles import FileRows
 from .schema import SCHEMA_VERSION, check_objects, migrate
@@ -380,11 +381,14 @@ class Session(LogIngest, CameraStore, PoseStore, ModelRegistry, CheckStore, Terr
             Path(path), self.logs(), self.segments(), self.terrains(), samples, url_prefix=url_prefix
         )
 
-    def export_labels_mcap(self, path: str | Path) -> list[tuple[Path, LogInfo]]:
+    def export_labels_mcap(
+        self, path: str | Path, *, drawn: Callable[[LogInfo], TerrainPath | None] | None = None
+    ) -> list[tuple[Path, LogInfo]]:
         """Write each labelled log's segments to an MCAP file of its own, on the log's clock (``terrain_mcap``).
 
         Args:
             path: The file for one labelled log; for several, each log's name goes before ``.mcap``.
+            drawn: A log's path coloured by terrain, where it has one, for Foxglove's 3D and Map panels.
 
         Returns:
             The files written and their logs, none when nothing is labelled.
@@ -401,7 +405,11 @@ class Session(LogIngest, CameraStore, PoseStore, ModelRegistry, CheckStore, Terr
         for log, out in zip(logs, paths, strict=True):
             mine = [s for s in segments if s.log_id == log.id]
             write_terrain_mcap(
-                out, LogClock.of(log), labels=mine, about={"source_file": log.source_path, "session": self.path.name}
+                out,
+                LogClock.of(log),
+                labels=mine,
+                about={"source_file": log.source_path, "session": self.path.name},
+                path_drawn=None if drawn is None else drawn(log),
             )
         return list(zip(paths, logs, strict=True))
 

@@ -28,6 +28,7 @@ from .file_names import safe_file_name
 from .ingest.time_columns import EPOCH_RANGE_S
 from .logs import LogInfo, Segment
 from .new_files import check_new_targets, new_file
+from .path_mcap import TerrainPath, write_path
 
 PREDICTION_TOPIC = "/terrain"
 LABEL_TOPIC = "/terrain/labels"
@@ -143,6 +144,7 @@ def write_terrain_mcap(
     predictions: TerrainPredictions | None = None,
     labels: Sequence[Segment] | None = None,
     about: dict[str, str] | None = None,
+    path_drawn: TerrainPath | None = None,
 ) -> Path:
     """Write one log's terrain to a new MCAP file, whole or not at all (written aside, given its name when complete).
 
@@ -152,6 +154,7 @@ def write_terrain_mcap(
         predictions: The model's output per sample, for the ``/terrain`` topic.
         labels: The log's segments (ordered or not; they never overlap), for the ``/terrain/labels`` topic.
         about: Text kept in the file's ``terrain-workbench`` metadata record (model version, session...).
+        path_drawn: The log's path coloured by terrain, for Foxglove's 3D and Map panels (``path_mcap``).
 
     Raises:
         WorkbenchError: The path exists, or the log starts before time zero (MCAP times are unsigned).
@@ -170,6 +173,18 @@ def write_terrain_mcap(
             _write_labels(writer, clock, labels)
         if predictions is not None:
             _write_predictions(writer, clock, predictions)
+        if path_drawn is not None:
+            channels: dict[str, int] = {}
+
+            def channel_of(topic: str, schema: dict) -> int:
+                if topic not in channels:
+                    channels[topic] = _channel(writer, topic, schema)
+                return channels[topic]
+
+            def ns_of(seconds: np.ndarray) -> np.ndarray:
+                return np.round((clock.t0 + np.asarray(seconds, np.float64)) * 1e9).astype(np.int64)
+
+            write_path(writer, channel_of, clock.name, path_drawn, ns_of)
         writer.finish()
     return path
 

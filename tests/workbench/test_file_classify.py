@@ -3,6 +3,7 @@ session's PyTorch path scores for the same file."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -92,3 +93,26 @@ def test_a_killed_classify_leaves_no_worker_running(tmp_path: Path) -> None:
     # a process standing for `classify`
     workers = children_of_a_killed_parent(lambda: in_processes(partial(_sleeper, pids), [0, 1], jobs=2), pids, 2)
     assert ended_within(workers, 10)
+
+
+def test_classify_to_mcap_adds_the_files_path_coloured_by_the_models_answers(
+    bundle_dir: Path,  # noqa: F811
+    tmp_path: Path,
+) -> None:
+    from tests.sessions.test_path_mcap import _messages
+    from workbench.cli import main
+
+    x = _log(3000, 5)
+    table = pd.DataFrame(x, columns=["fast", "noise", "held"])
+    t = np.arange(len(x)) / RATE
+    table.insert(0, "time", t)
+    table["lat"], table["lon"] = 45.38 + t * 9e-6, -71.92 + 0 * t  # north at 1 m/s
+    table.to_csv(tmp_path / "drive.csv", index=False)
+    assert main(["classify", str(bundle_dir), str(tmp_path / "drive.csv"), "--out", str(tmp_path / "d.mcap")]) == 0
+    msgs = _messages(tmp_path / "d.mcap")  # every message valid against Foxglove's published schema
+    assert {"/terrain", "/terrain/path", "/terrain/geojson", "/terrain/fix"} <= set(msgs)
+    (update,) = msgs["/terrain/path"]
+    lines = update["entities"][0]["lines"]
+    assert sum(len(x["points"]) for x in lines) >= 3000 // 6  # every pose drawn once (stretches share their ends)
+    features = json.loads(msgs["/terrain/geojson"][0]["geojson"])["features"]
+    assert {f["properties"]["name"] for f in features} <= {"a", "b", "c", "d", "unsure"}

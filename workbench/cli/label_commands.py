@@ -18,6 +18,7 @@ from sessions import (
     WorkbenchError,
     check_new_target,
     file_format,
+    path_topics,
 )
 
 from .terminal import shown
@@ -57,9 +58,13 @@ def labels_export(
         raise WorkbenchError("--url-prefix is for --format label-studio")
     with Session.open(session) as s:
         if out.suffix.lower() == ".mcap":
-            for path, log in s.export_labels_mcap(out):
+            from ..maps import TerrainMap
+
+            drawing = TerrainMap(s, s.logs())  # each log's path coloured by its labels, where it has positions
+            for path, log in s.export_labels_mcap(out, drawn=drawing.drawn):
                 n, span = len(s.segments(log.id)), LogClock.of(log).span()
-                print(f"wrote {shown(path)}: {shown(log.name)}, topic {LABEL_TOPIC}, {n} segment(s), {span}")
+                topics = ", ".join([LABEL_TOPIC, *path_topics(drawing.drawn(log))])
+                print(f"wrote {shown(path)}: {shown(log.name)}, topics {topics}, {n} segment(s), {span}")
             if not s.segments():
                 print("no label segments yet: nothing written")
             return

@@ -26,11 +26,13 @@ from sessions import (
     IngestError,
     IngestOptions,
     LogClock,
+    PoseTrack,
     Source,
     TerrainPredictions,
     WorkbenchError,
     align,
     check_new_target,
+    path_topics,
     per_log_paths,
     plan_sources,
     read_source,
@@ -51,6 +53,7 @@ from training import (
 
 from ..cycle import ChecksSummary, estimate_disagrees, frame_log_scores, log_change_points
 from ..expectations import card_accuracy, file_expectation
+from ..maps import best_track, class_colours, first_fix, log_path, terrain_path
 from .bundle_checks import read_checks
 
 if TYPE_CHECKING:
@@ -99,6 +102,7 @@ class ReadLogs:
     errors: tuple[IngestError, ...]
     paths: tuple[str, ...] = ()  # each log's source file
     notes: tuple[str, ...] = ()  # a log renamed so that one name names one run, and from which file
+    tracks: tuple[PoseTrack | None, ...] = ()  # each log's best pose track, times from its first sample
 
 
 def read_logs(
@@ -108,15 +112,18 @@ def read_logs(
     sources at once, each in a process of its own (reading a log is Python: one core's work)."""
     sources, errors = plan_sources(list(files))
     read = partial(_read_source, float(bundle.rate_hz), tuple(bundle.channels), options)
-    names, arrays, starts, paths = [], [], [], []
+    names, arrays, starts, paths, tracks = [], [], [], [], []
     for got in in_processes(read, sources, jobs=jobs):
         names += got.names
         arrays += got.arrays
         starts += got.starts
         errors += got.errors
         paths += got.paths
+        tracks += got.tracks
     names, notes = _one_name_one_run(names, paths)
-    return ReadLogs(tuple(names), tuple(arrays), tuple(starts), tuple(errors), tuple(paths), tuple(notes))
+    return ReadLogs(
+        tuple(names), tuple(arrays), tuple(starts), tuple(errors), tuple(paths), tuple(notes), tuple(tracks)
+    )
 
 
 def _one_name_one_run(names: list[str], paths: list[str]) -> tuple[list[str], list[str]]:
@@ -137,7 +144,7 @@ def _one_name_one_run(names: list[str], paths: list[str]) -> tuple[list[str], li
 
 def _read_source(rate_hz: float, channels: tuple[str, ...], options: IngestOptions, src: Source) -> ReadLogs:
     """One planned source's logs at ``rate_hz`` in ``channels``' order, or the errors that refused them."""
-    names, arrays, starts, errors, paths = [], [], [], [], []
+    names, arrays, starts, errors, paths, tracks = [], [], [], [], [], []
     try:
         parsed, _ = read_source(src, options)
     except IngestError as exc:
@@ -157,7 +164,9 @@ def _read_source(rate_hz: float, channels: tuple[str, ...], options: IngestOptio
         arrays.append(a.data[:, [have.index(c) for c in channels]])
         starts.append(a.t0)
         paths.append(p.source_path)
-    return ReadLogs(tuple(names), tuple(arrays), tuple(starts), tuple(errors), tuple(paths))
+        best = best_track(list(p.poses))
+        tracks.append(None if best is None else replace(best, times=best.times - a.t0))
+    return ReadLogs(tuple(names), tuple(arrays), tuple(starts), tuple(errors), tuple(paths), tracks=tuple(tracks))
 
 
 def in_processes(fn: Callable[[T], R], items: Sequence[T], *, jobs: int) -> list[R]:
@@ -317,6 +326,7 @@ def classify_files(
     lines += [f"error: {e}" for e in read.errors]
     lines += [f"note: {n}" for n in read.notes]
     names, arrays, starts = list(read.names), list(read.arrays), list(read.starts)
+    tracks = list(read.tracks) or [None] * len(names)  # each file's path, for its MCAP file
     paths = per_log_paths(Path(out), names) if as_mcap else []
     try:
         refuse_existing(paths)
@@ -327,6 +337,7 @@ def classify_files(
         kept = _finite_only(names, scored, lines)
         names, arrays, scored = [names[i] for i in kept], [arrays[i] for i in kept], [scored[i] for i in kept]
         starts, paths = [starts[i] for i in kept], [paths[i] for i in kept] if as_mcap else paths
+        tracks = [tracks[i] for i in kept]
         own_surprise = not isinstance(bundle, ScoringBundle) and bundle.stage2_family().stage2_inputs not in (
             "frames",
             "windows",
@@ -366,14 +377,29 @@ def classify_files(
         kept = _finite_only(names, scored, lines)
         names, scored, starts = [names[i] for i in kept], [scored[i] for i in kept], [starts[i] for i in kept]
         paths = [paths[i] for i in kept] if as_mcap else paths
+        tracks = [tracks[i] for i in kept]
         if as_mcap:
-            for name, s, t0, path in zip(names, scored, starts, paths, strict=True):
+            origin = first_fix(tracks)  # the files' GNSS paths in metres from one fix
+            colours = class_colours(bundle.classes)
+            for name, s, t0, path, track in zip(names, scored, starts, paths, tracks, strict=True):
                 clock = LogClock(name, t0, bundle.rate_hz, len(s.probs))
                 predictions = TerrainPredictions(tuple(bundle.classes), s.probs, s.drift)
-                write_terrain_mcap(path, clock, predictions=predictions, about={"bundle": str(bundle_dir)})
-                lines.append(
-                    f"wrote {path}: {name}, topic {PREDICTION_TOPIC}, {clock.n_samples} messages, {clock.span()}"
-                )
+                drawn = None
+                if track is not None:  # the path coloured by the model's sure answers
+                    drawn_path = log_path(
+                        clock,
+                        track,
+                        list(bundle.classes),
+                        [],
+                        probs=s.probs,
+                        classes=list(bundle.classes),
+                        origin=origin,
+                    )
+                    drawn = terrain_path(drawn_path, colours)
+                about = {"bundle": str(bundle_dir)}
+                write_terrain_mcap(path, clock, predictions=predictions, about=about, path_drawn=drawn)
+                topics = ", ".join([PREDICTION_TOPIC, *path_topics(drawn)])
+                lines.append(f"wrote {path}: {name}, topics {topics}, {clock.n_samples} messages, {clock.span()}")
         else:
             frames = [
                 prediction_frame(name, s.probs, bundle.classes, bundle.rate_hz, s.drift)

@@ -21,8 +21,10 @@ from sessions import (
     LogInfo,
     ModelVersion,
     Session,
+    TerrainPath,
     TerrainPredictions,
     WorkbenchError,
+    path_topics,
     per_log_paths,
     safe_file_name,
     write_frame,
@@ -170,7 +172,7 @@ def _write_export(
                 frame = prediction_frame(log.name, s.probs, bundle.classes, bundle.rate_hz, s.drift)
                 table.write(with_drift_column(frame, bundle.drift is not None))
             if mcap:
-                streamed.append(_write_mcap(session, mcap_paths[log.id], log, version, bundle, s))
+                streamed.append(_write_mcap(session, mcap_paths[log.id], log, version, bundle, s, paths.drawn(log)))
         if table is not None:
             empty = prediction_frame("", np.zeros((0, len(bundle.classes)), np.float32), bundle.classes, 1.0)
             table.close(with_drift_column(empty, bundle.drift is not None))
@@ -265,17 +267,26 @@ def write_labelled_frames(session: Session, folder: Path) -> tuple[Path, str]:
 
 
 def _write_mcap(
-    session: Session, path: Path, log: LogInfo, version: ModelVersion, bundle: ModelBundle, s: labeling.LogScores
+    session: Session,
+    path: Path,
+    log: LogInfo,
+    version: ModelVersion,
+    bundle: ModelBundle,
+    s: labeling.LogScores,
+    drawn: TerrainPath | None,
 ) -> tuple[Path, str]:
-    """One log's MCAP file: its terrain per sample and its labels, on the log's own clock."""
+    """One log's MCAP file: its terrain per sample, its labels and its path coloured by terrain, on the log's own
+    clock."""
     write_terrain_mcap(
         path,
         LogClock.of(log),
         predictions=TerrainPredictions(tuple(bundle.classes), s.probs, s.drift),
         labels=session.segments(log.id),
         about={"model_version": str(version.id), "session": session.path.name, "source_file": log.source_path},
+        path_drawn=drawn,
     )
-    return path, f"{log.name}: topics {PREDICTION_TOPIC} and {LABEL_TOPIC} on the log's clock"
+    topics = ", ".join([PREDICTION_TOPIC, LABEL_TOPIC, *path_topics(drawn)])
+    return path, f"{log.name}: topics {topics} on the log's clock"
 
 
 def _taught_words(which: str) -> str:

@@ -2,7 +2,19 @@
 
 from .map_picture import write_map_picture
 from .session_map import MAP_FILE, TerrainMap
-from .terrain_paths import LABEL, MODEL, UNSURE, LogPath, best_track, first_fix, log_path, panel_of, stretches
+from .terrain_paths import (
+    LABEL,
+    MODEL,
+    UNSURE,
+    LogPath,
+    best_track,
+    class_colours,
+    first_fix,
+    log_path,
+    panel_of,
+    stretches,
+    terrain_path,
+)
 
 __all__ = [
     "LABEL",
@@ -12,9 +24,11 @@ __all__ = [
     "LogPath",
     "TerrainMap",
     "best_track",
+    "class_colours",
     "first_fix",
     "log_path",
     "panel_of",
     "stretches",
+    "terrain_path",
     "write_map_picture",
 ]

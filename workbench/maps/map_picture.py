@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .terrain_paths import LABEL, MODEL, LogPath, panel_of, stretches
+from .terrain_paths import GREY, GREY_ALPHA, LABEL, MODEL, LogPath, colour_of, panel_of, stretches
 
-GREY = "#9e9e9e"
-STYLE = {LABEL: (1.0, 3.2), MODEL: (0.45, 2.4)}  # source -> (alpha, line width); unsure: grey
+WIDTH = {LABEL: 3.2, MODEL: 2.4}  # source -> line width; unsure: GREY_WIDTH
+GREY_WIDTH = 1.4
 MOST_PANELS = 12  # panels drawn (the rest counted in the title)
 COLUMNS = 4
 
@@ -46,8 +46,8 @@ def write_map_picture(paths: list[LogPath], terrains: list[tuple[str, str]], out
             for a, b, terrain, source in stretches(path):
                 if b - a < 2:
                     continue
-                colour = terrains[terrain][1] if terrain >= 0 and source in STYLE else GREY
-                alpha, width = STYLE.get(source, (0.7, 1.4)) if terrain >= 0 else (0.7, 1.4)
+                _, colour, alpha = colour_of(terrain, source, terrains)
+                width = WIDTH.get(source, GREY_WIDTH) if terrain >= 0 else GREY_WIDTH
                 rgba = matplotlib.colors.to_rgba(colour, alpha)
                 segments.append(path.xy[a:b])
                 colours.append(rgba)
@@ -86,7 +86,7 @@ def write_map_picture(paths: list[LogPath], terrains: list[tuple[str, str]], out
     handles += [
         Line2D([], [], color="#424242", lw=3.2, label="labelled"),
         Line2D([], [], color="#424242", lw=2.4, alpha=0.45, label="the model's answer"),
-        Line2D([], [], color=GREY, lw=1.4, alpha=0.7, label="unsure or unscored"),
+        Line2D([], [], color=GREY, lw=GREY_WIDTH, alpha=GREY_ALPHA, label="unsure or unscored"),
     ]
     fig.legend(
         handles=handles, loc="lower center", ncol=min(len(handles), 4 if cols == 1 else 7), frameon=False, fontsize=9

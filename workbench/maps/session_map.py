@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from sessions import LogInfo, Session
+from sessions import LogInfo, Session, TerrainPath
 
 from .map_picture import write_map_picture
-from .terrain_paths import LABEL, MODEL, LogPath, best_track, first_fix, log_path
+from .terrain_paths import LABEL, MODEL, LogPath, best_track, first_fix, log_path, terrain_path
 
 MAP_FILE = "terrain-map.png"
 
@@ -32,6 +32,13 @@ class TerrainMap:
         track = self.tracks.get(log.id)
         if track is not None:
             self.paths[log.id] = self._path(log, track, probs, list(classes))
+
+    def drawn(self, log: LogInfo) -> TerrainPath | None:
+        """``log``'s path as its terrain MCAP file carries it (labels alone until :meth:`add` gave its scores)."""
+        if log.id not in self.paths and (track := self.tracks.get(log.id)) is not None:
+            self.paths[log.id] = self._path(log, track, None, None)
+        path = self.paths.get(log.id)
+        return None if path is None else terrain_path(path, [(t.name, t.color) for t in self.terrains])
 
     def write(self, out: Path) -> Path | None:
         """The picture at ``out`` (``None``, nothing written, when no log has positions)."""

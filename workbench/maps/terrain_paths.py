@@ -12,12 +12,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sessions import LogInfo, PoseTrack, Segment, local_metres
+from sessions import KNOWN_TERRAIN_COLORS, LogClock, LogInfo, PoseTrack, Segment, TerrainPath, local_metres
 
 TRACK_ORDER = ("gnss", "odometry", "pose", "tf", "csv", "dead-reckoned")
 SURE = 0.6  # the model's answer is drawn where its probability is at least this, else grey
 MOST_POSES = 5000  # poses drawn of one log (decimated evenly past it, as the traces are)
 LABEL, MODEL, UNSURE = 0, 1, 2  # what a pose's colour says
+GREY = "#9e9e9e"  # unsure or unscored
+# a terrain without a session's colour (a bundle on files): its known colour, else the next of these
+PALETTE = ("#1e88e5", "#e53935", "#8e24aa", "#00897b", "#fb8c00", "#3949ab", "#d81b60", "#00acc1")
+ALPHA = {LABEL: 1.0, MODEL: 0.45}  # how strongly a source's colour is drawn (grey: GREY_ALPHA)
+GREY_ALPHA = 0.7
 # frames that stay put from run to run: tracks in them line up; any other (odom, a CSV's) starts again with each run
 SHARED_FRAMES = ("wgs84", "map", "world", "earth", "utm")
 
@@ -34,7 +39,7 @@ class LogPath:
         xy: ``(N, 2)`` metres.
         terrain: ``(N,)`` index into the session's terrains, ``-1`` where none is known.
         source: ``(N,)`` ``LABEL``, ``MODEL`` or ``UNSURE``.
-        geo: ``(N, 2)`` latitude and longitude for a GNSS track, else ``None``.
+        geo: ``(N, 3)`` latitude, longitude and altitude for a GNSS track, else ``None``.
     """
 
     log: str
@@ -56,7 +61,7 @@ def best_track(tracks: list[PoseTrack]) -> PoseTrack | None:
 
 
 def log_path(
-    log: LogInfo,
+    log: LogInfo | LogClock,
     track: PoseTrack,
     terrains: list[str],
     segments: list[Segment],
@@ -84,7 +89,7 @@ def log_path(
             terrain[inside], source[inside] = terrains.index(seg.terrain), LABEL
     geo = None
     if track.geographic:
-        geo = values[:, :2]
+        geo = values[:, :3]
         xy = local_metres(values, origin or (float(values[0, 0]), float(values[0, 1])))
     else:
         xy = values[:, :2]
@@ -115,3 +120,31 @@ def stretches(path: LogPath) -> list[tuple[int, int, int, int]]:
         (int(a), min(int(b) + 1, len(key)), int(path.terrain[a]), int(path.source[a]))
         for a, b in zip(starts, ends, strict=True)
     ]
+
+
+def colour_of(terrain: int, source: int, terrains: list[tuple[str, str]]) -> tuple[str, str, float]:
+    """A pose's terrain name, colour and alpha as every map draws it (grey where no terrain is known)."""
+    if terrain < 0 or source not in ALPHA:
+        return "unsure", GREY, GREY_ALPHA
+    return terrains[terrain][0], terrains[terrain][1], ALPHA[source]
+
+
+def terrain_path(path: LogPath, terrains: list[tuple[str, str]]) -> TerrainPath:
+    """``path`` as its terrain MCAP file carries it (``sessions.TerrainPath``), ``terrains`` each terrain's name
+    and colour in the session's order."""
+    xyz = np.column_stack([path.xy, np.zeros(len(path.xy))])  # (N, 3): the ground, in metres
+    runs = tuple((a, b, *colour_of(t, s, terrains)) for a, b, t, s in stretches(path))
+    return TerrainPath(path.frame, path.times, xyz, runs, path.geo)
+
+
+def class_colours(classes: list[str] | tuple[str, ...]) -> list[tuple[str, str]]:
+    """Each class with a colour where no session gives one (``classify`` on files): a known terrain's own, else the
+    palette's next one not taken."""
+    out, taken = [], set()
+    for name in classes:
+        colour = KNOWN_TERRAIN_COLORS.get(name.lower())
+        if colour is None or colour in taken:
+            colour = next((c for c in PALETTE if c not in taken), PALETTE[len(out) % len(PALETTE)])
+        taken.add(colour)
+        out.append((name, colour))
+    return out

@@ -329,7 +329,7 @@ def test_terrain_mcap_lies_on_the_source_logs_clock(trained: Session, tmp_path: 
     assert demo_logs[0].read_bytes() == source
 
     assert main(["labels", "export", str(trained.path), "--out", str(tmp_path / "labels.mcap")]) == 0
-    assert f"topic /terrain/labels, {len(trained.segments(logs[0].id))} segment(s)" in capsys.readouterr().out
+    assert f"topics /terrain/labels, {len(trained.segments(logs[0].id))} segment(s)" in capsys.readouterr().out
     written = sorted(p.name for p in tmp_path.glob("labels*.mcap"))
     assert written == [f"labels.{log.name}.mcap" for log in logs]  # one file a log: each its own timeline
     assert main(["labels", "export", str(trained.path), "--out", str(tmp_path / "labels.mcap")]) == 2

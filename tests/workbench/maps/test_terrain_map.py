@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 from pathlib import Path
@@ -67,3 +68,20 @@ def test_no_positions_no_picture(tmp_path: Path) -> None:
     pd.DataFrame({"time": np.arange(100) / 10, "a": np.sin(np.arange(100))}).to_csv(tmp_path / "c.csv", index=False)
     s.ingest([tmp_path / "c.csv"])
     assert TerrainMap(s, s.logs()).write(tmp_path / "map.png") is None and not (tmp_path / "map.png").exists()
+
+
+def test_the_mcap_label_export_adds_each_labelled_logs_path_coloured_by_its_labels(tmp_path: Path, capsys) -> None:
+    from tests.sessions.test_path_mcap import _messages
+    from workbench.cli import main
+
+    _session(tmp_path).close()
+    assert main(["labels", "export", str(tmp_path / "s"), "--out", str(tmp_path / "labels.mcap")]) == 0
+    assert (
+        "topics /terrain/labels, /terrain/path, /terrain/geojson, /terrain/fix, 1 segment(s)" in capsys.readouterr().out
+    )
+    msgs = _messages(tmp_path / "labels.mcap")  # the one labelled log, a; every message valid against Foxglove's
+    features = json.loads(msgs["/terrain/geojson"][0]["geojson"])["features"]
+    assert [(f["properties"]["name"], f["properties"]["style"]["color"]) for f in features] == [
+        ("grass", "#4caf50"),
+        ("unsure", "#9e9e9e"),
+    ]
