@@ -127,7 +127,13 @@ def main() -> None:
     p.add_argument("--keep", type=Path, default=None, help="copy the set-up session here (no model yet) for more runs")
     p.add_argument("--quick", action="store_true", help="half an hour, one paper epoch: checks the script runs")
     p.add_argument("--out", type=Path, default=None, help="also write every measurement here (JSON)")
+    p.add_argument("--device", default=None, help="make bench's device: on cpu with 2 CPUs or fewer, not run")
     args = p.parse_args()
+    if args.device == "cpu" and len(os.sched_getaffinity(0)) <= 2:
+        # its rows compare this machine's 2 CPUs with all of them and a GPU: on 2 CPUs and no GPU every arm is the
+        # same machine, hours of it (run it by hand, or `make bench DEVICE=cuda` where there is a GPU)
+        print("bench_devices.py: not run on cpu with 2 CPUs (it compares 2 CPUs, every CPU and the GPU)")
+        return
     hours, epochs = (0.5, 1) if args.quick else (args.hours, args.paper_epochs)
     cpus = len(os.sched_getaffinity(0))
     cuda = _cuda()
