@@ -39,7 +39,7 @@ def _messages(path: Path) -> dict[str, list[dict]]:
 def _path(geo: bool) -> TerrainPath:
     t = np.arange(100) / 10.0  # 10 s at 10 Hz
     xyz = np.column_stack([t, np.zeros(100), np.zeros(100)])
-    runs = ((0, 41, "grass", "#4caf50", 1.0), (40, 71, "gravel", "#795548", 0.45), (70, 100, "unsure", "#9e9e9e", 0.7))
+    runs = ((0, 41, "grass", "#4caf50", 1.0), (40, 71, "gravel", "#795548", 0.45), (70, 100, "unsure", "#cfcfcf", 0.7))
     lla = np.column_stack([45.38 + t * 1e-6, np.full(100, -71.92), np.full(100, 250.0)]) if geo else None
     return TerrainPath("wgs84" if geo else "odom", t, xyz, runs, lla)
 

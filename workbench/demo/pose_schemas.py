@@ -69,3 +69,16 @@ float64 longitude
 float64 altitude
 float32 hdop
 {HEADER_DEFS}"""
+
+NAVSATFIX_SCHEMA = f"""std_msgs/Header header
+sensor_msgs/NavSatStatus status
+float64 latitude
+float64 longitude
+float64 altitude
+float64[9] position_covariance
+uint8 position_covariance_type
+{HEADER_DEFS}
+{SEP}
+MSG: sensor_msgs/NavSatStatus
+int8 status
+uint16 service"""

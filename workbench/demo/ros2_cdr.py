@@ -129,3 +129,41 @@ def imu_values(quat: np.ndarray, gyro: np.ndarray, accel: np.ndarray) -> np.ndar
 def wrench_values(force: np.ndarray, torque: np.ndarray | None = None) -> np.ndarray:
     """``(N, 6)`` float64 fields of geometry_msgs/Wrench."""
     return np.concatenate([force, np.zeros_like(force) if torque is None else torque], axis=1)
+
+
+def _strings_then_floats(stamp: float, strings: tuple[str, ...], floats: np.ndarray) -> bytearray:
+    """A header's stamp, strings (the header's frame id first) and float64s at the next 8-aligned offset."""
+    body = bytearray()
+    sec = int(np.floor(stamp))
+    body += struct.pack("<iI", sec, min(round((stamp - sec) * 1e9), 999_999_999))
+    for text in strings:
+        raw = text.encode() + b"\0"
+        body.extend(b"\0" * (-len(body) % 4))
+        body += struct.pack("<I", len(raw)) + raw
+    body.extend(b"\0" * (-len(body) % 8))
+    body += np.asarray(floats, "<f8").tobytes()
+    return body
+
+
+def odometry(stamp: float, xy: tuple[float, float], yaw: float, speed: float, turn: float) -> bytes:
+    """CDR bytes of one nav_msgs/Odometry in ``odom`` for ``base_link`` (zero covariances)."""
+    quat = (0.0, 0.0, float(np.sin(yaw / 2)), float(np.cos(yaw / 2)))
+    floats = np.concatenate([[xy[0], xy[1], 0.0], quat, np.zeros(36), [speed, 0, 0, 0, 0, turn], np.zeros(36)])
+    return b"\x00\x01\x00\x00" + bytes(_strings_then_floats(stamp, ("odom", "base_link"), floats))
+
+
+def navsatfix(stamp: float, lat: float, lon: float, alt: float, *, sigma_m: float) -> bytes:
+    """CDR bytes of one sensor_msgs/NavSatFix (status: a fix from GPS; a diagonal covariance of ``sigma_m``)."""
+    body = bytearray()
+    sec = int(np.floor(stamp))
+    body += struct.pack("<iI", sec, min(round((stamp - sec) * 1e9), 999_999_999))
+    raw = b"gnss\0"
+    body += struct.pack("<I", len(raw)) + raw
+    body += struct.pack("<b", 0)  # status: STATUS_FIX
+    body.extend(b"\0" * (-len(body) % 2))
+    body += struct.pack("<H", 1)  # service: SERVICE_GPS
+    body.extend(b"\0" * (-len(body) % 8))
+    cov = np.diag([sigma_m**2, sigma_m**2, (2 * sigma_m) ** 2]).ravel()
+    body += np.asarray([lat, lon, alt, *cov], "<f8").tobytes()
+    body += struct.pack("<B", 2)  # COVARIANCE_TYPE_DIAGONAL_KNOWN
+    return b"\x00\x01\x00\x00" + bytes(body)

@@ -17,9 +17,10 @@ from .ground_camera import ground_frames
 from .walks import FEET, FOOT_HZ, IMU_HZ, Walk, generate_walk
 
 
-def write_walk(walk: Walk, path: str | Path, *, seed: int = 0, camera: bool = True) -> Path:
+def write_walk(walk: Walk, path: str | Path, *, seed: int = 0, camera: bool = True, positions: bool = True) -> Path:
     """Write a walk as a ROS 2 MCAP file (zstd chunks) plus its ``.truth.json`` sidecar; with ``camera``, a
-    downward camera's JPEGs too (``/camera/ground/compressed``, 5 frames a second)."""
+    downward camera's JPEGs too (``/camera/ground/compressed``, 5 frames a second); with ``positions``, where it
+    walked (``/odom`` at 10 Hz, ``/gnss/fix`` at 5 Hz: ``field_path``)."""
     from mcap.writer import CompressionType, Writer
 
     from .ros2_cdr import (
@@ -66,6 +67,8 @@ def write_walk(walk: Walk, path: str | Path, *, seed: int = 0, camera: bool = Tr
             cam_t, jpegs = ground_frames(walk, seed=seed)
             messages = [compressed_image(t, "camera", "jpeg", j) for t, j in zip(cam_t, jpegs, strict=True)]
             records.append((ch, cam_t, messages, 0))
+        if positions:  # where the robot walked: odometry and a GNSS fix, on the field whose patches are the terrains
+            records += _position_records(writer, walk, rng)
         # Interleave all topics in time order, as a recorder would.
         chan = np.concatenate([np.full(len(r[1]), i) for i, r in enumerate(records)])
         row = np.concatenate([np.arange(len(r[1])) for r in records])
@@ -126,3 +129,40 @@ def generate_demo_logs(
 def _write_job(job: tuple[int, float, float, Path]) -> Path:
     seed, duration, t0, path = job
     return write_walk(generate_walk(seed, duration, t0=t0), path, seed=seed)
+
+
+ODOM_HZ, FIX_HZ, FIX_SIGMA_M, FIELD_ALT_M = 10.0, 5.0, 0.1, 180.0  # an RTK-grade fix
+
+
+def _position_records(writer, walk: Walk, rng: np.random.Generator) -> list:
+    """The walk's odometry (from where it started, in ``odom``) and GNSS fixes (the field's, with 0.1 m of noise)
+    as records for :func:`write_walk`'s interleaving."""
+    from .field_path import field_positions, to_fix
+    from .pose_schemas import NAVSATFIX_SCHEMA, ODOMETRY_SCHEMA
+    from .ros2_cdr import navsatfix, odometry
+
+    field = field_positions(walk)  # (T, 2)
+    out = []
+    odom_schema = writer.register_schema("nav_msgs/msg/Odometry", "ros2msg", ODOMETRY_SCHEMA.encode())
+    at = np.arange(0, len(walk.times), int(IMU_HZ // ODOM_HZ))
+    step = np.diff(field[at], axis=0, prepend=field[at][:1])
+    yaw = np.arctan2(step[:, 1], step[:, 0])
+    speed = np.hypot(step[:, 0], step[:, 1]) * ODOM_HZ
+    turn = np.diff(np.unwrap(yaw), prepend=yaw[:1]) * ODOM_HZ
+    stamps = walk.t0 + walk.times[at]
+    local = field[at] - field[0]  # odometry starts at zero where the walk starts
+    messages = [
+        odometry(t, (float(x), float(y)), float(h), float(v), float(w))
+        for t, (x, y), h, v, w in zip(stamps, local, yaw, speed, turn, strict=True)
+    ]
+    out.append((writer.register_channel("/odom", "cdr", odom_schema), stamps, messages, 0))
+    fix_schema = writer.register_schema("sensor_msgs/msg/NavSatFix", "ros2msg", NAVSATFIX_SCHEMA.encode())
+    at = np.arange(0, len(walk.times), int(IMU_HZ // FIX_HZ))
+    noisy = field[at] + rng.normal(0.0, FIX_SIGMA_M, (len(at), 2))
+    stamps = walk.t0 + walk.times[at]
+    fixes = [
+        navsatfix(t, float(lat), float(lon), FIELD_ALT_M, sigma_m=FIX_SIGMA_M)
+        for t, (lat, lon) in zip(stamps, to_fix(noisy), strict=True)
+    ]
+    out.append((writer.register_channel("/gnss/fix", "cdr", fix_schema), stamps, fixes, 0))
+    return out

@@ -18,7 +18,7 @@ TRACK_ORDER = ("gnss", "odometry", "pose", "tf", "csv", "dead-reckoned")
 SURE = 0.6  # the model's answer is drawn where its probability is at least this, else grey
 MOST_POSES = 5000  # poses drawn of one log (decimated evenly past it, as the traces are)
 LABEL, MODEL, UNSURE = 0, 1, 2  # what a pose's colour says
-GREY = "#9e9e9e"  # unsure or unscored
+GREY = "#cfcfcf"  # unsure or unscored (lighter than concrete's #9e9e9e)
 # a terrain without a session's colour (a bundle on files): its known colour, else the next of these
 PALETTE = ("#1e88e5", "#e53935", "#8e24aa", "#00897b", "#fb8c00", "#3949ab", "#d81b60", "#00acc1")
 ALPHA = {LABEL: 1.0, MODEL: 0.45}  # how strongly a source's colour is drawn (grey: GREY_ALPHA)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib
 import json
 import os
+import re
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -139,6 +140,10 @@ def test_export_writes_bundle_card_checked_onnx_and_label_files(trained: Session
     assert set(written) >= {"bundle", "labels.csv", "labels.parquet", "labels.json", "predictions.parquet"}
     card = (out / "bundle" / "MODEL_CARD.md").read_text()
     assert "Out-of-fold metrics" in card and "imu/angular_velocity.x" in card
+    # the demo walks carry a GNSS fix: where each terrain was, drawn and shown on the card
+    assert (out / "bundle" / "terrain-map.png").read_bytes()[:4] == b"\x89PNG" and "terrain-map.png" in written
+    assert "## Where each terrain was" in card and "of the logs have positions (gnss)" not in card
+    assert re.search(r"\d+ of \d+ logs have positions \(gnss\); of the [\d,]+ poses drawn, \d+% labelled", card)
     frames = [
         pd.read_csv(out / "labels.csv"),
         pd.read_parquet(out / "labels.parquet"),
@@ -313,7 +318,8 @@ def test_terrain_mcap_lies_on_the_source_logs_clock(trained: Session, tmp_path: 
 
     bundle, out = str(tmp_path / "x" / "bundle"), tmp_path / "run.terrain.mcap"
     assert main(["classify", bundle, str(demo_logs[0]), "--out", str(out)]) == 0
-    said = f"wrote {out}: {logs[0].name}, topic /terrain, {logs[0].n_samples} messages, 2023-11-19 22:13:20.002 to "
+    topics = "/terrain, /terrain/path, /terrain/geojson, /terrain/fix"  # the demo walks carry a GNSS fix
+    said = f"wrote {out}: {logs[0].name}, topics {topics}, {logs[0].n_samples} messages, 2023-11-19 22:13:20.002 to "
     assert said in capsys.readouterr().out  # the demo's first walk starts at 1.7e9 s, plus its feet's 3 ms
     by_classify = [t for t, _, _ in read_mcap(out)["/terrain"]]
     by_export = [t for t, _, _ in read_mcap(tmp_path / "x" / "mcap" / f"terrain.{logs[0].name}.mcap")["/terrain"]]
@@ -329,7 +335,10 @@ def test_terrain_mcap_lies_on_the_source_logs_clock(trained: Session, tmp_path: 
     assert demo_logs[0].read_bytes() == source
 
     assert main(["labels", "export", str(trained.path), "--out", str(tmp_path / "labels.mcap")]) == 0
-    assert f"topics /terrain/labels, {len(trained.segments(logs[0].id))} segment(s)" in capsys.readouterr().out
+    assert (
+        f"topics /terrain/labels, {topics.partition(', ')[2]}, {len(trained.segments(logs[0].id))} segment(s)"
+        in capsys.readouterr().out
+    )
     written = sorted(p.name for p in tmp_path.glob("labels*.mcap"))
     assert written == [f"labels.{log.name}.mcap" for log in logs]  # one file a log: each its own timeline
     assert main(["labels", "export", str(trained.path), "--out", str(tmp_path / "labels.mcap")]) == 2

@@ -75,7 +75,8 @@ def test_written_logs_have_two_rates_and_a_truth_sidecar(tmp_path: Path) -> None
     with open(path, "rb") as f:
         summary = make_reader(f).get_summary()
     topics = {c.topic: summary.statistics.channel_message_counts[i] for i, c in summary.channels.items()}
-    assert set(topics) == {"/imu", "/feet/fl", "/feet/fr", "/feet/rl", "/feet/rr", "/camera/ground/compressed"}
+    feet = {"/feet/fl", "/feet/fr", "/feet/rl", "/feet/rr"}
+    assert set(topics) == {"/imu", *feet, "/camera/ground/compressed", "/odom", "/gnss/fix"}
     assert abs(topics["/imu"] / topics["/feet/fl"] - IMU_HZ / FOOT_HZ) < 0.01
     assert abs(topics["/camera/ground/compressed"] / topics["/imu"] - CAMERA_FPS / IMU_HZ) < 0.002
     truth = json.loads(path.with_name("walk_000.truth.json").read_text())
@@ -101,3 +102,23 @@ def test_the_demo_camera_shows_the_terrain_under_the_feet() -> None:
         assert min(colours, key=lambda k: np.linalg.norm(colours[k] - mean)) == terrain
         checked += 1
     assert checked >= 3
+
+
+def test_a_demo_walk_is_on_the_patch_of_the_terrain_under_it_at_every_moment() -> None:
+    """The field's patches are the terrains (a sector each, meeting at the centre): the robot is in the sector of
+    the terrain its truth names, wherever it is away from the centre, and its path is as long as the ground it
+    covered (the camera's ground moves with ``Walk.distance``)."""
+    from workbench.demo import TERRAINS, generate_walk
+    from workbench.demo.field_path import field_positions
+
+    walk = generate_walk(seed=4, duration_s=120.0)
+    xy = field_positions(walk)  # (T, 2)
+    sector = (np.floor(np.mod(np.arctan2(xy[:, 1], xy[:, 0]), 2 * np.pi) / (2 * np.pi / len(TERRAINS)))).astype(int)
+    truth = np.empty(len(walk.times), object)
+    for a, b, terrain in walk.truth:
+        truth[(walk.times >= a) & (walk.times < b)] = terrain
+    away = np.hypot(xy[:, 0], xy[:, 1]) > 0.5
+    assert away.mean() > 0.8
+    assert (np.asarray(TERRAINS, object)[sector[away]] == truth[away]).all()
+    walked = np.hypot(*np.diff(xy, axis=0).T).sum()
+    assert abs(walked - walk.distance[-1]) < 0.05 * walk.distance[-1]

@@ -83,5 +83,5 @@ def test_the_mcap_label_export_adds_each_labelled_logs_path_coloured_by_its_labe
     features = json.loads(msgs["/terrain/geojson"][0]["geojson"])["features"]
     assert [(f["properties"]["name"], f["properties"]["style"]["color"]) for f in features] == [
         ("grass", "#4caf50"),
-        ("unsure", "#9e9e9e"),
+        ("unsure", "#cfcfcf"),
     ]
