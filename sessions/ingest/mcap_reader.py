@@ -255,11 +255,6 @@ def read_topics(
         if t is None:
             t = topics[channel.id] = _Topic(channel.topic, schema.name if schema else "")
             camera = is_camera(t.schema)
-            if channel.topic not in mapping.ignore and not camera:
-                # a pose type by its name; any other topic may be a GNSS driver's own fix, found by its fields
-                t.pose = PoseCollector(t.topic, t.schema, pose_kind(t.schema), child=mapping.tf_child)
-                with contextlib.suppress(Exception):  # undecodable: the sensor side says why
-                    t.pose_decode = decoder_for(channel, schema)
             if channel.topic in mapping.ignore or (explicit and channel.topic not in explicit and not camera):
                 t.unusable = "ignored by the mapping file"
             elif camera and not options.camera_fps > 0:
@@ -278,6 +273,13 @@ def read_topics(
                     t.camera = CameraCollector(t.topic, t.schema, fps=options.camera_fps)
                 elif block_layout is not None and not t.unusable:
                     t.layout = block_layout(channel, schema)
+            if channel.topic not in mapping.ignore and not camera:
+                # a pose type by its name; any other topic may be a GNSS driver's own fix, found by its fields
+                t.pose = PoseCollector(t.topic, t.schema, pose_kind(t.schema), child=mapping.tf_child)
+                t.pose_decode = t.decode
+                if t.pose_decode is None:  # read for its positions alone; undecodable: the sensor side says why
+                    with contextlib.suppress(Exception):
+                        t.pose_decode = decoder_for(channel, schema)
         if t.pose is not None and t.pose_decode is not None and (t.unusable or t.decode is None):
             _feed_pose(t, message)  # a pose topic read for its positions alone
         if t.unusable:

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+from array import array
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fields import stamp_seconds
+from .fields import get, stamp_seconds
 from .poses import (
     POSE_PATHS,
     PoseTrack,
@@ -41,9 +42,10 @@ class PoseCollector:
     child: str | None = None  # /tf: the child frame the mapping names
     gnss: tuple[str, str, str | None] | None = None
     frame: str = ""
-    times: list[float] = field(default_factory=list)
-    rows: list[tuple[float, float, float]] = field(default_factory=list)
-    tf: dict[tuple[str, str], tuple[list[float], list[tuple[float, float, float]]]] = field(default_factory=dict)
+    # flat float64 arrays, 32 bytes a pose (Python tuples took ~150: a log of millions of poses stays small)
+    times: array = field(default_factory=lambda: array("d"))
+    rows: array = field(default_factory=lambda: array("d"))  # x, y, z (or latitude, longitude, altitude) in turn
+    tf: dict[tuple[str, str], tuple[array, array]] = field(default_factory=dict)
     failed: int = 0
 
     def add(self, message: object, log_time_ns: int) -> bool:
@@ -53,9 +55,9 @@ class PoseCollector:
         try:
             if self.kind == "tf":
                 for parent, child, xyz, at in tf_translations(message, self.child):
-                    times, rows = self.tf.setdefault((parent, child), ([], []))
+                    times, rows = self.tf.setdefault((parent, child), (array("d"), array("d")))
                     times.append(at if at is not None else t)
-                    rows.append(xyz)
+                    rows.extend(xyz)
                 return True
             if self.kind is None:
                 self.gnss = gnss_fields(message)
@@ -74,7 +76,7 @@ class PoseCollector:
             return True
         if value is not None:
             self.times.append(t)
-            self.rows.append(value)
+            self.rows.extend(value)
         return True
 
     def tracks(self) -> list[PoseTrack]:
@@ -92,13 +94,12 @@ class PoseCollector:
         return [clean(_track(self.kind, self.topic, self.frame, self.times, self.rows, self.failed))]
 
 
-def _track(kind: str, source: str, frame: str, times: list[float], rows: list, failed: int) -> PoseTrack:
-    return PoseTrack(kind, source, frame or "odom", np.asarray(times, np.float64), np.asarray(rows, np.float64), failed)
+def _track(kind: str, source: str, frame: str, times: array, rows: array, failed: int) -> PoseTrack:
+    xyz = np.frombuffer(rows, np.float64).reshape(-1, 3).copy()  # (N, 3)
+    return PoseTrack(kind, source, frame or "odom", np.frombuffer(times, np.float64).copy(), xyz, failed)
 
 
 def _frame_of(message: object) -> str:
-    from .fields import get
-
     try:
         return str(get(message, ("header", "frame_id"))).lstrip("/")
     except (AttributeError, KeyError, TypeError):
