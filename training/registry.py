@@ -69,6 +69,8 @@ class Family:
             where the family has none (a ``warm_start`` family warm-starts inside ``fit``).
         self_training: A ``"frames"`` family whose ``fit`` also learns from the unlabelled stretches of every log
             (the workbench then finds them and passes ``stretches``).
+        keeps_starts: A ``"frames"`` family whose ``fit`` takes ``starts``, a folder where it keeps the networks it
+            trained on the labels alone and reads those a later fit would train again (the export's taught fit).
         warm_start: A ``"stage1"`` family whose ``fit`` starts from the active classifier's modules when they fit
             (same predictor, terrains and features): the workbench passes them as ``init``.
         retired_kinds: Kinds an older workbench saved for this family that no longer load, and what to do.
@@ -97,6 +99,7 @@ class Family:
     fit: Callable[..., Any]
     fine_tune: Callable[..., Any] | None = None
     self_training: bool = False
+    keeps_starts: bool = False
     warm_start: bool = False
     after_first: tuple[str, ...] = ()
     retired_kinds: Mapping[str, str] = field(default_factory=dict)

@@ -87,6 +87,7 @@ FAMILY = Family(
     fit=_fit,
     fine_tune=_fine_tune,
     self_training=True,
+    keeps_starts=True,
     stage1="next-frame",
     devices=("cpu", "cuda"),
     retired_kinds={

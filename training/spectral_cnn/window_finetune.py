@@ -25,13 +25,14 @@ from ..figures import classification_metrics
 from ..fitting import ClassifierFit, Segment
 from ..running import CancelFn, Cancelled, Progress, ProgressFn, never
 from .class_balance import class_shares
-from .fit_window import HELD_ROWS, predict_steps, row_logits, train_rows
+from .fit_window import HELD_ROWS, predict_steps, row_logits
 from .spectra import SpectralSteps
 from .stretch_pool import every_row
 from .window_classifier import WindowClassifier
 from .window_config import WindowFitConfig
 from .window_drift import fit_drift, held_out_relation
 from .window_rows import at_most, window_rows
+from .window_train import train_rows
 
 
 def assign_folds(labels: Sequence[int], known: Sequence[int], k: int) -> list[int]:

@@ -40,6 +40,8 @@ from .stage_inputs import consistency_pairs, signal_change_points, stage2_featur
 from .train_stages import recorded_run, save_version, stage1_family
 
 STAGE1_FEATURES: FeatureMode = "hidden+surprise"  # what a family reading stage 1's outputs takes of them
+# where a family that keeps its fits' first networks keeps them: the export's taught fit starts from the session's fit
+FIT_STARTS = "fit-starts"
 
 
 def train_classifier(
@@ -247,6 +249,7 @@ def _train_window(
             cancel=cancel,
             **spans,
             **({} if device == "cpu" else {"device": device}),  # a family without a CUDA path is refused before
+            **({"starts": session.cache_dir(FIT_STARTS)} if fam.keeps_starts else {}),
         )
         if unseen := fit.metrics.get("unseen_runs"):  # the fit's runs are the logs' indices: named as the page does
             unseen["per_run"] = {logs[int(k)].name: v for k, v in unseen["per_run"].items()}

@@ -33,9 +33,14 @@ def test_the_export_ships_a_taught_version_beside_the_active_one_and_fits_it_onc
 ) -> None:
     active = session.active_model("classifier")
     before = _versions(session)
+    starts = session.path / "cache" / "fit-starts"
+    kept = sorted(starts.glob("*.safetensors"))  # the session's fit: each network it trained on the labels alone
     code = main(["export", str(session.path), "--out", str(tmp_path / "a")])
     printed = capsys.readouterr().out
     assert code == 0, printed
+    # the taught fit's networks on the labels alone are the session fit's (their keys the same): it kept no new
+    # one, so it trained none again, only its refits (tests/training/test_fit_starts.py: read, and the same result)
+    assert kept and sorted(starts.glob("*.safetensors")) == kept
     assert "fitting stage 2 taught by the session" in printed
     (taught_id,) = set(_versions(session)) - set(before)
     taught = next(v for v in session.model_versions("classifier") if v.id == taught_id)
