@@ -290,3 +290,37 @@ def test_upload_ingests_a_log_and_refuses_a_broken_file(workbench: Workbench, tm
     page.get_by_text("Ingested").first.wait_for(timeout=60_000)
     page.get_by_text("3 logs").wait_for(timeout=UI_WAIT_MS)
     assert [x.name for x in Session.open(session_path).logs()][-1] == "field_run"
+
+
+def test_the_map_shows_the_paths_and_a_click_on_it_moves_the_cursor(workbench: Workbench) -> None:
+    """M turns the 3D view into the map of the log on screen (its path coloured by terrain, the other runs of its
+    GNSS frame under it, a marker at the cursor); a click on the ground puts the cursor at the nearest pose."""
+    import numpy as np
+
+    from workbench.ui.map_view import map_bounds, map_paths
+
+    page = opened(workbench)
+    with Session.open(workbench.path) as s:
+        log = s.log(shown_log(page, workbench.path))
+        nothing = type("NoScores", (), {"scores": {}, "classes": ()})()
+        mine, others = map_paths(s, nothing, log, s.segments(log.id))
+    assert mine is not None and mine.frame == "wgs84" and others  # the demo walks carry a GNSS fix
+    lo, hi = map_bounds(mine, others)
+    distance = np.hypot(*(mine.xy - (lo + hi) / 2).T)  # from the map's centre, where the camera looks
+    near = {f"{t:.2f}" for t in mine.times[distance <= distance.min() + 0.3]}
+    blur(page)
+    page.keyboard.press("m")
+    page.get_by_role("button", name="Robot (M)").wait_for(timeout=UI_WAIT_MS)
+    time.sleep(2)  # software WebGL draws the paths
+    save_screenshot(page, "workbench-map")
+    box = page.locator("canvas").first.bounding_box()
+    assert box["width"] >= 300  # the traces panel made room for the map
+    page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+
+    def cursor() -> str | None:
+        found = re.search(r"cursor ([\d.]+) s", page.inner_text("body"))
+        return found.group(1) if found and found.group(1) in near else None
+
+    wait_until(cursor, what=f"the cursor at a pose nearest the click ({sorted(near)})")
+    page.keyboard.press("m")  # the robot again, the traces their width
+    page.get_by_role("button", name="Map (M)").wait_for(timeout=UI_WAIT_MS)

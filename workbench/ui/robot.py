@@ -49,7 +49,7 @@ class RobotView:
         self.host = host
         scene = host.client.scene
         scene.set_up_direction("+z")
-        scene.add_grid("/ground", 3.0, 3.0, cell_size=0.25, position=(0.0, 0.0, 0.0))
+        self.ground = scene.add_grid("/ground", 3.0, 3.0, cell_size=0.25, position=(0.0, 0.0, 0.0))
         self.body = scene.add_box("/robot/body", color=(90, 110, 100), dimensions=BODY, position=(0, 0, LEG))
         self.head = scene.add_box(
             "/robot/body/head", color=(46, 125, 50), dimensions=(0.06, 0.12, 0.08), position=(BODY[0] / 2, 0, 0)

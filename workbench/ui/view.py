@@ -23,6 +23,7 @@ from ..user_errors import USER_ERRORS, one_line
 from . import charts
 from .decimate import decimate
 from .legend import legend_html
+from .map_view import MAP_TRACES_WIDTH, TRACES_WIDTH
 from .status_bar import StatusBar
 from .track_data import track_inputs
 
@@ -62,6 +63,7 @@ class ClientView:
 
     def _build(self) -> None:
         from .camera_panel import CameraPanel
+        from .map_view import MapView
         from .panel_data import DataPanel
         from .panel_label import LabelPanel
         from .panel_review import ReviewPanel
@@ -96,7 +98,7 @@ class ClientView:
         gui.main_panel.set_width(420)
         self.traces_panel = gui.add_panel()
         self.traces_panel.dock_left()
-        self.traces_panel.set_width(960)
+        self.traces_panel.set_width(TRACES_WIDTH)
         self._traces_tab = self.traces_panel.add_tab("Traces", icon="chart-line")
         with self._traces_tab:
             self._build_traces()
@@ -116,6 +118,7 @@ class ClientView:
         with tabs.add_tab("Data", icon="database"):
             self.data_panel = DataPanel(self)
         self.robot = RobotView(self)
+        self.map = MapView(self, robot_nodes=[self.robot.body, self.robot.forces, self.robot.ground])
         self.camera = CameraPanel(self)
         self._hotkeys()
         self.status_bar.refresh()
@@ -138,6 +141,8 @@ class ClientView:
             "Window", [_fmt_width(w) for w in WIDTHS_S], initial_value=_fmt_width(30.0), hint="↑ zoom in, ↓ zoom out"
         )
         self.zoom.on_update(lambda _: self.guard(lambda: self.set_width(WIDTHS_S[self._zoom_index()])))
+        self.map_button = gui.add_button("Map (M)", hint="The log's path coloured by terrain, in the 3D view")
+        self.map_button.on_click(lambda _: self.guard(self.toggle_map))
         self.legend = gui.add_html("")
         self.tracks_chart = None
         self._chart_area_order = 100.0
@@ -235,6 +240,7 @@ class ClientView:
         )
         bind("Retrain", "R", self.train_panel.retrain, desc="R: retrain the classifier in the background")
         bind("Play / pause", "space", self.robot.toggle_play)
+        bind("Map", "M", self.toggle_map, desc="M: the 3D view shows the log's path coloured by terrain, or the robot")
 
     # ------------------------------------------------------------------------------------------- moving
     def _pick_log(self) -> None:
@@ -381,7 +387,17 @@ class ClientView:
                     problem=self.state.problem,
                 )
             self.robot.update()
+            self.map.update()
             self.camera.update()
+
+    def toggle_map(self) -> None:
+        """The 3D view shows the map (the traces panel narrower, so the map has room) or the robot again."""
+        if self.log is not None and not self.map.shown and not self.map.has_positions(self.log):
+            self.notify("No map", f"{self.log.name} has no positions (odometry, a pose, /tf, GNSS)", color="yellow")
+            return
+        shown = self.map.toggle()
+        self.traces_panel.set_width(MAP_TRACES_WIDTH if shown else TRACES_WIDTH)
+        self.map_button.label = "Robot (M)" if shown else "Map (M)"
 
     def _rebuild_charts(self, tracks: dict, specs: list[dict]) -> None:
         for h in [self.tracks_chart, *self._charts]:
