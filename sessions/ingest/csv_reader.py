@@ -16,6 +16,7 @@ from ..errors import IngestError
 from ..limits import MAX_CSV_LINE_BYTES
 from .base import TIME_UNITS, IngestOptions, ParsedLog, Stream
 from .csv_poses import csv_track, pose_columns
+from .dead_reckoning import dead_reckoned
 from .time_columns import PROBE_ROWS, TimeColumn, find_time_columns, judge_unit
 
 # QCAT (CSIRO, DyRET robot): `{terrain}_{speed}_legSensors_{raw|imu}.csv`, the terrain given as an index.
@@ -244,6 +245,7 @@ def read_borealtc(paths: list[Path], options: IngestOptions) -> ParsedLog:
             )
         )
     terrain = paths[0].parent.name
+    reckoned = dead_reckoned(streams)  # a Husky records no position: its wheels and gyro draw one
     return ParsedLog(
         name=f"{terrain}_{run}",
         source_path=str(paths[0]),
@@ -252,6 +254,7 @@ def read_borealtc(paths: list[Path], options: IngestOptions) -> ParsedLog:
         streams=tuple(streams),
         reference_terrain=terrain.lower(),
         notes=tuple(notes),
+        poses=() if reckoned is None else (reckoned,),
     )
 
 
@@ -421,15 +424,18 @@ def read_generic_csv(path: Path, options: IngestOptions) -> ParsedLog:
         times = _times(path, frame, time_col, TIME_UNITS[unit])
     values = _numeric(path, frame, chans, allow_gaps=options.allow_gaps)
     poses = ()
+    stream = _stream(path, path.stem, times, values, chans, names, units)
     if not mapping.channels and position is not None:
         track, said = csv_track(frame, times, position, source=path.name)
         poses, notes = (track,), [*notes, said]
+    elif (reckoned := dead_reckoned([stream])) is not None:  # wheel speeds and a yaw rate, no position
+        poses = (reckoned,)
     return ParsedLog(
         name=path.stem,
         source_path=str(path),
         files=(str(path),),
         format="csv",
-        streams=(_stream(path, path.stem, times, values, chans, names, units),),
+        streams=(stream,),
         notes=tuple(notes),
         found_time=found,
         poses=poses,
