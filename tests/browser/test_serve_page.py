@@ -42,9 +42,9 @@ def test_serve_binds_loopback_by_default(tmp_path: Path, serve) -> None:
 def test_a_new_session_asks_for_terrains_and_the_page_follows_a_log_ingested_elsewhere(
     tmp_path: Path, serve, page
 ) -> None:
-    """One server and page for two facts (a page load is 5 s of software WebGL): a session without terrains asks
-    for one and takes it from the page; the page lists the logs and shows one another process ingests without a
-    reload."""
+    """One server and page for three facts (a page load is 5 s of software WebGL): ``--map`` opens the page on the
+    map; a session without terrains asks for one and takes it from the page; the page lists the logs and shows one
+    another process ingests without a reload."""
     from sessions import Session
     from workbench.demo import generate_demo_logs
 
@@ -52,9 +52,11 @@ def test_a_new_session_asks_for_terrains_and_the_page_follows_a_log_ingested_els
     session = tmp_path / "s"
     assert main(["new", str(session)]) == 0
     assert main(["ingest", str(session), str(logs[0]), str(logs[1])]) == 0
-    server = serve(session)
+    server = serve(session, "--map")
     page.goto(server.url)
     page.get_by_text("walk_000").first.wait_for(timeout=30_000)
+    # --map: the page opened on the map of the walk's GNSS path (unscored: grey), M gives the robot back
+    page.get_by_role("button", name="Robot (M)").wait_for(timeout=UI_WAIT_MS)
     open_tab(page, "Label")
     page.get_by_text("No terrains yet.").wait_for(timeout=UI_WAIT_MS)  # the hint, with its Terrains folder open
     save_screenshot(page, "no-terrains-yet")

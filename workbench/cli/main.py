@@ -225,6 +225,7 @@ def serve(
     hidden: int = RETRAIN.hidden,
     stage1_epochs: int = RETRAIN.predictor.max_epochs,
     stage2_epochs: int = RETRAIN.classifier.max_epochs,
+    open_map: Annotated[bool, tyro.conf.arg(name="map")] = False,
 ) -> None:
     """Serve the workbench UI for a session in the browser.
 
@@ -241,6 +242,8 @@ def serve(
         hidden: LSTM width of a predictor trained from the UI (a classifier takes its predictor's width).
         stage1_epochs: Most epochs of a predictor retrain from the UI (early stopping may end it sooner).
         stage2_epochs: Most epochs of a classifier retrain from the UI.
+        open_map: Open every page on the map of the log on screen (its path coloured by terrain) instead of the robot,
+            where the log has positions; **M** switches on the page either way.
     """
     from training import hide_gpus
 
@@ -267,7 +270,13 @@ def serve(
     LANE.expect()  # serve_forever gives this thread to the torch work: the scoring worker must not start its own
     try:
         app = WorkbenchApp(
-            s, host=host, port=port, token=token, hidden=hidden, max_epochs=(stage1_epochs, stage2_epochs)
+            s,
+            host=host,
+            port=port,
+            token=token,
+            hidden=hidden,
+            max_epochs=(stage1_epochs, stage2_epochs),
+            open_map=open_map,
         )
     except BaseException:
         LANE.expect_no_more()
@@ -305,7 +314,8 @@ def demo(
         hidden: Width of the paper family's LSTMs, when the session uses them: smaller than the paper's 200 so that
             training, scoring and a retrain from the page take minutes on a laptop's CPU (`workbench train --model
             paper --hidden 200` gives the paper's width). The default family's sizes are its own.
-        serve_ui: Serve the UI when ready (--no-serve: prepare the session and exit).
+        serve_ui: Serve the UI when ready (--no-serve: prepare the session and exit); the page opens on the map
+            of the field the walks cross (**M**: the robot).
     """
     from training import hide_gpus
 
@@ -347,7 +357,7 @@ def demo(
                 print("scoring the logs for the page's first screen", flush=True)
                 score_and_keep(s)
     if serve_ui:
-        serve(session, host=host, port=port, hidden=hidden)
+        serve(session, host=host, port=port, hidden=hidden, open_map=True)  # the demo walks cross a field: open on it
 
 
 def labels() -> None:

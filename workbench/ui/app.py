@@ -31,6 +31,7 @@ class WorkbenchApp:
         token: str | None = None,
         hidden: int = RETRAIN.hidden,
         max_epochs: tuple[int, int] = (RETRAIN.predictor.max_epochs, RETRAIN.classifier.max_epochs),
+        open_map: bool = False,
     ) -> None:
         from .gate import Gate
         from .jobs import TrainJob
@@ -40,6 +41,7 @@ class WorkbenchApp:
         # the gate first: a taken port is refused before anything else starts
         self.gate = Gate(host=host, port=port, token=token)
         self.session = session
+        self.open_map = open_map  # pages open on the map where the log has positions
         self.state = SharedState(session)
         self.job = TrainJob(
             self.state,
@@ -62,7 +64,7 @@ class WorkbenchApp:
                 self._pages_building += 1
             try:
                 limit_uploads(client, self.uploads, self._upload_refused)  # before its upload button exists
-                view = ClientView(client, self.state, self.job)
+                view = ClientView(client, self.state, self.job, open_map=self.open_map)
             except sqlite3.ProgrammingError:
                 # the session closed under a page still being built (a stop racing a connect): nothing to show,
                 # and no traceback on the terminal of someone who pressed Ctrl+C

@@ -44,8 +44,11 @@ CONTEXT_S = 10.0
 class ClientView:
     """Everything one browser sees; built when it connects, dropped when it leaves."""
 
-    def __init__(self, client: viser.ClientHandle, state: SharedState, job: TrainJob) -> None:
+    def __init__(
+        self, client: viser.ClientHandle, state: SharedState, job: TrainJob, *, open_map: bool = False
+    ) -> None:
         self.client, self.state, self.job = client, state, job
+        self._open_map = open_map
         self.author = f"browser-{client.client_id}"
         self._lock = threading.RLock()
         # Set while the server moves widgets, so their callbacks do not echo. Per thread: viser runs those callbacks
@@ -124,6 +127,8 @@ class ClientView:
         self.status_bar.refresh()
         self._unsubscribe = state.subscribe(self._on_event)
         self.redraw()
+        if self._open_map and self.log is not None and self.map.has_positions(self.log):
+            self.toggle_map()
 
     # ------------------------------------------------------------------------------------------- building
     def _build_traces(self) -> None:
