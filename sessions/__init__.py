@@ -26,6 +26,9 @@ from .ingest import (
     sniff_csv,
 )
 from .label_files import LabelImport, file_format, read_frame, write_frame
+from .label_studio import CONTROL as LABEL_STUDIO_CONTROL
+from .label_studio import OBJECT as LABEL_STUDIO_OBJECT
+from .label_studio import label_studio_frame, task_log
 from .limits import MAX_NAME_CHARS, MAX_RATE_HZ, name_refusal
 from .logs import Channel, Gap, HistoryEntry, LogInfo, Segment, Terrain
 from .model_versions import ModelVersion
@@ -48,6 +51,8 @@ __all__ = [
     "CHECK_KINDS",
     "COUNTED_KINDS",
     "KNOWN_TERRAIN_COLORS",
+    "LABEL_STUDIO_CONTROL",
+    "LABEL_STUDIO_OBJECT",
     "LABEL_TOPIC",
     "MAX_NAME_CHARS",
     "MAX_RATE_HZ",
@@ -88,6 +93,7 @@ __all__ = [
     "check_room",
     "file_format",
     "folder_bytes",
+    "label_studio_frame",
     "load_mapping",
     "local_metres",
     "name_refusal",
@@ -102,6 +108,7 @@ __all__ = [
     "rename_new",
     "safe_file_name",
     "sniff_csv",
+    "task_log",
     "write_frame",
     "write_terrain_mcap",
 ]

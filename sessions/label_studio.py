@@ -200,6 +200,14 @@ def label_studio_frame(tasks: list[dict], logs: Sequence[LogInfo], *, path: Path
     return pd.DataFrame(rows, columns=["log", "terrain", "start_s", "end_s", "author", "at"])
 
 
+def task_log(data: object, logs: Sequence[LogInfo]) -> LogInfo | None:
+    """The log of ``logs`` a Label Studio task's ``data`` names (``data.log``, else a data file named after a log), or
+    ``None``."""
+    if not isinstance(data, dict):
+        return None
+    return _task_log(data, {x.name: x for x in logs}, {log_csv_name(x)[:-4]: x for x in logs})
+
+
 def _task_log(data: dict, by_name: dict[str, LogInfo], by_file: dict[str, LogInfo]) -> LogInfo | None:
     """The log a task's data names: by ``log``, else by a file named after it (a log's name, or its CSV's)."""
     if isinstance(data.get("log"), str) and data["log"] in by_name:

@@ -66,7 +66,7 @@ def write_runs(folder: Path, *, n_runs: int, minutes: float) -> list[Path]:
 
 
 def main() -> None:
-    from workbench.ui.map_view import MapView
+    from workbench.ui import MapView
 
     args = parse_args(__doc__)
     n_runs, minutes = (4, 5.0) if args.quick else (20, 30.0)

@@ -297,7 +297,7 @@ def test_the_map_shows_the_paths_and_a_click_on_it_moves_the_cursor(workbench: W
     GNSS frame under it, a marker at the cursor); a click on the ground puts the cursor at the nearest pose."""
     import numpy as np
 
-    from workbench.ui.map_view import map_bounds, map_paths
+    from workbench.ui import map_bounds, map_paths
 
     page = opened(workbench)
     with Session.open(workbench.path) as s:

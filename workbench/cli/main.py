@@ -18,7 +18,7 @@ from sessions import MAX_RATE_HZ, IngestError, IngestOptions, Session, Workbench
 
 from ..retrain import RETRAIN
 from ..user_errors import USER_ERRORS, one_line
-from . import evaluate_command, label_commands, model_commands
+from . import evaluate_command, label_commands, label_studio_command, model_commands
 from .ingest_report import dry_run_report
 from .stopping import Terminated, sigterm_unwinds
 from .terminal import EscapingStream, shown
@@ -382,6 +382,7 @@ COMMANDS = {
     "terrains": terrains,
     "serve": serve,
     "demo": demo,
+    "label-studio": label_studio_command.label_studio,
 }
 LABEL_COMMANDS = {"export": label_commands.labels_export, "import": label_commands.labels_import}
 

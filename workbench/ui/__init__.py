@@ -2,6 +2,7 @@
 
 from .app import WorkbenchApp
 from .jobs import JobStatus, TrainJob
+from .map_view import MapView, ground_point, map_bounds, map_paths, nearest_pose, segment_colours
 from .score_keep import score_and_keep
 from .state import Queued, SharedState
 from .torch_lane import LANE, TorchLane
@@ -13,11 +14,17 @@ __all__ = [
     "MAX_UPLOAD_MB",
     "ClientView",
     "JobStatus",
+    "MapView",
     "Queued",
     "SharedState",
     "TorchLane",
     "TrainJob",
     "WorkbenchApp",
+    "ground_point",
+    "map_bounds",
+    "map_paths",
+    "nearest_pose",
     "safe_name",
     "score_and_keep",
+    "segment_colours",
 ]

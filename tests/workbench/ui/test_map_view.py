@@ -11,7 +11,7 @@ import pandas as pd
 
 from sessions import Session
 from workbench.maps import LABEL, MODEL
-from workbench.ui.map_view import MapView, ground_point, map_bounds, map_paths, nearest_pose, segment_colours
+from workbench.ui import MapView, ground_point, map_bounds, map_paths, nearest_pose, segment_colours
 
 NO_SCORES = SimpleNamespace(scores={}, classes=())
 
