@@ -43,9 +43,10 @@ format: install
 	$(PY) -m ruff format .
 
 # every promise of issue 7 at full length (200 server kills, the long hostile corpus with a 2 GB line, thousands of
-# fuzz examples); ends with one summary line per promise
+# fuzz examples); ends with one summary line per promise; then the ML backend against a real Label Studio
 stress: install browser
 	WORKBENCH_FUZZ_EXAMPLES=5000 $(PY) -m pytest tests/safety -m "slow or not slow"
+	$(PY) -m pytest tests/workbench/label_studio -m slow  # a real Label Studio, in its own environment
 
 # every figure beside a reference measured in the same run; the table goes to benchmarks/results/speed.md (speed-$(DEVICE).md on another device)
 DEVICE ?= cpu
