@@ -14,6 +14,7 @@ replayed event changes nothing.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +24,7 @@ from sessions import LabelError, LogInfo, label_studio_frame, task_log
 
 from ..cycle import names_now
 from ..ui import JobStatus, SharedState
-from .label_config import LabelConfig, parse_label_config
+from .label_config import LabelConfig, name_key, parse_label_config
 
 SOURCE = "label-studio"  # the labels' source, as the page's are "manual" or "accepted"
 EVENTS = ("ANNOTATION_CREATED", "ANNOTATION_UPDATED", "ANNOTATION_DELETED", "START_TRAINING")
@@ -125,7 +126,7 @@ class Backend:
                         "instant": False,
                         "timeserieslabels": [label],
                     },
-                    "score": round(float(s.confidence), 4),
+                    "score": round(float(s.confidence), 4) if math.isfinite(s.confidence) else 0.0,  # JSON has no NaN
                 }
             )
         return out
@@ -185,9 +186,8 @@ class Backend:
 
     def _terrain(self, name: str) -> str | None:
         """The session's terrain Label Studio's ``name`` is (case and spaces aside), added if allowed."""
-        key = "".join(c for c in name.lower() if c.isalnum())
         for t in self.state.terrains():
-            if "".join(c for c in t.name.lower() if c.isalnum()) == key:
+            if name_key(t.name) == name_key(name):
                 return t.name
         if not self.create_terrains:
             return None

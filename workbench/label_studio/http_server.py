@@ -1,8 +1,11 @@
 """The ML backend's HTTP side: the protocol's few JSON endpoints on the standard library's threading server.
 
 Loopback by default, as the page. Beyond it Label Studio's basic auth is required (it sends what its ML backend
-settings or ``BASIC_AUTH_USER``/``BASIC_AUTH_PASS`` hold) and checked in constant time on every request. A body
-past :data:`MAX_BODY` or one that is not a JSON object is refused in one line before anything reads it.
+settings or ``BASIC_AUTH_USER``/``BASIC_AUTH_PASS`` hold) and checked in constant time on every request. Label
+Studio calls from its server, never from a browser, so a request that carries an ``Origin`` (a web page in the
+user's browser posting to the port: a label made by a foreign site) is refused, and on loopback so is one whose
+``Host`` is not this machine's (a rebound DNS name). A body past :data:`MAX_BODY` or one that is not a JSON object is
+refused in one line before anything reads it.
 """
 
 from __future__ import annotations
@@ -14,12 +17,13 @@ import threading
 from collections.abc import Callable
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
+from ..ui.gate import is_loopback
 from .backend import Backend
 
 MAX_BODY = 32 << 20  # bytes: a /predict of 100 tasks with their data and the config is well under a megabyte
 
 
-def _handler(backend: Backend, auth: tuple[str, str] | None) -> type[BaseHTTPRequestHandler]:
+def _handler(backend: Backend, auth: tuple[str, str] | None, *, loopback: bool) -> type[BaseHTTPRequestHandler]:
     expected = None if auth is None else base64.b64encode(f"{auth[0]}:{auth[1]}".encode()).decode()
 
     class Handler(BaseHTTPRequestHandler):
@@ -40,6 +44,13 @@ def _handler(backend: Backend, auth: tuple[str, str] | None) -> type[BaseHTTPReq
             self.wfile.write(data)
 
         def _allowed(self) -> bool:
+            if self.headers.get("Origin") is not None:
+                self._send(403, {"error": "a request from a web page (it names an Origin): only Label Studio's server"})
+                return False
+            host = (self.headers.get("Host") or "").rsplit(":", 1)[0].strip("[]")
+            if loopback and not is_loopback(host) and host != "localhost":
+                self._send(403, {"error": f"Host {host[:80]!r} is not this machine's: a loopback backend"})
+                return False
             if expected is None:
                 return True
             given = self.headers.get("Authorization", "")
@@ -100,7 +111,7 @@ class BackendServer:
     """The backend on ``host:port`` in a thread of its own (the caller's thread serves the torch work)."""
 
     def __init__(self, backend: Backend, *, host: str, port: int, auth: tuple[str, str] | None) -> None:
-        self.httpd = ThreadingHTTPServer((host, port), _handler(backend, auth))
+        self.httpd = ThreadingHTTPServer((host, port), _handler(backend, auth, loopback=is_loopback(host)))
         self.httpd.daemon_threads = True
         self.url = f"http://{host}:{self.httpd.server_address[1]}"
         self._thread = threading.Thread(target=self.httpd.serve_forever, name="label-studio-backend", daemon=True)

@@ -30,11 +30,12 @@ class LabelConfig:
         """The project's label for a terrain (case and spaces aside: ``Wet floor`` is ``wet-floor``), if any."""
         if not self.labels:
             return terrain
-        key = _key(terrain)
-        return next((x for x in self.labels if _key(x) == key), None)
+        key = name_key(terrain)
+        return next((x for x in self.labels if name_key(x) == key), None)
 
 
-def _key(name: str) -> str:
+def name_key(name: str) -> str:
+    """A terrain's name as Label Studio and the session are matched by: case, spaces and punctuation aside."""
     return "".join(c for c in name.lower() if c.isalnum())
 
 

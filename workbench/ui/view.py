@@ -23,7 +23,7 @@ from ..user_errors import USER_ERRORS, one_line
 from . import charts
 from .decimate import decimate
 from .legend import legend_html
-from .map_view import MAP_TRACES_WIDTH, TRACES_WIDTH
+from .map_view import MAP_TRACES_WIDTH, TRACES_WIDTH, MapView
 from .status_bar import StatusBar
 from .track_data import track_inputs
 
@@ -66,7 +66,6 @@ class ClientView:
 
     def _build(self) -> None:
         from .camera_panel import CameraPanel
-        from .map_view import MapView
         from .panel_data import DataPanel
         from .panel_label import LabelPanel
         from .panel_review import ReviewPanel

@@ -208,6 +208,13 @@ def test_bad_requests_get_one_clear_answer(backend) -> None:
     with pytest.raises(urllib.error.HTTPError) as refused:
         urllib.request.urlopen(request, timeout=30)
     assert refused.value.code == 413
+    # a web page in the person's browser posting to the port, or a rebound DNS name: refused before any work
+    for header, value in (("Origin", "https://evil.example"), ("Host", "evil.example:9090")):
+        request = urllib.request.Request(backend.url + "/webhook", data=b'{"action": "START_TRAINING"}', method="POST")
+        request.add_header(header, value)
+        with pytest.raises(urllib.error.HTTPError) as refused:
+            urllib.request.urlopen(request, timeout=30)
+        assert refused.value.code == 403
     assert _call(backend.url, "/health")[0] == 200  # still serving
 
 
@@ -217,6 +224,9 @@ def test_beyond_loopback_needs_basic_auth_and_checks_it(session: Session, capsys
 
     assert main(["label-studio", str(session.path), "--host", "0.0.0.0"]) == 2
     assert "needs basic auth" in capsys.readouterr().err
+    for short in ("", "short"):  # an empty $BASIC_AUTH_PASS guards nothing
+        assert main(["label-studio", str(session.path), "--user", "studio", "--password", short]) == 2
+        assert "at least 16 printable characters" in capsys.readouterr().err
     answers = Answers(state=None, start_training=lambda: "", job_status=lambda: None)  # /health reads no state
     server = BackendServer(answers, host="127.0.0.1", port=0, auth=("studio", "s3cret-pass"))
     server.start()
