@@ -28,10 +28,9 @@ import subprocess
 import sys
 import tempfile
 import time
-import urllib.request
 from pathlib import Path
 
-from speed_common import Row, parse_args, record
+from speed_common import Row, parse_args, record, wait_answering
 
 LABELLED = 0.05
 IMU_LABELLED = 0.10  # the quadruped-shaped session's labels: 10 % of the time, in 5 s pieces
@@ -141,15 +140,7 @@ def demo_first_start(folder: Path, *, quick: bool) -> tuple[float, float]:
         text=True,
     )
     try:
-        while True:
-            if proc.poll() is not None:
-                raise RuntimeError(f"workbench demo exited with {proc.returncode}:\n{proc.stdout.read()[-3000:]}")
-            try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=2) as r:
-                    if r.status == 200:
-                        break
-            except OSError:
-                time.sleep(0.25)
+        wait_answering(proc, f"http://127.0.0.1:{port}/", name="workbench demo")
         served = time.perf_counter() - t
     finally:
         proc.terminate()

@@ -148,6 +148,21 @@ IMU_RATE_HZ = 50.0
 COLUMNS = ("time", "ax", "ay", "az", "wx", "wy", "wz")
 
 
+def wait_answering(proc, url: str, *, name: str) -> None:
+    """Return once ``url`` answers 200, polling; raise with the process's output if ``proc`` exits first."""
+    import urllib.request
+
+    while True:
+        if proc.poll() is not None:
+            raise RuntimeError(f"{name} exited with {proc.returncode}:\n{proc.stdout.read()[-3000:]}")
+        try:
+            with urllib.request.urlopen(url, timeout=2) as r:
+                if r.status == 200:
+                    return
+        except OSError:
+            time.sleep(0.1)
+
+
 def write_imu_logs(
     folder: Path, *, n_logs: int = 11, minutes: tuple[float, float] = (6.0, 10.0), seed: int = 0
 ) -> tuple[list[Path], Path]:

@@ -10,11 +10,17 @@ updated or deleted there leaves the session's labels as they are (a region dropp
 lose a label that may have merged with the page's; remove it in the workbench); a region that would overlap another
 terrain's label is refused for that region, the others kept. A region already labelled so is no change, so a
 replayed event changes nothing.
+
+A label made in Label Studio is a check of the model (test then train) as the page's are, of the version whose
+pre-annotation the annotator saw: the backend remembers which version answered each task, and where a Retrain has
+landed since, the label is kept without a check (the session no longer holds that version's answer to compare).
 """
 
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +34,7 @@ from .label_config import LabelConfig, name_key, parse_label_config
 
 SOURCE = "label-studio"  # the labels' source, as the page's are "manual" or "accepted"
 EVENTS = ("ANNOTATION_CREATED", "ANNOTATION_UPDATED", "ANNOTATION_DELETED", "START_TRAINING")
+REMEMBERED_TASKS = 200_000  # tasks whose predicting version is kept (a few MB); the oldest forgotten first
 
 
 @dataclass
@@ -51,6 +58,8 @@ class Backend:
     wait_s: float = 60.0
     say: Callable[[str], None] = print
     _configs: dict[str, LabelConfig] = field(default_factory=dict)
+    _predicted: OrderedDict[str, str] = field(default_factory=OrderedDict)  # task id -> the version that answered
+    _lock: threading.Lock = field(default_factory=threading.Lock)  # the server answers each request in a thread
 
     # ------------------------------------------------------------------------------------------- handshake
     def model_version(self) -> str:
@@ -88,7 +97,8 @@ class Backend:
             config = self._configs[project]
         state = self.state
         state.wait_idle(stop=lambda: False, deadline_s=self.wait_s)  # a scoring under way: its stretches, if in time
-        scores, logs, version = state.scores, state.logs(), self.model_version()
+        scores, logs = state.scores, state.logs()
+        version = self.model_version() if scores.classifier is None else f"v{scores.classifier}"  # what answers
         names = names_now(state.session, scores) if scores.classes else []
         first = _first_in_queue(state)
         results = []
@@ -104,8 +114,17 @@ class Backend:
                 continue
             regions = self._regions(log, names, config)
             score = first.get(log.id, 1.0)
+            if isinstance(task, dict) and "id" in task:
+                self._remember(str(task["id"]), version)
             results.append({"result": regions, "score": score, "model_version": version})
         return 200, {"results": results}
+
+    def _remember(self, task_id: str, version: str) -> None:
+        with self._lock:
+            self._predicted[task_id] = version
+            self._predicted.move_to_end(task_id)
+            while len(self._predicted) > REMEMBERED_TASKS:
+                self._predicted.popitem(last=False)
 
     def _regions(self, log: LogInfo, names: list[str], config: LabelConfig) -> list[dict]:
         """The model's stretches of ``log`` as ``timeserieslabels`` regions on the log's clock."""
@@ -164,6 +183,10 @@ class Backend:
             return 422, {"error": str(exc)}
         log = task_log(one["data"], state.logs())
         assert log is not None or rows.empty  # the frame refused a task naming no log
+        with self._lock:
+            seen = self._predicted.get(str(task["id"])) if "id" in task else None
+        now = state.scores.classifier
+        check = seen is None or now is None or seen == f"v{now}"  # not predicted here: the version on screen
         added, same, refused = 0, 0, []
         for row in rows.itertuples(index=False):
             start, stop = round(row.start_s * log.rate_hz), min(round(row.end_s * log.rate_hz), log.n_samples)
@@ -175,13 +198,16 @@ class Backend:
                 same += 1  # a replayed event, or the same label made twice: nothing changes
                 continue
             try:
-                state.add_label(log.id, start, stop, terrain, author=row.author or "label-studio", source=SOURCE)
+                author = row.author or "label-studio"
+                state.add_label(log.id, start, stop, terrain, author=author, source=SOURCE, check=check)
                 added += 1
             except LabelError as exc:
                 refused.append(f"{row.at}: {exc}")
         for line in refused:
             self.say(f"label-studio: {line}")
         words = f"{added} label(s) added, {same} already so" + (f", {len(refused)} refused" if refused else "")
+        if added and not check:
+            words += f" (not counted as a check of the model: {seen} predicted the task, the session now scores v{now})"
         return (201 if not refused else 207), {"status": "ok", "result": words, "refused": refused}
 
     def _terrain(self, name: str) -> str | None:

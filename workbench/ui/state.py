@@ -161,14 +161,18 @@ class SharedState:
         self._labels_changed()
 
     # --------------------------------------------------------------------------------------------- labels
-    def add_label(self, log_id: int, start: int, stop: int, terrain: str, *, author: str, source: str) -> Segment:
+    def add_label(
+        self, log_id: int, start: int, stop: int, terrain: str, *, author: str, source: str, check: bool = True
+    ) -> Segment:
         """Commit a label (it is saved when this returns); every view hears of it. The part of it that was
         unlabelled is first a check of the model on screen (test then train: ``cycle.record_check``): a suggestion's
-        or spot check's when the range is one of the queue's, a manual one otherwise."""
+        or spot check's when the range is one of the queue's, a manual one otherwise. ``check=False`` keeps no
+        check (the person saw another version's answer than the one on screen)."""
         scores = self.scores
         fresh = labeling.uncovered(start, stop, [(g.start, g.stop) for g in self.session.segments(log_id)])
         seg = self.session.add_segment(log_id, start, stop, terrain, author=author, source=source)
-        self._check(scores, log_id, fresh, terrain, kind=self._queued_kind(log_id, start, stop), author=author)
+        if check:
+            self._check(scores, log_id, fresh, terrain, kind=self._queued_kind(log_id, start, stop), author=author)
         self._labels_changed()
         return seg
 

@@ -188,14 +188,43 @@ def _free_span(session: Session, log_id: int, length: float) -> float:
     return float(round(t, 2))
 
 
-def test_start_training_retrains_in_the_background(backend, session) -> None:
+def test_start_training_retrains_and_a_label_is_a_check_of_the_version_that_predicted_it(
+    backend, session, tmp_path
+) -> None:
+    tasks, log = _tasks(session, tmp_path), session.logs()[0]
+    old = f"v{session.active_model('classifier').id}"
+    body = {"tasks": [{**tasks[0], "id": 500}], "label_config": CONFIG}
+    assert _call(backend.url, "/predict", body)[1]["results"][0]["model_version"] == old
     before = {v.id for v in session.model_versions("classifier")}
-    status, body = _call(backend.url, "/webhook", {"action": "START_TRAINING", "project": {"id": 3}})
-    assert status == 201 and body["status"] == "ok"
+    status, said = _call(backend.url, "/webhook", {"action": "START_TRAINING", "project": {"id": 3}})
+    assert status == 201 and said["status"] == "ok"
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and not ({v.id for v in session.model_versions("classifier")} - before):
         time.sleep(0.5)
-    assert {v.id for v in session.model_versions("classifier")} - before  # a new version
+    (new,) = {v.id for v in session.model_versions("classifier")} - before  # a new version
+    body = {"tasks": [{**tasks[0], "id": 501}], "label_config": CONFIG}
+    while time.monotonic() < deadline and _call(backend.url, "/predict", body)[1]["results"][0]["model_version"] != (
+        f"v{new}"
+    ):
+        time.sleep(0.5)  # the new version rescored: task 501 is answered by it
+
+    def annotate(task_id: int) -> dict:
+        free = _free_span(session, log.id, 2.0)
+        value = {"start": log.t0 + free, "end": log.t0 + free + 2.0, "instant": False, "timeserieslabels": ["Sand"]}
+        region = {"from_name": "surface", "to_name": "signals", "type": "timeserieslabels", "value": value}
+        task = {**tasks[0], "id": task_id}
+        event = {"action": "ANNOTATION_CREATED", "task": task, "annotation": {"result": [region]}}
+        status, answer = _call(backend.url, "/webhook", event)
+        assert status == 201 and answer["result"].startswith("1 label(s) added"), answer
+        return answer
+
+    checks = len(session.checks())
+    # predicted by the version before the Retrain: the label kept, no check (its answer is not the session's now)
+    assert f"{old} predicted the task, the session now scores v{new}" in annotate(500)["result"]
+    assert len(session.checks()) == checks
+    # predicted by the version scoring now: a check of it
+    assert "not counted" not in annotate(501)["result"]
+    assert len(session.checks()) == checks + 1 and session.checks()[-1].classifier == new
 
 
 def test_bad_requests_get_one_clear_answer(backend) -> None:

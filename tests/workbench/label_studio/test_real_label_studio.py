@@ -1,6 +1,7 @@
 """`workbench label-studio` against a real Label Studio (1.23.2, in a virtual environment of its own outside the
 project's): a project with the export's TimeSeries config connects the backend, imports the tasks, shows the
-predictions with their scores; an annotation made there lands in the session; "Start training" makes a new version.
+predictions with their scores, its list sorted by them in the workbench's order; an annotation made there lands in
+the session; "Start training" makes a new version.
 
 Slow (Label Studio's first start migrates its database: about a minute): `make stress` runs it. The environment is
 ``$WORKBENCH_LABEL_STUDIO_VENV`` if set, else made once under ``~/.cache/workbench-label-studio`` (`pip install
@@ -19,6 +20,7 @@ import urllib.error
 import urllib.request
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from workbench.cli import main
@@ -112,7 +114,14 @@ def test_a_real_label_studio_connects_shows_predictions_and_its_annotation_lands
     venv = _venv()
     s = trained_demo_session(tmp_path / "w", seed=11, label_seed=3)
     assert main(["labels", "export", str(s.path), "--out", str(tmp_path / "ls.json"), "--format", "label-studio"]) == 0
-    tasks = [{"data": t["data"]} for t in json.loads((tmp_path / "ls.json").read_text())]
+    assert main(["suggest", str(s.path), "--out", str(tmp_path / "next.csv")]) == 0
+    queue_first = pd.read_csv(tmp_path / "next.csv")["log"].iloc[0]
+    # the log of the queue's first suggestion imported last: Label Studio's id order puts it last, the score's first
+    tasks = sorted(
+        ({"data": t["data"]} for t in json.loads((tmp_path / "ls.json").read_text())),
+        key=lambda t: t["data"]["log"] == queue_first,
+    )
+    assert tasks[-1]["data"]["log"] == queue_first and len(tasks) > 1
     config = (tmp_path / "ls-files" / "labeling-config.xml").read_text()
     ready, stop, port = threading.Event(), threading.Event(), _port()
     backend = threading.Thread(
@@ -145,6 +154,21 @@ def test_a_real_label_studio_connects_shows_predictions_and_its_annotation_lands
             assert prediction["model_version"] == f"v{active}" and prediction["result"]
             assert 0 < prediction["score"] <= 1
             assert {r["type"] for r in prediction["result"]} == {"timeserieslabels"}
+        # Label Studio's list sorted by "Prediction score", ascending, as a click on the column's head makes it (a
+        # view of the project ordered so): the task of the queue's first suggestion first, the scores rising. Label
+        # Studio sorts by the scores of the project's chosen model version only (Settings: the predictions to use;
+        # none chosen, every task's is null and the list stays in id order): the workbench's version chosen
+        assert studio.api("PATCH", f"/api/projects/{pid}", {"model_version": f"v{active}"})[0] == 200
+        status, view = studio.api(
+            "POST", "/api/dm/views", {"project": pid, "data": {"ordering": ["tasks:predictions_score"]}}
+        )
+        assert status == 201, view
+        listed = studio.api("GET", f"/api/tasks?project={pid}&view={view['id']}&fields=all")[1]["tasks"]
+        scores = [t["predictions"][0]["score"] for t in listed]
+        assert scores == sorted(scores) and len(set(scores)) > 1, scores
+        assert listed[0]["data"]["log"] == queue_first, (listed[0]["data"], queue_first)
+        assert [t["id"] for t in listed] != sorted(t["id"] for t in listed)  # not the list's own (id) order
+        print("Label Studio's order:", [(t["data"]["log"], t["predictions"][0]["score"]) for t in listed])
         # an annotation made in Label Studio: 3 s of one of the session's terrains where the second walk has none
         terrain = s.terrains()[-1].name
         task = next(t for t in found if t["data"]["log"] == s.logs()[1].name)
