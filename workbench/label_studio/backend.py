@@ -107,7 +107,8 @@ class Backend:
             log = task_log(data, logs)
             if log is None:
                 why = (
-                    f"task {i}{_task_id(task)}: names no log of this session (data.log, or a data file named after one)"
+                    f"task {i}{_task_id(task)}: names no log of this session (data.log, or a data file named after "
+                    "one): `workbench ingest SESSION FILE` adds it, then Retrieve Predictions again"
                 )
                 self.say(f"label-studio: {why}")
                 results.append({"result": [], "score": 1.0, "model_version": version, "error": why})

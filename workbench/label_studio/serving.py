@@ -8,7 +8,7 @@ import threading
 from sessions import Session, WorkbenchError
 
 from ..retrain import RETRAIN
-from ..ui import LANE, SharedState, TrainJob
+from ..ui import LANE, SharedState, TrainJob, watch_session
 from .backend import Backend
 from .http_server import BackendServer
 
@@ -57,6 +57,7 @@ def serve_label_studio(
     if threading.current_thread() is threading.main_thread():
         previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     server.start()
+    watch_session(state, stop=stop, training=lambda: job.running)  # a CLI ingest or train meanwhile: followed
     print(f"workbench label-studio: {session.path} served as an ML backend at {server.url}", flush=True)
     if ready is not None:
         ready.set()

@@ -4,6 +4,7 @@ from .app import WorkbenchApp
 from .jobs import JobStatus, TrainJob
 from .map_view import MapView, ground_point, map_bounds, map_paths, nearest_pose, segment_colours
 from .score_keep import score_and_keep
+from .session_watch import watch_session
 from .state import Queued, SharedState
 from .torch_lane import LANE, TorchLane
 from .uploads import MAX_UPLOAD_MB, safe_name
@@ -27,4 +28,5 @@ __all__ = [
     "safe_name",
     "score_and_keep",
     "segment_colours",
+    "watch_session",
 ]

@@ -35,6 +35,7 @@ class WorkbenchApp:
     ) -> None:
         from .gate import Gate
         from .jobs import TrainJob
+        from .session_watch import watch_session
         from .state import SharedState
         from .view import ClientView
 
@@ -91,8 +92,7 @@ class WorkbenchApp:
         self._pages_building = 0
         self.server.on_client_connect(connect)
         self.server.on_client_disconnect(disconnect)
-        self._watch = threading.Thread(target=self._poll, name="session-watch", daemon=True)
-        self._watch.start()
+        self._watch = watch_session(self.state, stop=self._stop, training=lambda: self.job.running)
 
     def _upload_refused(self, client_id: int, why: str) -> None:
         client = self.server.get_clients().get(client_id)  # the client, not its view: that may still be building
@@ -106,35 +106,6 @@ class WorkbenchApp:
         host = self.gate.host if ":" not in self.gate.host else f"[{self.gate.host}]"
         query = f"/?token={self.gate.token}" if self.gate.token else ""
         return f"http://{host}:{self.gate.port}{query}"
-
-    def _fingerprint(self) -> tuple:
-        history = self.session.history(limit=1)
-        return (
-            len(self.session.logs()),
-            history[0].op_id if history else 0,
-            len(self.session.segments()),
-            tuple(v.id for v in self.session.model_versions()),
-        )
-
-    def _poll(self) -> None:
-        # Another process (a CLI ingest, import or train) may change the session: follow it.
-        last = self._fingerprint()
-        while not self._stop.wait(2.0):
-            try:
-                now = self._fingerprint()
-            except Exception:
-                continue
-            if now == last:
-                continue
-            if now[0] != last[0]:
-                self.state.logs_changed()
-            if now[1:3] != last[1:3]:
-                self.state.notify("labels")
-                self.state.refresh(scores=False)
-            if now[3] != last[3] and not self.job.running:
-                self.state.notify("models")
-                self.state.refresh(scores=True)
-            last = now
 
     def request_stop(self) -> None:
         """Ask the server to stop (Ctrl+C, SIGTERM): every worker polls the flag and ends its work where it can, a

@@ -114,6 +114,7 @@ def test_predict_answers_every_task_in_order_with_the_models_stretches(backend, 
     version = f"v{session.active_model('classifier').id}"
     first, refused, second = body["results"]
     assert refused["result"] == [] and "task 2 (id 7): names no log of this session" in refused["error"]
+    assert "`workbench ingest SESSION FILE` adds it" in refused["error"]  # what to do about it
     for prediction, log in ((first, session.logs()[0]), (second, session.logs()[1])):
         assert prediction["model_version"] == version and prediction["result"]
         regions = prediction["result"]
@@ -265,3 +266,21 @@ def test_beyond_loopback_needs_basic_auth_and_checks_it(session: Session, capsys
         assert _call(server.url, "/health", auth=("studio", "s3cret-pass"))[0] == 200
     finally:
         server.stop()
+
+
+def test_a_log_ingested_elsewhere_meanwhile_is_answered_once_scored(backend, session, tmp_path) -> None:
+    from workbench.demo import generate_demo_logs
+
+    (made,) = generate_demo_logs(tmp_path / "new", n_logs=1, minutes=0.5, seed=99)
+    log_file = made.rename(made.with_name("later_walk.mcap"))
+    task = {"id": 900, "data": {"log": "later_walk"}}
+    status, body = _call(backend.url, "/predict", {"tasks": [task], "label_config": CONFIG})
+    assert status == 200 and "names no log of this session" in body["results"][0]["error"]
+    assert main(["ingest", str(session.path), str(log_file)]) == 0  # a terminal's ingest, the backend running
+    deadline, answer = time.monotonic() + 120, {}
+    while time.monotonic() < deadline:
+        answer = _call(backend.url, "/predict", {"tasks": [task], "label_config": CONFIG})[1]["results"][0]
+        if answer["result"]:
+            break
+        time.sleep(0.5)
+    assert answer["result"] and "error" not in answer, answer  # the new log followed, scored and answered
