@@ -319,9 +319,12 @@ def test_a_third_family_trains_scores_and_exports_in_a_session_with_no_workbench
         assert again.config["model"] == "logreg" and again.config["warm_start"] is False
         log = session.logs()[0]
         scored = score_session(session, [log.id])[log.id]
-        streamed = StreamingClassifier(load_bundle(session.path / again.path)).run(np.asarray(session.array(log.id)))
-        # its stream is the ONNX module stepped (spectra as cosine and sine products): 1e-4 of the offline FFT
-        np.testing.assert_allclose(streamed, scored.probs, atol=5e-4)
+        # its stream is the ONNX module stepped (spectra as cosine and sine products): 1e-4 of the offline FFT; 30
+        # hops, four times the 7 frames a step reads, so the stepped state has turned over (as MiniRocket's below)
+        streamed = StreamingClassifier(load_bundle(session.path / again.path)).run(
+            np.asarray(session.array(log.id))[:600]
+        )
+        np.testing.assert_allclose(streamed, scored.probs[:600], atol=5e-4)
         written = dict((p.name, what) for p, what in export_all(session, tmp_path / "export"))
         assert "checked with onnxruntime" in written["classifier_stream.onnx"]
         assert "Logreg family" in (tmp_path / "export" / "bundle" / "MODEL_CARD.md").read_text()
