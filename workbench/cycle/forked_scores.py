@@ -22,13 +22,11 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 import labeling
 from sessions import LogInfo, Session
 from training import drop_pages
 
-from .score_files import GroupFirst, Scored, kept_scores, log_groups, score_arrays, write_array
+from .score_files import GroupFirst, Scored, kept_array, kept_scores, log_groups, score_arrays, write_array
 from .scores import SessionScores, stage1_embedding
 
 FORK_STEPS = 1 << 18  # samples of logs a process must have to score before another is forked (44 min at 100 Hz)
@@ -273,7 +271,7 @@ def scored_forked(
                 return None
             first = first or GroupFirst(part.predictor, part.classifier, part.classes, part.span)
             for log_id, kept in part.arrays.items():
-                arrays = {n: np.load(folder / f"{log_id:06d}.{n}.npy", mmap_mode="r") for n in kept}
+                arrays = {n: kept_array(folder / f"{log_id:06d}.{n}.npy") for n in kept}
                 scores[log_id] = kept_scores(arrays)
                 names[str(log_id)] = list(kept)
     return first, scores, run(_embeddings, session, [x for x in logs if x.id in scores]), names
@@ -328,7 +326,7 @@ def scored_in_processes(
                 written += paths
                 yield (
                     x,
-                    kept_scores({n: np.load(p, mmap_mode="r") for n, p in zip(part.arrays[x.id], paths, strict=True)}),
+                    kept_scores({n: kept_array(p) for n, p in zip(part.arrays[x.id], paths, strict=True)}),
                 )
         for p in written:
             p.unlink(missing_ok=True)

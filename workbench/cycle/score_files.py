@@ -39,14 +39,31 @@ def log_groups(logs: Sequence[S], *, group_steps: int = GROUP_STEPS) -> list[lis
     return groups
 
 
+MAPPED_BYTES = 8 << 20  # a kept array this big or bigger is memory-mapped; smaller ones are read into memory
+
+
+def kept_array(path: Path) -> np.ndarray:
+    """A kept score array, read-only: memory-mapped when it is big (an hour's probabilities), read whole when small.
+
+    Every memory map holds an open file: mapping each of a log's eleven arrays made a session of 300 short logs hold
+    3,300 files, past the 1,024 a Linux desktop allows (and a 2,880-log session past 20,000), and its scores could no
+    longer be kept or read. Small arrays cost their bytes in memory instead, which for such logs is little.
+    """
+    if path.stat().st_size >= MAPPED_BYTES:
+        return np.load(path, mmap_mode="r")
+    array = np.load(path)
+    array.flags.writeable = False  # as a read-only map: nobody changes a kept score in place
+    return array
+
+
 def write_array(folder: Path, log_id: int, name: str, array: np.ndarray) -> np.ndarray:
-    """Write one array whole or not at all; it comes back memory-mapped (read-only)."""
+    """Write one array whole or not at all; it comes back read-only (:func:`kept_array`)."""
     tmp = folder / f".{log_id:06d}.{name}.{uuid.uuid4().hex[:8]}.npy"
     with open(tmp, "wb") as f:
         np.save(f, np.asarray(array))
     path = folder / f"{log_id:06d}.{name}.npy"
     os.replace(tmp, path)
-    return np.load(path, mmap_mode="r")
+    return kept_array(path)
 
 
 def score_arrays(s: labeling.LogScores) -> dict[str, np.ndarray]:

@@ -24,7 +24,16 @@ import labeling
 from sessions import LogInfo, Session, Terrain
 
 from .forked_scores import rank_tracks, scored_forked, scoring_processes
-from .score_files import GROUP_STEPS, GroupFirst, Scored, kept_scores, log_groups, score_arrays, write_array
+from .score_files import (
+    GROUP_STEPS,
+    GroupFirst,
+    Scored,
+    kept_array,
+    kept_scores,
+    log_groups,
+    score_arrays,
+    write_array,
+)
 from .scores import TRACK_WINDOW, SessionScores, stage1_embedding
 
 # 2: one .npy per array, memory-mapped when read (a fleet's hours of scores: gigabytes a zip would read whole)
@@ -190,7 +199,7 @@ def _score_and_store(
         return None
     for kind, has in zip(labeling.KINDS, ranked, strict=True):
         for i in has:
-            tracks[i][kind] = np.load(folder / f"{i:06d}.track.{kind}.npy", mmap_mode="r")
+            tracks[i][kind] = kept_array(folder / f"{i:06d}.track.{kind}.npy")
             names[str(i)].append(f"track.{kind}")
     result = SessionScores(
         first.predictor,
@@ -276,7 +285,7 @@ def stored_scores(session: Session) -> StoredScores | None:
     tracks: dict[int, dict[str, np.ndarray]] = {}
     try:
         for x in logs:
-            z = {n: np.load(folder / f"{x.id:06d}.{n}.npy", mmap_mode="r") for n in meta["arrays"][str(x.id)]}
+            z = {n: kept_array(folder / f"{x.id:06d}.{n}.npy") for n in meta["arrays"][str(x.id)]}
             has = "probs" in z  # stage 1 only: surprise alone
             scores[x.id] = labeling.LogScores(
                 z["surprise"],

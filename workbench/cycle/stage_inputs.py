@@ -30,6 +30,7 @@ from training import (
 
 from .change_point_store import log_change_points
 from .front_end import log_frame_files
+from .score_files import kept_array
 
 PREDICTOR_BATCH = 64  # logs per stage-1 call when filling the cache
 
@@ -127,8 +128,8 @@ def _frame_outputs(
                 os.replace(tmp, cache / f"{x.id:06d}.{name}.npy")  # the surprise last: it marks the entry complete
     return {
         x.id: FrameOutputs(
-            np.load(cache / f"{x.id:06d}.{FRAME_MARK}.npy", mmap_mode="r"),
-            np.load(cache / f"{x.id:06d}.frame-hidden.npy", mmap_mode="r"),
+            kept_array(cache / f"{x.id:06d}.{FRAME_MARK}.npy"),  # small ones read: a map holds a file open
+            kept_array(cache / f"{x.id:06d}.frame-hidden.npy"),
             x.n_samples,
             bundle.spectral,
         )

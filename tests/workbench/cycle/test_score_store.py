@@ -40,8 +40,30 @@ def test_stored_scores_read_back_equal_and_complete(trained: Session) -> None:  
         for kind, track in scores.tracks[log_id].items():
             np.testing.assert_array_equal(got.tracks[log_id][kind], track)
         np.testing.assert_array_equal(got.embeddings[log_id][100:140], scores.embeddings[log_id][100:140])
-        # read lazily from the files, as a fleet's hours of scores must be: never written through
-        assert isinstance(g.probs, np.memmap) and not g.probs.flags.writeable
+        # a short log's arrays read whole, read-only (a memory map per array held a file open per array)
+        assert not isinstance(g.probs, np.memmap) and not g.probs.flags.writeable
+
+
+def test_hours_of_scores_are_mapped_and_many_logs_hold_no_file_open_each(
+    trained: Session,  # noqa: F811
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A session of many short logs: its kept scores held a file open per array (eleven per log), so 300 logs passed
+    the 1,024 open files a Linux desktop allows and the scores could no longer be kept or read. Now the files held
+    open do not grow with the logs; arrays of an hour's size are still memory-mapped, read lazily."""
+    from workbench.cycle import score_files
+
+    def held() -> int:
+        return len(os.listdir("/proc/self/fd"))
+
+    before = held()
+    store_scores(trained, compute_scores(trained))
+    back = stored_scores(trained)
+    assert back is not None and len(back.scores.scores) >= 2
+    assert held() - before <= 1, held() - before  # 3 logs x 11 arrays + their stage-1 frames held 35 more
+    monkeypatch.setattr(score_files, "MAPPED_BYTES", 0)  # every array counts as an hour's
+    mapped = stored_scores(trained)
+    assert all(isinstance(s.probs, np.memmap) and not s.probs.flags.writeable for s in mapped.scores.scores.values())
 
 
 def test_a_store_of_the_first_version_is_not_read_and_its_files_go_with_the_next_store(
@@ -209,7 +231,7 @@ def test_scoring_a_group_at_a_time_keeps_what_scoring_at_once_computes(trained: 
     assert (got.predictor, got.classifier, got.classes) == (whole.predictor, whole.classifier, whole.classes)
     for log_id, s in whole.scores.items():
         g = got.scores[log_id]
-        assert isinstance(g.probs, np.memmap) and not g.probs.flags.writeable  # read back from the kept files
+        assert not g.probs.flags.writeable and g.probs is not s.probs  # read back from the kept files
         for name in ("surprise", "probs", "disagreement", "drift"):
             if getattr(s, name) is None:
                 assert getattr(g, name) is None
@@ -257,7 +279,7 @@ def test_scoring_in_forked_processes_keeps_what_one_process_computes(trained: Se
     assert set(got.scores) == set(whole.scores)
     for log_id, s in whole.scores.items():
         g = got.scores[log_id]
-        assert isinstance(g.probs, np.memmap) and not g.probs.flags.writeable
+        assert not g.probs.flags.writeable and g.probs is not s.probs  # read back (read-only) from the files
         for name in ("surprise", "probs", "disagreement", "drift", "agreement"):
             if getattr(s, name) is None:
                 assert getattr(g, name) is None
