@@ -23,14 +23,13 @@ from __future__ import annotations
 import json
 import resource
 import shutil
-import socket
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from speed_common import Row, parse_args, record, wait_answering
+from speed_common import Row, free_port, parse_args, record, wait_answering
 
 LABELLED = 0.05
 IMU_LABELLED = 0.10  # the quadruped-shaped session's labels: 10 % of the time, in 5 s pieces
@@ -119,12 +118,6 @@ def run_child(step: str, args: list[str]) -> None:
         raise SystemExit(f"unknown step {step}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # kB on Linux
     print(json.dumps({"peak": peak, "seconds": time.perf_counter() - t, **extra}))
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def demo_first_start(folder: Path, *, quick: bool) -> tuple[float, float]:

@@ -21,7 +21,6 @@ bench calls it over HTTP as Label Studio does:
 from __future__ import annotations
 
 import json
-import socket
 import subprocess
 import sys
 import tempfile
@@ -29,7 +28,7 @@ import time
 import urllib.request
 from pathlib import Path
 
-from speed_common import Row, fmt_s, parse_args, record, wait_answering, write_imu_logs
+from speed_common import Row, fmt_s, free_port, parse_args, record, wait_answering, write_imu_logs
 
 LIMIT_S = 100.0  # Label Studio's ML_TIMEOUT_PREDICT
 
@@ -51,12 +50,6 @@ def _post(url: str, body: dict, *, timeout: float = 600.0) -> tuple[float, dict]
     with urllib.request.urlopen(request, timeout=timeout) as r:
         answer = json.loads(r.read())
     return time.perf_counter() - t, answer
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def set_up(folder: Path, *, n_logs: int, minutes: float) -> tuple[Path, list[dict], str, list[Path]]:
@@ -100,7 +93,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         session, tasks, config, files = set_up(folder, n_logs=n_logs, minutes=minutes)
-        port = _free_port()
+        port = free_port()
         url = f"http://127.0.0.1:{port}"
         exe = str(Path(sys.executable).with_name("workbench"))
         t = time.perf_counter()

@@ -10,14 +10,13 @@ of the window sent raw.
 
 from __future__ import annotations
 
-import socket
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from speed_common import Row, fmt_s, parse_args, record
+from speed_common import Row, fmt_s, free_port, parse_args, record
 
 from sessions import Session
 from workbench.demo import generate_walk, write_walk
@@ -31,12 +30,6 @@ CHROMIUM_FLAGS = [
     "--disable-sync",
     "--no-first-run",
 ]
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class Probe:

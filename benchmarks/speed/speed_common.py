@@ -148,6 +148,15 @@ IMU_RATE_HZ = 50.0
 COLUMNS = ("time", "ax", "ay", "az", "wx", "wy", "wz")
 
 
+def free_port() -> int:
+    """A TCP port free on loopback now, for a server a bench starts."""
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
 def wait_answering(proc, url: str, *, name: str) -> None:
     """Return once ``url`` answers 200, polling; raise with the process's output if ``proc`` exits first."""
     import urllib.request
