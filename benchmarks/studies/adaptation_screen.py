@@ -64,13 +64,14 @@ def adapted(bundle, samples: np.ndarray, variant: str, n: int) -> tuple[object, 
     return bundle, samples
 
 
-def far_figures(bundle, far, minutes: float) -> dict[str, tuple[float, float, dict[str, float]]]:
-    """Per variant: accuracy over every far step, the mean per far run, and per run."""
+def far_figures(bundle, far, minutes: float) -> dict[str, tuple[float, float, float, dict[str, float]]]:
+    """Per variant: accuracy over every far step, balanced (the floors' recalls' mean), the mean per far run, and
+    per run."""
     out = {}
     index = np.array([far.terrains.index(c) if c in far.terrains else -2 for c in bundle.classes])
     for variant in VARIANTS:
         right = total = 0
-        per_run = {}
+        per_run, trues, preds = {}, [], []
         for name, samples, truth in zip(far.names, far.arrays, far.truth, strict=True):
             b, x = adapted(bundle, samples, variant, round(minutes * 60 * bundle.rate_hz))
             (scored,) = score_arrays(b, [x])
@@ -79,7 +80,11 @@ def far_figures(bundle, far, minutes: float) -> dict[str, tuple[float, float, di
             per_run[name] = float((pred == truth[keep]).mean())
             right += int((pred == truth[keep]).sum())
             total += int(keep.sum())
-        out[variant] = (right / total, float(np.mean(list(per_run.values()))), per_run)
+            trues.append(truth[keep])
+            preds.append(pred)
+        true, pred = np.concatenate(trues), np.concatenate(preds)
+        balanced = float(np.mean([(pred[true == c] == c).mean() for c in np.unique(true)]))
+        out[variant] = (right / total, balanced, float(np.mean(list(per_run.values()))), per_run)
     return out
 
 
@@ -115,12 +120,12 @@ def main() -> int:
             train_classifier(s, warm_start=False)
             rows["ceiling (every step labelled)"] = far_figures(active_bundle(s)[1], far, opts.minutes)
     print(f"\nseed {opts.seed}: far runs scored by the bundle, adapted on each run's first {opts.minutes:g} min\n")
-    print("| bundle | input | far runs, every step (%) | mean per far run (%) | per far run (%) |")
-    print("| --- | --- | --- | --- | --- |")
+    print("| bundle | input | far runs, every step (%) | balanced (%) | mean per far run (%) | per far run (%) |")
+    print("| --- | --- | --- | --- | --- | --- |")
     for bundle_name, figures in rows.items():
-        for variant, (acc, mean, per_run) in figures.items():
+        for variant, (acc, balanced, mean, per_run) in figures.items():
             runs = ", ".join(f"{_short(k)} {100 * v:.1f}" for k, v in per_run.items())
-            print(f"| {bundle_name} | {variant} | {100 * acc:.1f} | {100 * mean:.1f} | {runs} |")
+            print(f"| {bundle_name} | {variant} | {100 * acc:.1f} | {100 * balanced:.1f} | {100 * mean:.1f} | {runs} |")
     print(f"\n{time.monotonic() - t0:.0f} s")
     return 0
 
