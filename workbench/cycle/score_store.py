@@ -36,7 +36,7 @@ from .score_files import (
 )
 from .scores import TRACK_WINDOW, SessionScores, stage1_embedding
 
-# 2: one .npy per array, memory-mapped when read (a fleet's hours of scores: gigabytes a zip would read whole)
+# 2: one .npy per array, memory-mapped when big (a fleet's hours of scores: gigabytes a zip would read whole)
 STORE_VERSION = 2
 META_FILE = "meta.json"
 QUEUE_FILE = "queue.json"
